@@ -1,0 +1,89 @@
+/* vdbio.h: OpenVDB files, behind a C interface.
+ *
+ * Writing: dense x-fastest arrays on a grid_dims_t become sparse fog-volume
+ * grids (zero background, voxels at zero left inactive) with a linear,
+ * cell-centred transform: index (i,j,k) maps to the centre of our voxel
+ * (i,j,k). The file is written under a temporary name and renamed.
+ *
+ * Reading: a grid from any file (ours or another tool's) is resampled
+ * trilinearly through its own transform, either at the voxel centres of one of
+ * our grids (ior_vdb, density_vdb) or densely over its own active bounding box
+ * (the viewing pass). Corrupt or truncated files, missing grids and grids of
+ * the wrong type are BK_ERR_INPUT with a message naming the file and grid. */
+#ifndef BAKER_VDBIO_H
+#define BAKER_VDBIO_H
+
+#include "grid.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum { VDBIO_FLOAT = 1, VDBIO_VEC3 = 3 } vdbio_type_t;
+
+typedef struct vdbio_grid {
+  const char *name;
+  vdbio_type_t type;
+  const float *data;      /* grid_count(dims) * type floats */
+  int vector_invariant;   /* Vec3 only: VEC_INVARIANT (radiance, colours) */
+} vdbio_grid_t;
+
+typedef enum { VDBIO_META_STRING, VDBIO_META_INT, VDBIO_META_FLOAT } vdbio_meta_kind_t;
+typedef struct vdbio_meta {
+  const char *key;
+  vdbio_meta_kind_t kind;
+  const char *s;
+  long long i;
+  double f;
+} vdbio_meta_t;
+
+typedef enum { VDBIO_COMPRESS_NONE = 0, VDBIO_COMPRESS_ZIP = 1, VDBIO_COMPRESS_BLOSC = 2 } vdbio_compression_t;
+typedef struct vdbio_write_opts {
+  vdbio_compression_t compression; /* default zip */
+  int half_float;                  /* save floats as 16-bit */
+} vdbio_write_opts_t;
+
+int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *grids,
+                int grid_count, const vdbio_meta_t *meta, int meta_count,
+                const vdbio_write_opts_t *opts, bk_error_t *err);
+
+/* Samples float grid `grid_name` of `path` at every voxel centre of `dims`
+ * (world space, trilinear, background outside its active voxels).
+ * `where` names the scene key for messages. */
+int vdbio_resample_float(const char *path, const char *grid_name, const grid_dims_t *dims,
+                         float *out, const char *where, bk_error_t *err);
+
+/* A grid read densely over an index box, with the affine map from that box's
+ * indices (cell centres) to world space. */
+typedef struct vdbio_dense {
+  int nx, ny, nz;
+  int channels;                 /* 1 or 3 */
+  float *data;                  /* x-fastest, channels interleaved */
+  double index_to_world[3][4];  /* world = M * (i, j, k, 1) */
+  double world_to_index[3][4];
+  int uniform_scale;            /* the map is translation + uniform scale */
+  double voxel_size;            /* world length of one index step (uniform) */
+} vdbio_dense_t;
+
+/* Lists the grids in a file: fills names (caller frees with vdbio_free_names). */
+int vdbio_list_grids(const char *path, char ***names, char ***types, int *count, bk_error_t *err);
+void vdbio_free_names(char **names, char **types, int count);
+
+/* Reads `grid_name` densely over its active bounding box (plus `pad` voxels).
+ * It must be float or Vec3f (else BK_ERR_INPUT naming the type found). */
+int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
+                     bk_error_t *err);
+/* Reads `grid_name` resampled into the index space of `like` (same box and
+ * transform), through its own transform. *found = 0 when the file has no such
+ * grid (not an error: callers decide). Float grids give 1 channel, Vec3f 3. */
+int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_dense_t *like,
+                          vdbio_dense_t *out, int *found, bk_error_t *err);
+void vdbio_dense_free(vdbio_dense_t *d);
+
+/* Reads a string or number metadata entry from the file as text ("" if absent). */
+int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

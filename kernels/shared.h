@@ -1,0 +1,84 @@
+/* shared.h: math shared by the host C code and the OpenCL kernels.
+ *
+ * Everything here compiles both as OpenCL C 1.2 and as C11, so the host tests
+ * run the very functions the device runs (Cycles kernel/types.h habit).
+ * Vectors are a plain struct rather than float3 so the layout is identical on
+ * both sides; PoCL vectorises across work-items anyway. Structs that cross the
+ * host/device boundary are pinned with BK_STATIC_ASSERT on the host. */
+#ifndef BAKER_SHARED_H
+#define BAKER_SHARED_H
+
+#ifdef __OPENCL_VERSION__
+#define BK_INLINE static inline
+#define BK_GLOBAL __global
+#define BK_CONSTANT __constant
+#define BK_STATIC_ASSERT(cond, msg)
+typedef uint bk_uint;
+typedef ulong bk_ulong;
+typedef long bk_long;
+#else
+#include <math.h>
+#include <stdint.h>
+#define BK_INLINE static inline
+#define BK_GLOBAL
+#define BK_CONSTANT
+#define BK_STATIC_ASSERT(cond, msg) _Static_assert(cond, msg)
+typedef uint32_t bk_uint;
+typedef uint64_t bk_ulong;
+typedef int64_t bk_long;
+#endif
+
+typedef struct bk_v3 {
+  float x, y, z;
+} bk_v3;
+
+BK_INLINE bk_v3 v3(float x, float y, float z) { bk_v3 r; r.x = x; r.y = y; r.z = z; return r; }
+BK_INLINE bk_v3 v3_add(bk_v3 a, bk_v3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
+BK_INLINE bk_v3 v3_sub(bk_v3 a, bk_v3 b) { return v3(a.x - b.x, a.y - b.y, a.z - b.z); }
+BK_INLINE bk_v3 v3_mul(bk_v3 a, bk_v3 b) { return v3(a.x * b.x, a.y * b.y, a.z * b.z); }
+BK_INLINE bk_v3 v3_scale(bk_v3 a, float s) { return v3(a.x * s, a.y * s, a.z * s); }
+BK_INLINE bk_v3 v3_madd(bk_v3 a, bk_v3 b, float s) { return v3(a.x + b.x * s, a.y + b.y * s, a.z + b.z * s); }
+BK_INLINE float v3_dot(bk_v3 a, bk_v3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+BK_INLINE bk_v3 v3_cross(bk_v3 a, bk_v3 b) {
+  return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+BK_INLINE float v3_length(bk_v3 a) { return sqrt(v3_dot(a, a)); }
+BK_INLINE bk_v3 v3_normalize(bk_v3 a) {
+  float l = v3_length(a);
+  return l > 0.0f ? v3_scale(a, 1.0f / l) : a;
+}
+BK_INLINE float bk_clampf(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
+BK_INLINE int bk_clampi(int x, int lo, int hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+/* Grid description passed to kernels: world <-> voxel coordinates.
+ * Voxel coordinate u = (x - origin) / voxel_size, so voxel (i,j,k) spans
+ * [i, i+1) and its centre is at i + 0.5. */
+typedef struct bk_grid {
+  int nx, ny, nz, pad0;
+  float origin_x, origin_y, origin_z, voxel_size;
+} bk_grid;
+BK_STATIC_ASSERT(sizeof(bk_grid) == 32, "bk_grid layout is shared with kernels");
+
+BK_INLINE int bk_grid_index(const bk_grid g, int i, int j, int k) {
+  return i + g.nx * (j + g.ny * k);
+}
+
+/* Trilinear sample of a scalar field at voxel coordinate u (cell-centred:
+ * the value of voxel i sits at i + 0.5), clamped to the edge voxels. */
+BK_INLINE float bk_sample_trilinear(BK_GLOBAL const float *f, const bk_grid g, bk_v3 u) {
+  float fx = u.x - 0.5f, fy = u.y - 0.5f, fz = u.z - 0.5f;
+  float flx = floor(fx), fly = floor(fy), flz = floor(fz);
+  int i0 = (int)flx, j0 = (int)fly, k0 = (int)flz;
+  float tx = fx - flx, ty = fy - fly, tz = fz - flz;
+  int i1 = bk_clampi(i0 + 1, 0, g.nx - 1), j1 = bk_clampi(j0 + 1, 0, g.ny - 1), k1 = bk_clampi(k0 + 1, 0, g.nz - 1);
+  i0 = bk_clampi(i0, 0, g.nx - 1); j0 = bk_clampi(j0, 0, g.ny - 1); k0 = bk_clampi(k0, 0, g.nz - 1);
+  float c00 = f[bk_grid_index(g, i0, j0, k0)] * (1.0f - tx) + f[bk_grid_index(g, i1, j0, k0)] * tx;
+  float c10 = f[bk_grid_index(g, i0, j1, k0)] * (1.0f - tx) + f[bk_grid_index(g, i1, j1, k0)] * tx;
+  float c01 = f[bk_grid_index(g, i0, j0, k1)] * (1.0f - tx) + f[bk_grid_index(g, i1, j0, k1)] * tx;
+  float c11 = f[bk_grid_index(g, i0, j1, k1)] * (1.0f - tx) + f[bk_grid_index(g, i1, j1, k1)] * tx;
+  float c0 = c00 * (1.0f - ty) + c10 * ty;
+  float c1 = c01 * (1.0f - ty) + c11 * ty;
+  return c0 * (1.0f - tz) + c1 * tz;
+}
+
+#endif
