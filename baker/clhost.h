@@ -2,7 +2,7 @@
  *
  * Chooses a platform and device (PoCL by default, so a bake runs the same on
  * any machine; `--device` picks another), builds programs from the kernels
- * embedded at build time (kernels/*.cl with their headers, `#include "x.h"`
+ * embedded at build time (the .cl files of kernels/ with their headers, `#include "x.h"`
  * resolved from the same set) with `-D` options, prints the build log on
  * failure, and caches program binaries on disk keyed by a hash of the full
  * expanded source, the options and the device. Every OpenCL call goes through
