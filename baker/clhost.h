@@ -28,6 +28,16 @@ typedef struct clh_source {
 } clh_source_t;
 extern const clh_source_t clh_embedded_sources[];
 
+/* What clh_build did, so callers and tests can see the cache at work. */
+typedef struct clh_build_stats {
+  unsigned cache_hits;    /* programs loaded from the binary cache */
+  unsigned cache_misses;  /* cache on, but no usable entry */
+  unsigned source_builds; /* programs compiled from source */
+  int last_hit;           /* the latest build came from the cache */
+  double last_ms;         /* wall time of the latest build */
+  uint64_t last_key;      /* its cache key */
+} clh_build_stats_t;
+
 typedef struct clh_context {
   cl_platform_id platform;
   cl_device_id device;
@@ -41,6 +51,7 @@ typedef struct clh_context {
   cl_ulong max_alloc;
   int has_int64_atomics;   /* cl_khr_int64_base_atomics */
   int is_cpu;
+  clh_build_stats_t stats;
 } clh_context_t;
 
 const char *clh_error_name(cl_int code);
@@ -72,8 +83,18 @@ void clh_list_devices(FILE *out);
 int clh_build(clh_context_t *cl, const char *file, const char *options, cl_program *out,
               bk_error_t *err);
 
+/* What clh_build does once it has the text: `name` is only used in messages
+ * ("kernels/x.cl"); includes resolve from the embedded kernels. Lets tests
+ * build a source that is not in kernels/. */
+int clh_build_source(clh_context_t *cl, const char *name, const char *text, const char *options,
+                     cl_program *out, bk_error_t *err);
+
 /* The full source of kernels/<file> with its includes expanded (caller frees). */
 char *clh_expand_source(const char *file, bk_error_t *err);
+/* The same for `text` called `name`, resolving `#include "x"` from `table`
+ * (NULL-terminated); a missing file or an include cycle is BK_ERR_RUNTIME. */
+char *clh_expand_with(const clh_source_t *table, const char *name, const char *text,
+                      bk_error_t *err);
 
 #ifdef __cplusplus
 }

@@ -3,6 +3,7 @@
 #include "common.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <libgen.h>
 #include <stdarg.h>
 #include <stdlib.h>
@@ -205,8 +206,15 @@ int bk_check_output_dir(const char *path, bk_error_t *err) {
   const char *dir = dirname(copy);
   if (access(dir, F_OK) != 0)
     return bk_fail(err, BK_ERR_INPUT, "%s: output directory %s does not exist", path, dir);
-  if (access(dir, W_OK) != 0)
+  /* access() says yes to root everywhere; creating the temporary file is the
+   * real test (read-only mounts, /proc, quotas) */
+  char temp[4200];
+  bk_temp_path(path, temp, sizeof temp);
+  int fd = access(dir, W_OK) == 0 ? open(temp, O_WRONLY | O_CREAT | O_EXCL, 0644) : -1;
+  if (fd < 0)
     return bk_fail(err, BK_ERR_INPUT, "%s: output directory %s is not writable", path, dir);
+  close(fd);
+  unlink(temp);
   return BK_OK;
 }
 

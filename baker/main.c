@@ -1,3 +1,3 @@
-/* main.c: command dispatch (being written by the coordinator). */
-#include <stdio.h>
-int main(void) { fprintf(stderr, "baker: under construction\n"); return 1; }
+/* main.c: command dispatch (the full version lands with the viewing pass). */
+#include "bake.h"
+int main(int argc, char **argv) { return argc > 1 ? bake_main(argc - 1, argv + 1) : 2; }

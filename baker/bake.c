@@ -1,0 +1,304 @@
+/* bake.c: the `baker bake` command and the per-frame pipeline. */
+#define _POSIX_C_SOURCE 200809L
+#include "bake.h"
+
+#include <errno.h>
+#include <inttypes.h>
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "clhost.h"
+#include "common.h"
+#include "grid.h"
+#include "voxelize.h"
+
+static void bake_usage(FILE *out) {
+  fprintf(out,
+          "usage: baker bake SCENE.json -o OUT.vdb [options]\n"
+          "\n"
+          "Voxelizes the scene's meshes into index-of-refraction and medium grids, traces\n"
+          "photons along curved paths on OpenCL and writes the grids radiance, ior,\n"
+          "extinction, scattering and density to OUT.vdb (DESIGN.md §5).\n"
+          "\n"
+          "options:\n"
+          "  -o, --output PATH        output .vdb (required); may hold a frame pattern\n"
+          "  --frames A[-B[xS]]       bake frames A..B step S; `####` (4 digits) or `$F4`\n"
+          "                           in SCENE and PATH become the frame number. Frames\n"
+          "                           whose output exists are skipped (restartable); one\n"
+          "                           frame per task: --frames $SLURM_ARRAY_TASK_ID\n"
+          "  --force                  re-bake frames whose output already exists\n"
+          "  --mode reference|adaptive   photon pipeline (scene photons.mode)\n"
+          "  --photons N              photon count (scene photons.count)\n"
+          "  --integrator euler|rk4   ray-equation integrator (scene photons.integrator)\n"
+          "  --step VOXELS            march step in refractive regions (scene photons.step)\n"
+          "  --seed N                 sampling seed (scene photons.seed)\n"
+          "  --resolution N           voxels along the longest side (scene grid.resolution)\n"
+          "  --compression zip|blosc|none   VDB compression (default zip)\n"
+          "  --half                   store float grids as 16-bit half\n"
+          "  --device SPEC            OpenCL device: `P:D` indices or a name substring;\n"
+          "                           default PoCL (CPU). `baker devices` lists them\n"
+          "  --host                   march on the host in plain C instead of OpenCL\n"
+          "  --progress               show progress even when stderr is not a terminal\n"
+          "  -q, --quiet              errors only (no timing table)\n"
+          "  -v, --verbose            more detail (OpenCL build logs, cache use)\n"
+          "  -h, --help               this text\n"
+          "\n"
+          "Exit status: 0 success, 2 bad input or usage, 1 runtime failure.\n");
+}
+
+/* Parses a whole-string number; 0 on junk. */
+static int parse_ll(const char *s, long long *out) {
+  char *end;
+  errno = 0;
+  long long v = strtoll(s, &end, 10);
+  if (errno || end == s || *end) return 0;
+  *out = v;
+  return 1;
+}
+static int parse_float(const char *s, float *out) {
+  char *end;
+  errno = 0;
+  float v = strtof(s, &end);
+  if (errno || end == s || *end) return 0;
+  *out = v;
+  return 1;
+}
+
+static void apply_overrides(const bake_options_t *opt, scene_t *s) {
+  if (opt->mode >= 0) s->mode = (photon_mode_t)opt->mode;
+  if (opt->photons > 0) s->photon_count = opt->photons;
+  if (opt->integrator >= 0) s->integrator = (integrator_t)opt->integrator;
+  if (opt->step > 0) s->step = opt->step;
+  if (opt->resolution > 0) s->resolution = opt->resolution;
+  if (opt->seed >= 0) s->seed = (unsigned)opt->seed;
+}
+
+/* An existing output counts as complete when it opens as a VDB written by
+ * baker: files are renamed into place only once fully written, so a partial
+ * file can only come from another program. */
+static int output_complete(const char *path) {
+  if (access(path, F_OK) != 0) return 0;
+  char creator[256];
+  bk_error_t err;
+  if (vdbio_read_meta(path, "creator", creator, sizeof creator, &err) != BK_OK) return 0;
+  return strncmp(creator, "baker", 5) == 0;
+}
+
+/* sigma_t = sigma_s + sigma_a per channel, the grey density (mean of the
+ * channels), and whether the coefficients are grey. */
+static int derive_medium_grids(const volume_t *v, float **extinction, float **density,
+                               bk_error_t *err) {
+  size_t n = grid_count(&v->dims);
+  *extinction = bk_calloc(n * 3, sizeof(float), "extinction grid", err);
+  *density = bk_calloc(n, sizeof(float), "density grid", err);
+  if (!*extinction || !*density) return err->code;
+  for (size_t i = 0; i < n; i++) {
+    float sum = 0.0f;
+    for (int c = 0; c < 3; c++) {
+      float t = v->sigma_s[3 * i + c] + v->sigma_a[3 * i + c];
+      (*extinction)[3 * i + c] = t;
+      sum += t;
+    }
+    (*density)[i] = sum / 3.0f;
+  }
+  return BK_OK;
+}
+
+/* For grey media the Vec3 grids collapse to floats (DESIGN §5 allows it, and
+ * renderers read a float `extinction` more widely). */
+static float *first_channel(const float *rgb, size_t n, bk_error_t *err) {
+  float *out = bk_calloc(n, sizeof(float), "grey grid", err);
+  if (out)
+    for (size_t i = 0; i < n; i++) out[i] = rgb[3 * i];
+  return out;
+}
+
+int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
+               bk_error_t *err) {
+  scene_t scene;
+  volume_t vol;
+  bk_timings_t timings;
+  float *extinction = NULL, *density = NULL, *ext_grey = NULL, *sca_grey = NULL;
+  memset(&vol, 0, sizeof vol);
+  memset(&timings, 0, sizeof timings);
+  int rc = bk_check_output_dir(out_path, err);
+  if (rc) return rc;
+
+  double t0 = bk_now_ms();
+  rc = scene_load(scene_path, &scene, err);
+  if (rc) return rc;
+  apply_overrides(opt, &scene);
+  bk_timings_add(&timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
+                 scene.object_count, scene.light_count);
+
+  rc = vox_build(&scene, &vol, &timings, err);
+  if (rc) goto done;
+
+  t0 = bk_now_ms();
+  size_t n = grid_count(&vol.dims);
+  rc = derive_medium_grids(&vol, &extinction, &density, err);
+  if (rc) goto done;
+  vdbio_grid_t grids[8];
+  int g = 0;
+  grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, vol.ior, 0};
+  if (vol.grey) {
+    ext_grey = first_channel(extinction, n, err);
+    sca_grey = first_channel(vol.sigma_s, n, err);
+    if (!ext_grey || !sca_grey) {
+      rc = err->code;
+      goto done;
+    }
+    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_FLOAT, ext_grey, 0};
+    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_FLOAT, sca_grey, 0};
+  } else {
+    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, extinction, 1};
+    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_VEC3, vol.sigma_s, 1};
+  }
+  grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, density, 0};
+
+  char hash[32], bounds[160];
+  snprintf(hash, sizeof hash, "%016" PRIx64, scene.hash);
+  snprintf(bounds, sizeof bounds, "[[%g,%g,%g],[%g,%g,%g]]", scene.bounds_min[0],
+           scene.bounds_min[1], scene.bounds_min[2], scene.bounds_max[0], scene.bounds_max[1],
+           scene.bounds_max[2]);
+  vdbio_meta_t meta[] = {
+      {"mode", VDBIO_META_STRING, scene_mode_name(scene.mode), 0, 0},
+      {"scene_file", VDBIO_META_STRING, scene_path, 0, 0},
+      {"scene_hash", VDBIO_META_STRING, hash, 0, 0},
+      {"frame", VDBIO_META_INT, NULL, frame, 0},
+      {"grid_bounds", VDBIO_META_STRING, bounds, 0, 0},
+      {"grid_resolution", VDBIO_META_INT, NULL, scene.resolution, 0},
+      {"ior_smoothing_voxels", VDBIO_META_FLOAT, NULL, 0, scene.ior_smoothing},
+  };
+  rc = vdbio_write(out_path, &vol.dims, grids, g, meta, (int)(sizeof meta / sizeof meta[0]),
+                   &opt->write, err);
+  if (rc) goto done;
+  bk_timings_add(&timings, "write", bk_now_ms() - t0, "%s", out_path);
+
+  if (bk_verbosity >= 1) {
+    printf("baked %s -> %s (%dx%dx%d voxels of %g m)\n", scene_path, out_path, vol.dims.nx,
+           vol.dims.ny, vol.dims.nz, vol.dims.voxel_size);
+    bk_timings_print(&timings, stdout);
+    fflush(stdout);
+  }
+done:
+  free(extinction);
+  free(density);
+  free(ext_grey);
+  free(sca_grey);
+  vox_free(&vol);
+  scene_free(&scene);
+  return rc;
+}
+
+int bake_main(int argc, char **argv) {
+  bake_options_t opt;
+  memset(&opt, 0, sizeof opt);
+  opt.mode = opt.integrator = -1;
+  opt.photons = opt.seed = -1;
+  opt.step = -1.0f;
+  opt.resolution = -1;
+  opt.write.compression = VDBIO_COMPRESS_ZIP;
+
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i];
+    const char *val = (i + 1 < argc) ? argv[i + 1] : NULL;
+#define NEED_VALUE()                                                            \
+  do {                                                                          \
+    if (!val) {                                                                 \
+      fprintf(stderr, "baker bake: %s needs a value (see baker bake --help)\n", a); \
+      return BK_ERR_INPUT;                                                      \
+    }                                                                           \
+    i++;                                                                        \
+  } while (0)
+#define BAD_VALUE(what)                                                              \
+  do {                                                                               \
+    fprintf(stderr, "baker bake: %s: expected %s, got '%s'\n", a, what, val);        \
+    return BK_ERR_INPUT;                                                             \
+  } while (0)
+    long long ll;
+    if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
+      bake_usage(stdout);
+      return BK_OK;
+    } else if (!strcmp(a, "-o") || !strcmp(a, "--output")) {
+      NEED_VALUE();
+      opt.out_path = val;
+    } else if (!strcmp(a, "--frames")) {
+      NEED_VALUE();
+      opt.frames = val;
+    } else if (!strcmp(a, "--force")) {
+      opt.force = 1;
+    } else if (!strcmp(a, "--mode")) {
+      NEED_VALUE();
+      if (!strcmp(val, "reference")) opt.mode = MODE_REFERENCE;
+      else if (!strcmp(val, "adaptive")) opt.mode = MODE_ADAPTIVE;
+      else BAD_VALUE("reference or adaptive");
+    } else if (!strcmp(a, "--photons")) {
+      NEED_VALUE();
+      if (!parse_ll(val, &ll) || ll < 1) BAD_VALUE("a positive photon count");
+      opt.photons = ll;
+    } else if (!strcmp(a, "--integrator")) {
+      NEED_VALUE();
+      if (!strcmp(val, "euler")) opt.integrator = INTEGRATOR_EULER;
+      else if (!strcmp(val, "rk4")) opt.integrator = INTEGRATOR_RK4;
+      else BAD_VALUE("euler or rk4");
+    } else if (!strcmp(a, "--step")) {
+      NEED_VALUE();
+      if (!parse_float(val, &opt.step) || !(opt.step > 0.0f)) BAD_VALUE("a positive step in voxels");
+    } else if (!strcmp(a, "--seed")) {
+      NEED_VALUE();
+      if (!parse_ll(val, &ll) || ll < 0 || ll > UINT_MAX) BAD_VALUE("a seed in 0..4294967295");
+      opt.seed = ll;
+    } else if (!strcmp(a, "--resolution")) {
+      NEED_VALUE();
+      if (!parse_ll(val, &ll) || ll < 1 || ll > INT_MAX) BAD_VALUE("a positive voxel count");
+      opt.resolution = (int)ll;
+    } else if (!strcmp(a, "--compression")) {
+      NEED_VALUE();
+      if (!strcmp(val, "zip")) opt.write.compression = VDBIO_COMPRESS_ZIP;
+      else if (!strcmp(val, "blosc")) opt.write.compression = VDBIO_COMPRESS_BLOSC;
+      else if (!strcmp(val, "none")) opt.write.compression = VDBIO_COMPRESS_NONE;
+      else BAD_VALUE("zip, blosc or none");
+    } else if (!strcmp(a, "--half")) {
+      opt.write.half_float = 1;
+    } else if (!strcmp(a, "--device")) {
+      NEED_VALUE();
+      opt.device = val;
+    } else if (!strcmp(a, "--host")) {
+      opt.host_only = 1;
+    } else if (!strcmp(a, "--progress")) {
+      bk_progress_forced = 1;
+    } else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) {
+      bk_verbosity = 0;
+    } else if (!strcmp(a, "-v") || !strcmp(a, "--verbose")) {
+      bk_verbosity = 2;
+    } else if (a[0] == '-' && a[1]) {
+      fprintf(stderr, "baker bake: unknown option '%s' (see baker bake --help)\n", a);
+      return BK_ERR_INPUT;
+    } else if (!opt.scene_path) {
+      opt.scene_path = a;
+    } else {
+      fprintf(stderr, "baker bake: unexpected argument '%s' (one scene per command)\n", a);
+      return BK_ERR_INPUT;
+    }
+#undef NEED_VALUE
+#undef BAD_VALUE
+  }
+  if (!opt.scene_path || !opt.out_path) {
+    fprintf(stderr, "baker bake: %s\n\n", !opt.scene_path ? "no scene file given" : "no output given (-o OUT.vdb)");
+    bake_usage(stderr);
+    return BK_ERR_INPUT;
+  }
+
+  bk_error_t err = {0, ""};
+  int rc = BK_OK;
+  if (!opt.force && output_complete(opt.out_path)) {
+    bk_log(1, "%s exists and is complete: skipped (--force re-bakes it)", opt.out_path);
+    return BK_OK;
+  }
+  rc = bake_frame(&opt, opt.scene_path, opt.out_path, 0, &err);
+  if (rc) fprintf(stderr, "baker bake: %s\n", err.msg);
+  return rc;
+}

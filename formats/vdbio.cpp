@@ -1,0 +1,583 @@
+/* vdbio.cpp: OpenVDB behind the C interface of vdbio.h.
+ *
+ * Every entry point catches openvdb and std exceptions and turns them into a
+ * bk_error_t: no exception ever crosses into C. Files are read fully (no
+ * delayed loading), so a truncated or corrupt file fails inside the call that
+ * opened it, never later from a memory-mapped page or a worker thread. */
+#include "vdbio.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Dense.h>
+#include <openvdb/tools/Interpolation.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+#include <new>
+#include <set>
+#include <string>
+#include <unistd.h>
+
+namespace vdb = openvdb;
+
+static const char *const VDBIO_CENTERING =
+    "cell-centred: voxel (i,j,k) covers the cube centred at indexToWorld(i,j,k)";
+
+static void vdbio_init(void) {
+  static std::once_flag once;
+  std::call_once(once, [] { vdb::initialize(); });
+}
+
+/* "where: path" or just "path", the prefix of every read error. */
+static std::string vdbio_prefix(const char *path, const char *where) {
+  std::string s;
+  if (where && where[0]) s = std::string(where) + ": ";
+  return s + (path ? path : "(null)");
+}
+
+/* --- writing --------------------------------------------------------------- */
+
+/* The transform that puts index (i,j,k) at the centre of our voxel (i,j,k). */
+static vdb::math::Transform::Ptr vdbio_cell_centred_transform(const grid_dims_t *d) {
+  const double vs = (double)d->voxel_size;
+  vdb::math::Transform::Ptr xf = vdb::math::Transform::createLinearTransform(vs);
+  xf->postTranslate(vdb::Vec3d((double)d->origin[0] + 0.5 * vs, (double)d->origin[1] + 0.5 * vs,
+                               (double)d->origin[2] + 0.5 * vs));
+  return xf;
+}
+
+/* Dense x-fastest array -> sparse grid; exact zeros stay inactive background
+ * (tolerance 0). copyFromDense only reads the array, hence the const_cast. */
+template <typename GridT>
+static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *data) {
+  using ValueT = typename GridT::ValueType;
+  static_assert(sizeof(ValueT) % sizeof(float) == 0, "float or Vec3s");
+  const vdb::CoordBBox box(vdb::Coord(0, 0, 0), vdb::Coord(d->nx - 1, d->ny - 1, d->nz - 1));
+  vdb::tools::Dense<ValueT, vdb::tools::LayoutXYZ> dense(
+      box, reinterpret_cast<ValueT *>(const_cast<float *>(data)));
+  typename GridT::Ptr grid = GridT::create(vdb::zeroVal<ValueT>());
+  vdb::tools::copyFromDense(dense, *grid, vdb::zeroVal<ValueT>());
+  return grid;
+}
+
+int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *grids,
+                int grid_count, const vdbio_meta_t *meta, int meta_count,
+                const vdbio_write_opts_t *opts, bk_error_t *err) {
+  if (!path || !path[0]) return bk_fail(err, BK_ERR_INPUT, "vdbio_write: empty output path");
+  if (!dims || dims->nx < 1 || dims->ny < 1 || dims->nz < 1 || !(dims->voxel_size > 0.0f) ||
+      !std::isfinite(dims->voxel_size))
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: invalid grid dimensions for writing", path);
+  if (grid_count < 0 || (grid_count > 0 && !grids) || meta_count < 0 || (meta_count > 0 && !meta))
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: invalid grid or metadata list for writing", path);
+  {
+    std::set<std::string> seen;
+    for (int g = 0; g < grid_count; g++) {
+      if (!grids[g].name || !grids[g].name[0] || !grids[g].data ||
+          (grids[g].type != VDBIO_FLOAT && grids[g].type != VDBIO_VEC3))
+        return bk_fail(err, BK_ERR_RUNTIME, "%s: grid %d has no name, no data or an unknown type",
+                       path, g);
+      if (!seen.insert(grids[g].name).second)
+        return bk_fail(err, BK_ERR_RUNTIME, "%s: grid name \"%s\" is used twice", path,
+                       grids[g].name);
+    }
+    for (int m = 0; m < meta_count; m++)
+      if (!meta[m].key || !meta[m].key[0] ||
+          (meta[m].kind == VDBIO_META_STRING && !meta[m].s))
+        return bk_fail(err, BK_ERR_RUNTIME, "%s: metadata entry %d has no key or no value", path,
+                       m);
+  }
+  int rc = bk_check_output_dir(path, err);
+  if (rc) return rc;
+
+  char tmp[4096];
+  bk_temp_path(path, tmp, sizeof tmp);
+  vdbio_init();
+  try {
+    vdb::math::Transform::Ptr xf = vdbio_cell_centred_transform(dims);
+    const bool half = opts && opts->half_float;
+    vdb::GridPtrVec out;
+    for (int g = 0; g < grid_count; g++) {
+      vdb::GridBase::Ptr base;
+      if (grids[g].type == VDBIO_FLOAT) {
+        base = vdbio_from_dense<vdb::FloatGrid>(dims, grids[g].data);
+      } else {
+        vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, grids[g].data);
+        /* unset means the OpenVDB default, which is also invariant; set it
+         * explicitly so readers see the metadata */
+        if (grids[g].vector_invariant) v->setVectorType(vdb::VEC_INVARIANT);
+        base = v;
+      }
+      base->setName(grids[g].name);
+      base->setGridClass(vdb::GRID_FOG_VOLUME);
+      base->setTransform(xf->copy());
+      base->setSaveFloatAsHalf(half);
+      out.push_back(base);
+    }
+
+    vdb::MetaMap file_meta;
+    for (int m = 0; m < meta_count; m++) {
+      switch (meta[m].kind) {
+      case VDBIO_META_STRING:
+        file_meta.insertMeta(meta[m].key, vdb::StringMetadata(meta[m].s));
+        break;
+      case VDBIO_META_INT:
+        file_meta.insertMeta(meta[m].key, vdb::Int64Metadata((int64_t)meta[m].i));
+        break;
+      case VDBIO_META_FLOAT:
+        file_meta.insertMeta(meta[m].key, vdb::DoubleMetadata(meta[m].f));
+        break;
+      default:
+        return bk_fail(err, BK_ERR_RUNTIME, "%s: metadata \"%s\" has an unknown kind %d", path,
+                       meta[m].key, (int)meta[m].kind);
+      }
+    }
+    if (!file_meta["creator"])
+      file_meta.insertMeta("creator", vdb::StringMetadata("baker " BAKER_VERSION));
+    if (!file_meta["voxel_centering"])
+      file_meta.insertMeta("voxel_centering", vdb::StringMetadata(VDBIO_CENTERING));
+
+    uint32_t comp = vdb::io::COMPRESS_ZIP | vdb::io::COMPRESS_ACTIVE_MASK;
+    if (opts && opts->compression == VDBIO_COMPRESS_NONE) {
+      comp = vdb::io::COMPRESS_NONE;
+    } else if (opts && opts->compression == VDBIO_COMPRESS_BLOSC) {
+      if (vdb::io::Archive::hasBloscCompression())
+        comp = vdb::io::COMPRESS_BLOSC | vdb::io::COMPRESS_ACTIVE_MASK;
+      else
+        bk_warn("%s: this OpenVDB has no Blosc compression; writing with Zip instead", path);
+    }
+
+    vdb::io::File file(tmp);
+    file.setCompression(comp);
+    file.write(out, file_meta);
+    file.close();
+  } catch (const std::bad_alloc &) {
+    remove(tmp);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while writing the VDB file", path);
+  } catch (const std::exception &e) {
+    remove(tmp);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write VDB file: %s", path, e.what());
+  } catch (...) {
+    remove(tmp);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write VDB file: unknown error", path);
+  }
+  return bk_commit_temp(tmp, path, err);
+}
+
+/* --- reading --------------------------------------------------------------- */
+
+/* Opens `path` fully (no delayed loading); BK_ERR_INPUT when it is missing or
+ * is not a VDB file. Exceptions are the caller's to catch. */
+static int vdbio_open(vdb::io::File &file, const char *path, const char *where, bk_error_t *err) {
+  /* io::File says only "could not open"; errno says why */
+  FILE *probe = fopen(path, "rb");
+  if (!probe)
+    return bk_fail(err, BK_ERR_INPUT, "%s: cannot open VDB file: %s",
+                   vdbio_prefix(path, where).c_str(), strerror(errno));
+  fclose(probe);
+  try {
+    file.open(false);
+  } catch (const std::bad_alloc &) {
+    throw;
+  } catch (const std::exception &e) {
+    return bk_fail(err, BK_ERR_INPUT, "%s: not a readable VDB file (%s)",
+                   vdbio_prefix(path, where).c_str(), e.what());
+  }
+  return BK_OK;
+}
+
+/* "density (float), vel (vec3s)" for messages. */
+static std::string vdbio_grid_list(vdb::io::File &file) {
+  std::string s;
+  try {
+    vdb::GridPtrVecPtr grids = file.readAllGridMetadata();
+    for (const vdb::GridBase::Ptr &g : *grids) {
+      if (!s.empty()) s += ", ";
+      s += "\"" + g->getName() + "\" (" + g->valueType() + ")";
+    }
+  } catch (const std::exception &) {
+    for (vdb::io::File::NameIterator it = file.beginName(); it != file.endName(); ++it) {
+      if (!s.empty()) s += ", ";
+      s += "\"" + *it + "\"";
+    }
+  }
+  return s.empty() ? std::string("none") : s;
+}
+
+/* Reads one grid; *found = 0 (with BK_OK) when absent and found != NULL,
+ * BK_ERR_INPUT listing the file's grids when absent and found == NULL. */
+static int vdbio_read_grid(vdb::io::File &file, const char *path, const char *where,
+                           const char *grid_name, vdb::GridBase::Ptr &grid, int *found,
+                           bk_error_t *err) {
+  if (!grid_name || !grid_name[0])
+    return bk_fail(err, BK_ERR_INPUT, "%s: no grid name given", vdbio_prefix(path, where).c_str());
+  if (!file.hasGrid(grid_name)) {
+    if (found) {
+      *found = 0;
+      return BK_OK;
+    }
+    return bk_fail(err, BK_ERR_INPUT, "%s: no grid named \"%s\"; the file has %s",
+                   vdbio_prefix(path, where).c_str(), grid_name, vdbio_grid_list(file).c_str());
+  }
+  try {
+    grid = file.readGrid(grid_name);
+  } catch (const std::bad_alloc &) {
+    throw;
+  } catch (const std::exception &e) {
+    return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" cannot be read, the file is truncated or "
+                   "corrupt (%s)", vdbio_prefix(path, where).c_str(), grid_name, e.what());
+  }
+  if (!grid)
+    return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" cannot be read",
+                   vdbio_prefix(path, where).c_str(), grid_name);
+  if (found) *found = 1;
+  return BK_OK;
+}
+
+/* The catch block every reader ends with. */
+#define VDBIO_CATCH_READ(path, where)                                                        \
+  catch (const std::bad_alloc &) {                                                           \
+    rc = bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while reading the VDB file",        \
+                 vdbio_prefix(path, where).c_str());                                         \
+  }                                                                                          \
+  catch (const std::exception &e) {                                                          \
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: %s",                          \
+                 vdbio_prefix(path, where).c_str(), e.what());                               \
+  }                                                                                          \
+  catch (...) {                                                                              \
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: unknown error",               \
+                 vdbio_prefix(path, where).c_str());                                         \
+  }
+
+int vdbio_resample_float(const char *path, const char *grid_name, const grid_dims_t *dims,
+                         float *out, const char *where, bk_error_t *err) {
+  if (!path || !dims || !out || dims->nx < 1 || dims->ny < 1 || dims->nz < 1)
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: vdbio_resample_float: invalid arguments",
+                   vdbio_prefix(path, where).c_str());
+  vdbio_init();
+  int rc = BK_OK;
+  try {
+    vdb::io::File file(path);
+    if ((rc = vdbio_open(file, path, where, err))) return rc;
+    vdb::GridBase::Ptr base;
+    rc = vdbio_read_grid(file, path, where, grid_name, base, NULL, err);
+    file.close();
+    if (rc) return rc;
+    vdb::FloatGrid::Ptr grid = vdb::gridPtrCast<vdb::FloatGrid>(base);
+    if (!grid)
+      return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected a float grid",
+                     vdbio_prefix(path, where).c_str(), grid_name, base->valueType().c_str());
+    const vdb::FloatGrid &g = *grid;
+    const grid_dims_t d = *dims;
+    /* one z slice per task; each task its own accessor (they cache nodes) */
+    tbb::parallel_for(tbb::blocked_range<int>(0, d.nz), [&](const tbb::blocked_range<int> &r) {
+      vdb::FloatGrid::ConstAccessor acc = g.getConstAccessor();
+      vdb::tools::GridSampler<vdb::FloatGrid::ConstAccessor, vdb::tools::BoxSampler> s(
+          acc, g.transform());
+      for (int k = r.begin(); k != r.end(); k++)
+        for (int j = 0; j < d.ny; j++)
+          for (int i = 0; i < d.nx; i++) {
+            float c[3];
+            grid_voxel_center(&d, i, j, k, c);
+            out[grid_index(&d, i, j, k)] = s.wsSample(vdb::Vec3d(c[0], c[1], c[2]));
+          }
+    });
+  }
+  VDBIO_CATCH_READ(path, where)
+  return rc;
+}
+
+/* --- dense reading ---------------------------------------------------------- */
+
+/* Reads a float-like or vec3-like grid as Vec3s/float: double grids are
+ * converted; anything else is BK_ERR_INPUT naming the type. */
+static int vdbio_channels(const vdb::GridBase::Ptr &g, const char *path, const char *name,
+                          bk_error_t *err) {
+  if (g->isType<vdb::FloatGrid>() || g->isType<vdb::DoubleGrid>()) return 1;
+  if (g->isType<vdb::Vec3SGrid>() || g->isType<vdb::Vec3DGrid>()) return 3;
+  bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected float or Vec3f", path,
+          name, g->valueType().c_str());
+  return 0;
+}
+
+/* Samples any supported grid at a world position into `channels` floats. */
+template <typename GridT> struct vdbio_sampler {
+  typename GridT::ConstAccessor acc;
+  vdb::tools::GridSampler<typename GridT::ConstAccessor, vdb::tools::BoxSampler> s;
+  explicit vdbio_sampler(const GridT &g) : acc(g.getConstAccessor()), s(acc, g.transform()) {}
+};
+
+template <typename GridT>
+static void vdbio_store(const typename GridT::ValueType &v, float *dst);
+template <> void vdbio_store<vdb::FloatGrid>(const float &v, float *dst) { dst[0] = v; }
+template <> void vdbio_store<vdb::DoubleGrid>(const double &v, float *dst) { dst[0] = (float)v; }
+template <> void vdbio_store<vdb::Vec3SGrid>(const vdb::Vec3s &v, float *dst) {
+  dst[0] = v[0];
+  dst[1] = v[1];
+  dst[2] = v[2];
+}
+template <> void vdbio_store<vdb::Vec3DGrid>(const vdb::Vec3d &v, float *dst) {
+  dst[0] = (float)v[0];
+  dst[1] = (float)v[1];
+  dst[2] = (float)v[2];
+}
+
+/* Fills d->data (allocated, d->nx.. and d->channels set) from grid g, either
+ * at the grid's own indices box.min + (a,b,c) (like == NULL) or resampled
+ * at the world positions of `like`'s indices. */
+template <typename GridT>
+static void vdbio_fill(const GridT &g, const vdb::Coord &min, const vdbio_dense_t *like,
+                       vdbio_dense_t *d) {
+  const int nx = d->nx, ny = d->ny, nz = d->nz, ch = d->channels;
+  tbb::parallel_for(tbb::blocked_range<int>(0, nz), [&](const tbb::blocked_range<int> &r) {
+    vdbio_sampler<GridT> smp(g);
+    for (int c = r.begin(); c != r.end(); c++)
+      for (int b = 0; b < ny; b++)
+        for (int a = 0; a < nx; a++) {
+          float *dst = d->data + ((size_t)a + (size_t)nx * ((size_t)b + (size_t)ny * c)) * ch;
+          if (!like) {
+            vdbio_store<GridT>(smp.acc.getValue(min.offsetBy(a, b, c)), dst);
+          } else {
+            const double(*m)[4] = like->index_to_world;
+            vdb::Vec3d w;
+            for (int r3 = 0; r3 < 3; r3++)
+              w[r3] = m[r3][0] * a + m[r3][1] * b + m[r3][2] * c + m[r3][3];
+            vdbio_store<GridT>(smp.s.wsSample(w), dst);
+          }
+        }
+  });
+}
+
+static void vdbio_fill_any(const vdb::GridBase::Ptr &g, const vdb::Coord &min,
+                           const vdbio_dense_t *like, vdbio_dense_t *d) {
+  if (g->isType<vdb::FloatGrid>())
+    vdbio_fill(*vdb::gridConstPtrCast<vdb::FloatGrid>(g), min, like, d);
+  else if (g->isType<vdb::DoubleGrid>())
+    vdbio_fill(*vdb::gridConstPtrCast<vdb::DoubleGrid>(g), min, like, d);
+  else if (g->isType<vdb::Vec3SGrid>())
+    vdbio_fill(*vdb::gridConstPtrCast<vdb::Vec3SGrid>(g), min, like, d);
+  else
+    vdbio_fill(*vdb::gridConstPtrCast<vdb::Vec3DGrid>(g), min, like, d);
+}
+
+/* Allocates d->data for d->nx*ny*nz*channels floats, refusing arrays that
+ * would not fit in memory with the size they would need. */
+static int vdbio_alloc_dense(vdbio_dense_t *d, const char *path, const char *name,
+                             bk_error_t *err) {
+  grid_dims_t gd;
+  memset(&gd, 0, sizeof gd);
+  gd.nx = d->nx;
+  gd.ny = d->ny;
+  gd.nz = d->nz;
+  std::string where = std::string(path) + ": grid \"" + name + "\"";
+  int rc = grid_check_memory(&gd, sizeof(float) * (size_t)d->channels, where.c_str(), err);
+  if (rc) return rc;
+  d->data = (float *)bk_calloc(grid_count(&gd) * (size_t)d->channels, sizeof(float),
+                               where.c_str(), err);
+  return d->data ? BK_OK : BK_ERR_RUNTIME;
+}
+
+int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
+                     bk_error_t *err) {
+  if (!path || !out) return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_dense: invalid arguments");
+  memset(out, 0, sizeof *out);
+  if (pad < 0)
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: vdbio_read_dense: negative pad %d", path, pad);
+  vdbio_init();
+  int rc = BK_OK;
+  try {
+    vdb::io::File file(path);
+    if ((rc = vdbio_open(file, path, NULL, err))) return rc;
+    vdb::GridBase::Ptr g;
+    rc = vdbio_read_grid(file, path, NULL, grid_name, g, NULL, err);
+    file.close();
+    if (rc) return rc;
+    const int ch = vdbio_channels(g, path, grid_name, err);
+    if (!ch) return BK_ERR_INPUT;
+    const vdb::math::Transform &xf = g->transform();
+    if (!xf.isLinear())
+      return bk_fail(err, BK_ERR_INPUT,
+                     "%s: grid \"%s\" has a non-linear (%s) transform, which is unsupported",
+                     path, grid_name, xf.mapType().c_str());
+
+    vdb::CoordBBox box = g->evalActiveVoxelBoundingBox();
+    if (box.empty()) {
+      box = vdb::CoordBBox(vdb::Coord(0), vdb::Coord(0));
+    } else {
+      /* in 64 bits: a padded box near the int limits must not wrap */
+      int64_t lo[3], hi[3];
+      for (int a = 0; a < 3; a++) {
+        lo[a] = (int64_t)box.min()[a] - pad;
+        hi[a] = (int64_t)box.max()[a] + pad;
+        if (lo[a] < INT32_MIN || hi[a] > INT32_MAX || hi[a] - lo[a] + 1 > GRID_MAX_AXIS)
+          return bk_fail(err, BK_ERR_INPUT,
+                         "%s: grid \"%s\": its active box spans %lld voxels along axis %d (with "
+                         "pad %d), more than the %d a dense read allows",
+                         path, grid_name, (long long)(hi[a] - lo[a] + 1), a, pad, GRID_MAX_AXIS);
+      }
+      box = vdb::CoordBBox(vdb::Coord((int)lo[0], (int)lo[1], (int)lo[2]),
+                           vdb::Coord((int)hi[0], (int)hi[1], (int)hi[2]));
+    }
+    const vdb::Coord dim = box.dim();
+    out->nx = dim[0];
+    out->ny = dim[1];
+    out->nz = dim[2];
+    out->channels = ch;
+
+    /* OpenVDB matrices act on row vectors: world = [i j k 1] * M */
+    const vdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();
+    const vdb::Mat4d inv = m.inverse();
+    const vdb::Vec3d w0 = xf.indexToWorld(box.min());
+    for (int r = 0; r < 3; r++) {
+      for (int c = 0; c < 3; c++) {
+        out->index_to_world[r][c] = m(c, r);
+        out->world_to_index[r][c] = inv(c, r);
+      }
+      out->index_to_world[r][3] = w0[r];
+      out->world_to_index[r][3] = inv(3, r) - (double)box.min()[r];
+    }
+    const double sx = m(0, 0), tol = 1e-9 * std::fabs(sx);
+    bool uniform = sx > 0.0;
+    for (int r = 0; r < 3; r++)
+      for (int c = 0; c < 3; c++)
+        if (std::fabs(m(r, c) - (r == c ? sx : 0.0)) > tol) uniform = false;
+    out->uniform_scale = uniform;
+    const vdb::Vec3d vs = xf.voxelSize();
+    /* not uniform: the shortest step, the safe one for marching */
+    out->voxel_size = uniform ? sx : std::min(vs[0], std::min(vs[1], vs[2]));
+
+    if ((rc = vdbio_alloc_dense(out, path, grid_name, err))) return rc;
+    vdbio_fill_any(g, box.min(), NULL, out);
+  }
+  VDBIO_CATCH_READ(path, (const char *)NULL)
+  if (rc) vdbio_dense_free(out);
+  return rc;
+}
+
+int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_dense_t *like,
+                          vdbio_dense_t *out, int *found, bk_error_t *err) {
+  if (!path || !like || !out || !found || like->nx < 1 || like->ny < 1 || like->nz < 1)
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: vdbio_read_dense_like: invalid arguments",
+                   path ? path : "(null)");
+  memset(out, 0, sizeof *out);
+  *found = 0;
+  vdbio_init();
+  int rc = BK_OK;
+  try {
+    vdb::io::File file(path);
+    if ((rc = vdbio_open(file, path, NULL, err))) return rc;
+    vdb::GridBase::Ptr g;
+    rc = vdbio_read_grid(file, path, NULL, grid_name, g, found, err);
+    file.close();
+    if (rc || !*found) return rc;
+    const int ch = vdbio_channels(g, path, grid_name, err);
+    if (!ch) {
+      *found = 0;
+      return BK_ERR_INPUT;
+    }
+    out->nx = like->nx;
+    out->ny = like->ny;
+    out->nz = like->nz;
+    out->channels = ch;
+    memcpy(out->index_to_world, like->index_to_world, sizeof out->index_to_world);
+    memcpy(out->world_to_index, like->world_to_index, sizeof out->world_to_index);
+    out->uniform_scale = like->uniform_scale;
+    out->voxel_size = like->voxel_size;
+    if ((rc = vdbio_alloc_dense(out, path, grid_name, err))) return rc;
+    vdbio_fill_any(g, vdb::Coord(0), like, out);
+  }
+  VDBIO_CATCH_READ(path, (const char *)NULL)
+  if (rc) {
+    vdbio_dense_free(out);
+    *found = 0;
+  }
+  return rc;
+}
+
+void vdbio_dense_free(vdbio_dense_t *d) {
+  if (!d) return;
+  free(d->data);
+  d->data = NULL;
+}
+
+/* --- listing and metadata ---------------------------------------------------- */
+
+int vdbio_list_grids(const char *path, char ***names, char ***types, int *count,
+                     bk_error_t *err) {
+  if (!path || !names || !count)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_list_grids: invalid arguments");
+  *names = NULL;
+  if (types) *types = NULL;
+  *count = 0;
+  vdbio_init();
+  int rc = BK_OK;
+  char **n = NULL, **t = NULL;
+  int got = 0;
+  try {
+    vdb::io::File file(path);
+    if ((rc = vdbio_open(file, path, NULL, err))) return rc;
+    vdb::GridPtrVecPtr grids = file.readAllGridMetadata();
+    file.close();
+    const size_t total = grids->size();
+    n = (char **)bk_calloc(total, sizeof(char *), path, err);
+    t = (char **)bk_calloc(total, sizeof(char *), path, err);
+    if (!n || !t) {
+      rc = BK_ERR_RUNTIME;
+    } else {
+      for (const vdb::GridBase::Ptr &g : *grids) {
+        n[got] = strdup(g->getName().c_str());
+        t[got] = strdup(g->valueType().c_str());
+        got++;
+        if (!n[got - 1] || !t[got - 1]) {
+          rc = bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory listing grids", path);
+          break;
+        }
+      }
+    }
+  }
+  VDBIO_CATCH_READ(path, (const char *)NULL)
+  if (rc) {
+    vdbio_free_names(n, t, got);
+    return rc;
+  }
+  *names = n;
+  *count = got;
+  if (types)
+    *types = t;
+  else
+    vdbio_free_names(NULL, t, got);
+  return BK_OK;
+}
+
+void vdbio_free_names(char **names, char **types, int count) {
+  for (int i = 0; i < count; i++) {
+    if (names) free(names[i]);
+    if (types) free(types[i]);
+  }
+  free(names);
+  free(types);
+}
+
+int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk_error_t *err) {
+  if (!path || !key || !out || len == 0)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_meta: invalid arguments");
+  out[0] = 0;
+  vdbio_init();
+  int rc = BK_OK;
+  try {
+    vdb::io::File file(path);
+    if ((rc = vdbio_open(file, path, NULL, err))) return rc;
+    vdb::MetaMap::Ptr meta = file.getMetadata();
+    file.close();
+    if (meta) {
+      vdb::Metadata::Ptr m = (*meta)[key];
+      if (m) snprintf(out, len, "%s", m->str().c_str());
+    }
+  }
+  VDBIO_CATCH_READ(path, (const char *)NULL)
+  return rc;
+}
