@@ -132,10 +132,10 @@ static const char *sc_range_text(const sc_range_t *r, char *buf, size_t n) {
   const char *noun = r->integer ? "an integer" : "a number";
   int has_lo = r->lo > -SC_NOLIM, has_hi = !r->hi_silent;
   if (has_lo && has_hi)
-    snprintf(buf, n, "%s in %c%g, %g%c", noun, r->lo_open ? '(' : '[', r->lo, r->hi,
+    snprintf(buf, n, "%s in %c%.10g, %.10g%c", noun, r->lo_open ? '(' : '[', r->lo, r->hi,
              r->hi_open ? ')' : ']');
   else if (has_lo)
-    snprintf(buf, n, "%s %s %g", noun, r->lo_open ? ">" : ">=", r->lo);
+    snprintf(buf, n, "%s %s %.10g", noun, r->lo_open ? ">" : ">=", r->lo);
   else
     snprintf(buf, n, "%s", noun);
   return buf;

@@ -98,8 +98,9 @@ typedef struct scene {
   float background[3];
 } scene_t;
 
-/* Loads and validates. On failure returns BK_ERR_INPUT (or BK_ERR_RUNTIME for
- * an unreadable file) with err naming the file, line, column and key. */
+/* Loads and validates. On failure returns BK_ERR_INPUT (a missing or
+ * unreadable scene file included: the user named it) or BK_ERR_RUNTIME (out of
+ * memory), with err naming the file, line, column and key. */
 int scene_load(const char *path, scene_t *out, bk_error_t *err);
 void scene_free(scene_t *s);
 

@@ -245,41 +245,41 @@ error:
   return NULL;
 }
 
-static json_value_t *jp_number(jp_t *j) {
+static int is_digit(int c) { return c >= '0' && c <= '9'; }
+
+/* One or more digits; `where` completes "expected a digit ...". */
+static int jp_digits(jp_t *j, const char *where) {
   char buf[64];
+  if (!is_digit(jp_peek(j))) {
+    jp_fail(j, j->line, j->col, "expected a digit %s, found %s", where, jp_found(j, buf, sizeof buf));
+    return 0;
+  }
+  while (is_digit(jp_peek(j))) jp_advance(j);
+  return 1;
+}
+
+static json_value_t *jp_number(jp_t *j) {
   const char *start = j->p;
   json_value_t *v = jv_new(j, JSON_NUMBER, j->line, j->col);
   if (!v) return NULL;
   if (jp_peek(j) == '-') jp_advance(j);
   if (jp_peek(j) == '0') {
     jp_advance(j);
-    if (jp_peek(j) >= '0' && jp_peek(j) <= '9') {
+    if (is_digit(jp_peek(j))) {
       jp_fail(j, v->line, v->col, "expected a number, found one with a leading zero");
       goto error;
     }
-  } else if (jp_peek(j) >= '1' && jp_peek(j) <= '9') {
-    while (jp_peek(j) >= '0' && jp_peek(j) <= '9') jp_advance(j);
-  } else {
-    jp_fail(j, j->line, j->col, "expected a digit after '-', found %s", jp_found(j, buf, sizeof buf));
+  } else if (!jp_digits(j, "after '-'")) {
     goto error;
   }
   if (jp_peek(j) == '.') {
     jp_advance(j);
-    if (!(jp_peek(j) >= '0' && jp_peek(j) <= '9')) {
-      jp_fail(j, j->line, j->col, "expected a digit after '.', found %s", jp_found(j, buf, sizeof buf));
-      goto error;
-    }
-    while (jp_peek(j) >= '0' && jp_peek(j) <= '9') jp_advance(j);
+    if (!jp_digits(j, "after '.'")) goto error;
   }
   if (jp_peek(j) == 'e' || jp_peek(j) == 'E') {
     jp_advance(j);
     if (jp_peek(j) == '+' || jp_peek(j) == '-') jp_advance(j);
-    if (!(jp_peek(j) >= '0' && jp_peek(j) <= '9')) {
-      jp_fail(j, j->line, j->col, "expected a digit in the exponent, found %s",
-              jp_found(j, buf, sizeof buf));
-      goto error;
-    }
-    while (jp_peek(j) >= '0' && jp_peek(j) <= '9') jp_advance(j);
+    if (!jp_digits(j, "in the exponent")) goto error;
   }
   v->string_len = (size_t)(j->p - start);
   if (!(v->string = malloc(v->string_len + 1))) {
@@ -416,7 +416,7 @@ static json_value_t *jp_value(jp_t *j, int depth, const char *after) {
                    JSON_MAX_DEPTH);
   if (c == '[') return jp_array(j, depth);
   if (c == '{') return jp_object(j, depth);
-  if (c == '-' || (c >= '0' && c <= '9')) return jp_number(j);
+  if (c == '-' || is_digit(c)) return jp_number(j);
   if (c == '"') {
     json_value_t *v = jv_new(j, JSON_STRING, line, col);
     if (v && !(v->string = jp_string(j, &v->string_len))) {
