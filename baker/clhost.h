@@ -71,8 +71,10 @@ const char *clh_error_name(cl_int code);
 
 /* device_spec: NULL or "" for the default (PoCL if present, else the first
  * device), "list" is handled by the caller via clh_list_devices, otherwise
- * "P:D" (platform and device indices) or a case-insensitive substring of the
- * platform or device name. No platform at all gives a clear BK_ERR_RUNTIME. */
+ * "P:D" (platform and device indices), "gpu"/"cpu"/"accelerator" (the first
+ * device of that type) or a case-insensitive substring of the platform name,
+ * platform vendor or device name. A spec matching nothing is BK_ERR_INPUT
+ * with the list of devices. No platform at all gives a clear BK_ERR_RUNTIME. */
 int clh_init(clh_context_t *cl, const char *device_spec, bk_error_t *err);
 void clh_release(clh_context_t *cl);
 void clh_list_devices(FILE *out);

@@ -8,7 +8,7 @@
 #ifndef BAKER_SHARED_H
 #define BAKER_SHARED_H
 
-#ifdef __OPENCL_VERSION__
+#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
 #define BK_INLINE static inline
 #define BK_GLOBAL __global
 #define BK_CONSTANT __constant
