@@ -12,16 +12,17 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <mutex>
 #include <new>
 #include <set>
 #include <string>
-#include <unistd.h>
 
 namespace vdb = openvdb;
 
@@ -36,7 +37,8 @@ static void vdbio_init(void) {
 /* "where: path" or just "path", the prefix of every read error. */
 static std::string vdbio_prefix(const char *path, const char *where) {
   std::string s;
-  if (where && where[0]) s = std::string(where) + ": ";
+  if (where && where[0])
+    s = std::string(where) + ": ";
   return s + (path ? path : "(null)");
 }
 
@@ -68,7 +70,8 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *d
 int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *grids,
                 int grid_count, const vdbio_meta_t *meta, int meta_count,
                 const vdbio_write_opts_t *opts, bk_error_t *err) {
-  if (!path || !path[0]) return bk_fail(err, BK_ERR_INPUT, "vdbio_write: empty output path");
+  if (!path || !path[0])
+    return bk_fail(err, BK_ERR_INPUT, "vdbio_write: empty output path");
   if (!dims || dims->nx < 1 || dims->ny < 1 || dims->nz < 1 || !(dims->voxel_size > 0.0f) ||
       !std::isfinite(dims->voxel_size))
     return bk_fail(err, BK_ERR_RUNTIME, "%s: invalid grid dimensions for writing", path);
@@ -86,13 +89,13 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
                        grids[g].name);
     }
     for (int m = 0; m < meta_count; m++)
-      if (!meta[m].key || !meta[m].key[0] ||
-          (meta[m].kind == VDBIO_META_STRING && !meta[m].s))
+      if (!meta[m].key || !meta[m].key[0] || (meta[m].kind == VDBIO_META_STRING && !meta[m].s))
         return bk_fail(err, BK_ERR_RUNTIME, "%s: metadata entry %d has no key or no value", path,
                        m);
   }
   int rc = bk_check_output_dir(path, err);
-  if (rc) return rc;
+  if (rc)
+    return rc;
 
   char tmp[4096];
   bk_temp_path(path, tmp, sizeof tmp);
@@ -109,7 +112,8 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
         vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, grids[g].data);
         /* unset means the OpenVDB default, which is also invariant; set it
          * explicitly so readers see the metadata */
-        if (grids[g].vector_invariant) v->setVectorType(vdb::VEC_INVARIANT);
+        if (grids[g].vector_invariant)
+          v->setVectorType(vdb::VEC_INVARIANT);
         base = v;
       }
       base->setName(grids[g].name);
@@ -170,8 +174,49 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
 
 /* --- reading --------------------------------------------------------------- */
 
-/* Opens `path` fully (no delayed loading); BK_ERR_INPUT when it is missing or
- * is not a VDB file. Exceptions are the caller's to catch. */
+/* io::File reads past the end of a truncated file without noticing (the
+ * stream's failure is never checked) and returns grids of zeros. This walks
+ * the file's layout the way io::File::open does, on a stream that throws on a
+ * short read, and checks that every grid's recorded end lies inside the file.
+ * Throws (IoError, ios_base::failure, LookupError) when it does not. */
+class vdbio_layout_check : public vdb::io::Archive {
+public:
+  void check(const char *path) {
+    std::ifstream is(path, std::ios::in | std::ios::binary);
+    is.exceptions(std::ios::failbit | std::ios::badbit);
+    is.seekg(0, std::ios::end);
+    const int64_t size = (int64_t)is.tellg();
+    is.seekg(0, std::ios::beg);
+    vdb::io::StreamMetadata::Ptr sm(new vdb::io::StreamMetadata);
+    sm->setSeekable(true);
+    vdb::io::setStreamMetadataPtr(is, sm, /*transfer=*/false);
+    readHeader(is);
+    setFormatVersion(is);
+    setLibraryVersion(is);
+    setDataCompression(is);
+    vdb::MetaMap meta;
+    meta.readMeta(is);
+    if (!inputHasGridOffsets())
+      return; /* pre-2.0 files: read whole by io::File */
+    const int32_t count = readGridCount(is);
+    if (count < 0)
+      OPENVDB_THROW(vdb::IoError, "negative grid count " << count);
+    for (int32_t g = 0; g < count; g++) {
+      vdb::io::GridDescriptor gd;
+      gd.read(is);
+      const int64_t here = (int64_t)is.tellg();
+      if (gd.getGridPos() < here || gd.getBlockPos() < gd.getGridPos() ||
+          gd.getEndPos() < gd.getBlockPos() || gd.getEndPos() > size)
+        OPENVDB_THROW(vdb::IoError, "grid \"" << gd.gridName() << "\" should span bytes "
+                                              << gd.getGridPos() << " to " << gd.getEndPos()
+                                              << " but the file has " << size << " bytes");
+      gd.seekToEnd(is);
+    }
+  }
+};
+
+/* Opens `path` fully (no delayed loading); BK_ERR_INPUT when it is missing,
+ * is not a VDB file or is truncated. Exceptions are the caller's to catch. */
 static int vdbio_open(vdb::io::File &file, const char *path, const char *where, bk_error_t *err) {
   /* io::File says only "could not open"; errno says why */
   FILE *probe = fopen(path, "rb");
@@ -179,6 +224,20 @@ static int vdbio_open(vdb::io::File &file, const char *path, const char *where, 
     return bk_fail(err, BK_ERR_INPUT, "%s: cannot open VDB file: %s",
                    vdbio_prefix(path, where).c_str(), strerror(errno));
   fclose(probe);
+  try {
+    vdbio_layout_check().check(path);
+  } catch (const std::bad_alloc &) {
+    throw;
+  } catch (const std::exception &e) {
+    /* the header check gives the better message for foreign files */
+    std::string what = e.what();
+    if (what.find("not a VDB file") != std::string::npos)
+      return bk_fail(err, BK_ERR_INPUT, "%s: not a VDB file", vdbio_prefix(path, where).c_str());
+    return bk_fail(err, BK_ERR_INPUT, "%s: the VDB file is truncated or corrupt (%s)",
+                   vdbio_prefix(path, where).c_str(),
+                   dynamic_cast<const std::ios_base::failure *>(&e) ? "it ends too early"
+                                                                    : e.what());
+  }
   try {
     file.open(false);
   } catch (const std::bad_alloc &) {
@@ -196,12 +255,14 @@ static std::string vdbio_grid_list(vdb::io::File &file) {
   try {
     vdb::GridPtrVecPtr grids = file.readAllGridMetadata();
     for (const vdb::GridBase::Ptr &g : *grids) {
-      if (!s.empty()) s += ", ";
+      if (!s.empty())
+        s += ", ";
       s += "\"" + g->getName() + "\" (" + g->valueType() + ")";
     }
   } catch (const std::exception &) {
     for (vdb::io::File::NameIterator it = file.beginName(); it != file.endName(); ++it) {
-      if (!s.empty()) s += ", ";
+      if (!s.empty())
+        s += ", ";
       s += "\"" + *it + "\"";
     }
   }
@@ -228,30 +289,51 @@ static int vdbio_read_grid(vdb::io::File &file, const char *path, const char *wh
   } catch (const std::bad_alloc &) {
     throw;
   } catch (const std::exception &e) {
-    return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" cannot be read, the file is truncated or "
-                   "corrupt (%s)", vdbio_prefix(path, where).c_str(), grid_name, e.what());
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: grid \"%s\" cannot be read, the file is truncated or "
+                   "corrupt (%s)",
+                   vdbio_prefix(path, where).c_str(), grid_name, e.what());
   }
   if (!grid)
     return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" cannot be read",
                    vdbio_prefix(path, where).c_str(), grid_name);
-  if (found) *found = 1;
+  if (found)
+    *found = 1;
   return BK_OK;
 }
 
 /* The catch block every reader ends with. */
-#define VDBIO_CATCH_READ(path, where)                                                        \
-  catch (const std::bad_alloc &) {                                                           \
-    rc = bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while reading the VDB file",        \
-                 vdbio_prefix(path, where).c_str());                                         \
-  }                                                                                          \
-  catch (const std::exception &e) {                                                          \
-    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: %s",                          \
-                 vdbio_prefix(path, where).c_str(), e.what());                               \
-  }                                                                                          \
-  catch (...) {                                                                              \
-    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: unknown error",               \
-                 vdbio_prefix(path, where).c_str());                                         \
+#define VDBIO_CATCH_READ(path, where)                                                              \
+  catch (const std::bad_alloc &) {                                                                 \
+    rc = bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while reading the VDB file",              \
+                 vdbio_prefix(path, where).c_str());                                               \
+  }                                                                                                \
+  catch (const std::exception &e) {                                                                \
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: %s",                                \
+                 vdbio_prefix(path, where).c_str(), e.what());                                     \
+  }                                                                                                \
+  catch (...) {                                                                                    \
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: unknown error",                     \
+                 vdbio_prefix(path, where).c_str());                                               \
   }
+
+/* Samples g at the voxel centres of d, one z slice per task, each task with
+ * its own accessor (accessors cache nodes and are not thread-safe). */
+template <typename GridT>
+static void vdbio_resample(const GridT &g, const grid_dims_t &d, float *out) {
+  tbb::parallel_for(tbb::blocked_range<int>(0, d.nz), [&](const tbb::blocked_range<int> &r) {
+    typename GridT::ConstAccessor acc = g.getConstAccessor();
+    vdb::tools::GridSampler<typename GridT::ConstAccessor, vdb::tools::BoxSampler> s(acc,
+                                                                                     g.transform());
+    for (int k = r.begin(); k != r.end(); k++)
+      for (int j = 0; j < d.ny; j++)
+        for (int i = 0; i < d.nx; i++) {
+          float c[3];
+          grid_voxel_center(&d, i, j, k, c);
+          out[grid_index(&d, i, j, k)] = (float)s.wsSample(vdb::Vec3d(c[0], c[1], c[2]));
+        }
+  });
+}
 
 int vdbio_resample_float(const char *path, const char *grid_name, const grid_dims_t *dims,
                          float *out, const char *where, bk_error_t *err) {
@@ -262,30 +344,22 @@ int vdbio_resample_float(const char *path, const char *grid_name, const grid_dim
   int rc = BK_OK;
   try {
     vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, where, err))) return rc;
+    if ((rc = vdbio_open(file, path, where, err)))
+      return rc;
     vdb::GridBase::Ptr base;
     rc = vdbio_read_grid(file, path, where, grid_name, base, NULL, err);
     file.close();
-    if (rc) return rc;
-    vdb::FloatGrid::Ptr grid = vdb::gridPtrCast<vdb::FloatGrid>(base);
-    if (!grid)
-      return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected a float grid",
+    if (rc)
+      return rc;
+    /* double grids (some simulators write them) are narrowed as sampled */
+    if (base->isType<vdb::FloatGrid>())
+      vdbio_resample(*vdb::gridConstPtrCast<vdb::FloatGrid>(base), *dims, out);
+    else if (base->isType<vdb::DoubleGrid>())
+      vdbio_resample(*vdb::gridConstPtrCast<vdb::DoubleGrid>(base), *dims, out);
+    else
+      return bk_fail(err, BK_ERR_INPUT,
+                     "%s: grid \"%s\" holds %s values, expected a float (or double) grid",
                      vdbio_prefix(path, where).c_str(), grid_name, base->valueType().c_str());
-    const vdb::FloatGrid &g = *grid;
-    const grid_dims_t d = *dims;
-    /* one z slice per task; each task its own accessor (they cache nodes) */
-    tbb::parallel_for(tbb::blocked_range<int>(0, d.nz), [&](const tbb::blocked_range<int> &r) {
-      vdb::FloatGrid::ConstAccessor acc = g.getConstAccessor();
-      vdb::tools::GridSampler<vdb::FloatGrid::ConstAccessor, vdb::tools::BoxSampler> s(
-          acc, g.transform());
-      for (int k = r.begin(); k != r.end(); k++)
-        for (int j = 0; j < d.ny; j++)
-          for (int i = 0; i < d.nx; i++) {
-            float c[3];
-            grid_voxel_center(&d, i, j, k, c);
-            out[grid_index(&d, i, j, k)] = s.wsSample(vdb::Vec3d(c[0], c[1], c[2]));
-          }
-    });
   }
   VDBIO_CATCH_READ(path, where)
   return rc;
@@ -297,10 +371,12 @@ int vdbio_resample_float(const char *path, const char *grid_name, const grid_dim
  * converted; anything else is BK_ERR_INPUT naming the type. */
 static int vdbio_channels(const vdb::GridBase::Ptr &g, const char *path, const char *name,
                           bk_error_t *err) {
-  if (g->isType<vdb::FloatGrid>() || g->isType<vdb::DoubleGrid>()) return 1;
-  if (g->isType<vdb::Vec3SGrid>() || g->isType<vdb::Vec3DGrid>()) return 3;
-  bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected float or Vec3f", path,
-          name, g->valueType().c_str());
+  if (g->isType<vdb::FloatGrid>() || g->isType<vdb::DoubleGrid>())
+    return 1;
+  if (g->isType<vdb::Vec3SGrid>() || g->isType<vdb::Vec3DGrid>())
+    return 3;
+  bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected float or Vec3f", path, name,
+          g->valueType().c_str());
   return 0;
 }
 
@@ -311,8 +387,7 @@ template <typename GridT> struct vdbio_sampler {
   explicit vdbio_sampler(const GridT &g) : acc(g.getConstAccessor()), s(acc, g.transform()) {}
 };
 
-template <typename GridT>
-static void vdbio_store(const typename GridT::ValueType &v, float *dst);
+template <typename GridT> static void vdbio_store(const typename GridT::ValueType &v, float *dst);
 template <> void vdbio_store<vdb::FloatGrid>(const float &v, float *dst) { dst[0] = v; }
 template <> void vdbio_store<vdb::DoubleGrid>(const double &v, float *dst) { dst[0] = (float)v; }
 template <> void vdbio_store<vdb::Vec3SGrid>(const vdb::Vec3s &v, float *dst) {
@@ -375,15 +450,17 @@ static int vdbio_alloc_dense(vdbio_dense_t *d, const char *path, const char *nam
   gd.nz = d->nz;
   std::string where = std::string(path) + ": grid \"" + name + "\"";
   int rc = grid_check_memory(&gd, sizeof(float) * (size_t)d->channels, where.c_str(), err);
-  if (rc) return rc;
-  d->data = (float *)bk_calloc(grid_count(&gd) * (size_t)d->channels, sizeof(float),
-                               where.c_str(), err);
+  if (rc)
+    return rc;
+  d->data =
+      (float *)bk_calloc(grid_count(&gd) * (size_t)d->channels, sizeof(float), where.c_str(), err);
   return d->data ? BK_OK : BK_ERR_RUNTIME;
 }
 
 int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
                      bk_error_t *err) {
-  if (!path || !out) return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_dense: invalid arguments");
+  if (!path || !out)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_dense: invalid arguments");
   memset(out, 0, sizeof *out);
   if (pad < 0)
     return bk_fail(err, BK_ERR_RUNTIME, "%s: vdbio_read_dense: negative pad %d", path, pad);
@@ -391,18 +468,21 @@ int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_den
   int rc = BK_OK;
   try {
     vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, NULL, err))) return rc;
+    if ((rc = vdbio_open(file, path, NULL, err)))
+      return rc;
     vdb::GridBase::Ptr g;
     rc = vdbio_read_grid(file, path, NULL, grid_name, g, NULL, err);
     file.close();
-    if (rc) return rc;
+    if (rc)
+      return rc;
     const int ch = vdbio_channels(g, path, grid_name, err);
-    if (!ch) return BK_ERR_INPUT;
+    if (!ch)
+      return BK_ERR_INPUT;
     const vdb::math::Transform &xf = g->transform();
     if (!xf.isLinear())
       return bk_fail(err, BK_ERR_INPUT,
-                     "%s: grid \"%s\" has a non-linear (%s) transform, which is unsupported",
-                     path, grid_name, xf.mapType().c_str());
+                     "%s: grid \"%s\" has a non-linear (%s) transform, which is unsupported", path,
+                     grid_name, xf.mapType().c_str());
 
     vdb::CoordBBox box = g->evalActiveVoxelBoundingBox();
     if (box.empty()) {
@@ -444,17 +524,20 @@ int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_den
     bool uniform = sx > 0.0;
     for (int r = 0; r < 3; r++)
       for (int c = 0; c < 3; c++)
-        if (std::fabs(m(r, c) - (r == c ? sx : 0.0)) > tol) uniform = false;
+        if (std::fabs(m(r, c) - (r == c ? sx : 0.0)) > tol)
+          uniform = false;
     out->uniform_scale = uniform;
     const vdb::Vec3d vs = xf.voxelSize();
     /* not uniform: the shortest step, the safe one for marching */
     out->voxel_size = uniform ? sx : std::min(vs[0], std::min(vs[1], vs[2]));
 
-    if ((rc = vdbio_alloc_dense(out, path, grid_name, err))) return rc;
+    if ((rc = vdbio_alloc_dense(out, path, grid_name, err)))
+      return rc;
     vdbio_fill_any(g, box.min(), NULL, out);
   }
   VDBIO_CATCH_READ(path, (const char *)NULL)
-  if (rc) vdbio_dense_free(out);
+  if (rc)
+    vdbio_dense_free(out);
   return rc;
 }
 
@@ -469,11 +552,13 @@ int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_d
   int rc = BK_OK;
   try {
     vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, NULL, err))) return rc;
+    if ((rc = vdbio_open(file, path, NULL, err)))
+      return rc;
     vdb::GridBase::Ptr g;
     rc = vdbio_read_grid(file, path, NULL, grid_name, g, found, err);
     file.close();
-    if (rc || !*found) return rc;
+    if (rc || !*found)
+      return rc;
     const int ch = vdbio_channels(g, path, grid_name, err);
     if (!ch) {
       *found = 0;
@@ -487,7 +572,8 @@ int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_d
     memcpy(out->world_to_index, like->world_to_index, sizeof out->world_to_index);
     out->uniform_scale = like->uniform_scale;
     out->voxel_size = like->voxel_size;
-    if ((rc = vdbio_alloc_dense(out, path, grid_name, err))) return rc;
+    if ((rc = vdbio_alloc_dense(out, path, grid_name, err)))
+      return rc;
     vdbio_fill_any(g, vdb::Coord(0), like, out);
   }
   VDBIO_CATCH_READ(path, (const char *)NULL)
@@ -499,19 +585,20 @@ int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_d
 }
 
 void vdbio_dense_free(vdbio_dense_t *d) {
-  if (!d) return;
+  if (!d)
+    return;
   free(d->data);
   d->data = NULL;
 }
 
 /* --- listing and metadata ---------------------------------------------------- */
 
-int vdbio_list_grids(const char *path, char ***names, char ***types, int *count,
-                     bk_error_t *err) {
+int vdbio_list_grids(const char *path, char ***names, char ***types, int *count, bk_error_t *err) {
   if (!path || !names || !count)
     return bk_fail(err, BK_ERR_RUNTIME, "vdbio_list_grids: invalid arguments");
   *names = NULL;
-  if (types) *types = NULL;
+  if (types)
+    *types = NULL;
   *count = 0;
   vdbio_init();
   int rc = BK_OK;
@@ -519,7 +606,8 @@ int vdbio_list_grids(const char *path, char ***names, char ***types, int *count,
   int got = 0;
   try {
     vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, NULL, err))) return rc;
+    if ((rc = vdbio_open(file, path, NULL, err)))
+      return rc;
     vdb::GridPtrVecPtr grids = file.readAllGridMetadata();
     file.close();
     const size_t total = grids->size();
@@ -555,8 +643,10 @@ int vdbio_list_grids(const char *path, char ***names, char ***types, int *count,
 
 void vdbio_free_names(char **names, char **types, int count) {
   for (int i = 0; i < count; i++) {
-    if (names) free(names[i]);
-    if (types) free(types[i]);
+    if (names)
+      free(names[i]);
+    if (types)
+      free(types[i]);
   }
   free(names);
   free(types);
@@ -570,12 +660,14 @@ int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk
   int rc = BK_OK;
   try {
     vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, NULL, err))) return rc;
+    if ((rc = vdbio_open(file, path, NULL, err)))
+      return rc;
     vdb::MetaMap::Ptr meta = file.getMetadata();
     file.close();
     if (meta) {
       vdb::Metadata::Ptr m = (*meta)[key];
-      if (m) snprintf(out, len, "%s", m->str().c_str());
+      if (m)
+        snprintf(out, len, "%s", m->str().c_str());
     }
   }
   VDBIO_CATCH_READ(path, (const char *)NULL)

@@ -6,7 +6,9 @@
  *                              and the other compressions
  *   test_vdbio errors DIR      truncated/foreign/missing files, missing grids,
  *                              wrong types, unwritable outputs, no stray temp files
- *   test_vdbio write FILE      the known file, for vdb_print and pyopenvdb checks
+ *   test_vdbio write DIR       DIR/known.vdb, for the vdb_print and pyopenvdb checks
+ *   test_vdbio foreign FILE    tests/data/vdbio_foreign.vdb: double, Vec3d, int
+ *                              grids, rotated and frustum transforms
  *   test_vdbio bench DIR       a 256^3 write/read timing (not a test)
  *
  * The known grids (tests/vdbio_python_check.py repeats these numbers):
@@ -25,19 +27,21 @@
 #include <unistd.h>
 
 static int failures = 0;
-#define CHECK(cond, ...)                                                                       \
-  do {                                                                                         \
-    if (!(cond)) {                                                                             \
-      failures++;                                                                              \
-      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);                                     \
-      fprintf(stderr, __VA_ARGS__);                                                            \
-      fputc('\n', stderr);                                                                     \
-    }                                                                                          \
+#define CHECK(cond, ...)                                                                           \
+  do {                                                                                             \
+    if (!(cond)) {                                                                                 \
+      failures++;                                                                                  \
+      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);                                         \
+      fprintf(stderr, __VA_ARGS__);                                                                \
+      fputc('\n', stderr);                                                                         \
+    }                                                                                              \
   } while (0)
 
 static const grid_dims_t KNOWN = {12, 10, 8, 0.25f, {-1.5f, 0.75f, 2.0f}};
 
-static double known_density(const double w[3]) { return 1.0 + 0.5 * w[0] - 0.25 * w[1] + 2.0 * w[2]; }
+static double known_density(const double w[3]) {
+  return 1.0 + 0.5 * w[0] - 0.25 * w[1] + 2.0 * w[2];
+}
 static void known_radiance(const double w[3], double out[3]) {
   out[0] = w[0];
   out[1] = 2.0 * w[1];
@@ -70,7 +74,8 @@ static float *known_radiance_data(void) {
         double w[3], g[3];
         centre_d(d, i, j, k, w);
         known_radiance(w, g);
-        for (int c = 0; c < 3; c++) v[grid_index(d, i, j, k) * 3 + c] = (float)g[c];
+        for (int c = 0; c < 3; c++)
+          v[grid_index(d, i, j, k) * 3 + c] = (float)g[c];
       }
   return v;
 }
@@ -96,9 +101,11 @@ static long file_size(const char *path) {
 static int count_temp_files(const char *dir) {
   DIR *d = opendir(dir);
   int n = 0;
-  if (!d) return -1;
+  if (!d)
+    return -1;
   for (struct dirent *e; (e = readdir(d));)
-    if (e->d_name[0] == '.' && strstr(e->d_name, ".tmp")) n++;
+    if (e->d_name[0] == '.' && strstr(e->d_name, ".tmp"))
+      n++;
   closedir(d);
   return n;
 }
@@ -116,8 +123,8 @@ static void check_known(const char *path, double tol) {
   if (rc == BK_OK) {
     CHECK(den.nx == d->nx - 2 + 2 && den.ny == d->ny + 2 && den.nz == d->nz + 2 &&
               den.channels == 1,
-          "dense box %dx%dx%d ch %d, expected %dx%dx%d ch 1", den.nx, den.ny, den.nz,
-          den.channels, d->nx, d->ny + 2, d->nz + 2);
+          "dense box %dx%dx%d ch %d, expected %dx%dx%d ch 1", den.nx, den.ny, den.nz, den.channels,
+          d->nx, d->ny + 2, d->nz + 2);
     CHECK(den.uniform_scale && fabs(den.voxel_size - 0.25) < 1e-9, "uniform %d voxel %g",
           den.uniform_scale, den.voxel_size);
     /* dense (0,0,0) is our voxel (1,-1,-1) */
@@ -148,7 +155,8 @@ static void check_known(const char *path, double tol) {
             want = known_density(w);
           double got = den.data[(size_t)a + (size_t)den.nx * ((size_t)b + (size_t)den.ny * c)];
           double e = fabs(got - want) / (1.0 + fabs(want));
-          if (e > worst) worst = e;
+          if (e > worst)
+            worst = e;
         }
     CHECK(worst <= tol, "read_dense density: worst relative error %.3g > %.3g", worst, tol);
     printf("  read_dense density %dx%dx%d: worst relative error %.3g\n", den.nx, den.ny, den.nz,
@@ -171,11 +179,15 @@ static void check_known(const char *path, double tol) {
             int i = a + 1, j = b - 1, k = c - 1;
             double w[3], want[3] = {0, 0, 0};
             centre_d(d, i, j, k, w);
-            if (i < d->nx && j >= 0 && j < d->ny && k >= 0 && k < d->nz) known_radiance(w, want);
+            if (i < d->nx && j >= 0 && j < d->ny && k >= 0 && k < d->nz)
+              known_radiance(w, want);
             for (int ch = 0; ch < 3; ch++) {
-              double got = rad.data[((size_t)a + (size_t)rad.nx * ((size_t)b + (size_t)rad.ny * c)) * 3 + ch];
+              double got =
+                  rad.data[((size_t)a + (size_t)rad.nx * ((size_t)b + (size_t)rad.ny * c)) * 3 +
+                           ch];
               double e = fabs(got - want[ch]) / (1.0 + fabs(want[ch]));
-              if (e > worst) worst = e;
+              if (e > worst)
+                worst = e;
             }
           }
       CHECK(worst <= tol, "read_dense_like radiance: worst relative error %.3g", worst);
@@ -183,8 +195,7 @@ static void check_known(const char *path, double tol) {
       vdbio_dense_free(&rad);
     }
     rc = vdbio_read_dense_like(path, "no_such_grid", &den, &rad, &found, &err);
-    CHECK(rc == BK_OK && found == 0 && rad.data == NULL, "absent grid: rc %d found %d", rc,
-          found);
+    CHECK(rc == BK_OK && found == 0 && rad.data == NULL, "absent grid: rc %d found %d", rc, found);
     vdbio_dense_free(&den);
   }
 
@@ -200,8 +211,8 @@ static void check_known(const char *path, double tol) {
     known_radiance(w, g);
     const float *p = vd.data + grid_index(d, 5, 3, 6) * 3;
     for (int c = 0; c < 3; c++)
-      CHECK(fabs(p[c] - g[c]) <= tol * (1.0 + fabs(g[c])), "radiance(5,3,6)[%d] = %g, want %g",
-            c, p[c], g[c]);
+      CHECK(fabs(p[c] - g[c]) <= tol * (1.0 + fabs(g[c])), "radiance(5,3,6)[%d] = %g, want %g", c,
+            p[c], g[c]);
     vdbio_dense_free(&vd);
   }
 
@@ -212,7 +223,8 @@ static void check_known(const char *path, double tol) {
   double worst = 0.0;
   for (size_t n = 0; n < grid_count(d); n++) {
     double e = fabs(same[n] - ref[n]) / (1.0 + fabs(ref[n]));
-    if (e > worst) worst = e;
+    if (e > worst)
+      worst = e;
   }
   CHECK(worst <= tol, "resample at own centres: worst %.3g", worst);
   printf("  resample_float at own voxel centres: worst relative error %.3g\n", worst);
@@ -238,8 +250,10 @@ static void check_known(const char *path, double tol) {
         double got = out[grid_index(&fine, i, j, k)], want;
         int in = 1, far = 0;
         for (int r = 0; r < 3; r++) {
-          if (w[r] < lo[r] || w[r] > hi[r]) in = 0;
-          if (w[r] < lo[r] - 0.5 - 0.25 || w[r] > hi[r] + 0.25 + 0.25) far = 1;
+          if (w[r] < lo[r] || w[r] > hi[r])
+            in = 0;
+          if (w[r] < lo[r] - 0.5 - 0.25 || w[r] > hi[r] + 0.25 + 0.25)
+            far = 1;
         }
         if (in) {
           want = known_density(w);
@@ -251,7 +265,8 @@ static void check_known(const char *path, double tol) {
           continue;
         }
         double e = fabs(got - want) / (1.0 + fabs(want));
-        if (e > worst) worst = e;
+        if (e > worst)
+          worst = e;
       }
   CHECK(inside > 1000 && outside > 1000, "fine grid: %d inside, %d outside", inside, outside);
   CHECK(worst <= tol, "resample fine: worst relative error %.3g", worst);
@@ -271,7 +286,8 @@ static int roundtrip(const char *dir) {
   vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0};
   int rc = write_known(path, &zip, &err);
   CHECK(rc == BK_OK, "write: %s", err.msg);
-  if (rc) return 1;
+  if (rc)
+    return 1;
   CHECK(count_temp_files(dir) == 0, "a temporary file survived in %s", dir);
   printf("zip, full float (%ld bytes):\n", file_size(path));
   check_known(path, 1e-6);
@@ -286,12 +302,16 @@ static int roundtrip(const char *dir) {
     CHECK(dens || radi, "unexpected grid %s", names[g]);
     CHECK(!strcmp(types[g], dens ? "float" : "vec3s"), "grid %s has type %s", names[g], types[g]);
   }
-  if (rc == BK_OK) vdbio_free_names(names, types, count);
+  if (rc == BK_OK)
+    vdbio_free_names(names, types, count);
 
   char buf[256];
-  struct { const char *key, *want; int prefix; } metas[] = {
-      {"creator", "baker ", 1}, {"voxel_centering", "cell-centred", 1}, {"mode", "reference", 0},
-      {"frame", "7", 0},        {"scale", "0.5", 0},                    {"absent_key", "", 0}};
+  struct {
+    const char *key, *want;
+    int prefix;
+  } metas[] = {{"creator", "baker ", 1}, {"voxel_centering", "cell-centred", 1},
+               {"mode", "reference", 0}, {"frame", "7", 0},
+               {"scale", "0.5", 0},      {"absent_key", "", 0}};
   for (size_t m = 0; m < sizeof metas / sizeof metas[0]; m++) {
     rc = vdbio_read_meta(path, metas[m].key, buf, sizeof buf, &err);
     int ok = rc == BK_OK && (metas[m].prefix ? !strncmp(buf, metas[m].want, strlen(metas[m].want))
@@ -327,7 +347,8 @@ static int roundtrip(const char *dir) {
   double worst = 0.0;
   for (size_t n = 0; n < grid_count(&big); n++) {
     double e = fabs(back[n] - f[n]) / fabs(f[n]);
-    if (e > worst) worst = e;
+    if (e > worst)
+      worst = e;
   }
   printf("  half read back: worst relative error %.3g (half ulp 2^-11 = 4.9e-4)\n", worst);
   CHECK(worst > 0.0 && worst <= 4.9e-4, "half float read back: worst relative error %.3g", worst);
@@ -357,7 +378,8 @@ static int roundtrip(const char *dir) {
   rc = vdbio_read_dense(empty, "empty", 2, &ed, &err);
   CHECK(rc == BK_OK && ed.nx == 1 && ed.ny == 1 && ed.nz == 1 && ed.data[0] == 0.0f,
         "empty grid: rc %d %dx%dx%d %s", rc, ed.nx, ed.ny, ed.nz, err.msg);
-  if (rc == BK_OK) vdbio_dense_free(&ed);
+  if (rc == BK_OK)
+    vdbio_dense_free(&ed);
   free(zero);
   return failures != 0;
 }
@@ -367,20 +389,24 @@ static void expect_input_error(int rc, const bk_error_t *err, const char *name, 
                                const char *also) {
   CHECK(rc == BK_ERR_INPUT, "%s: rc %d, expected BK_ERR_INPUT (%s)", what, rc, err->msg);
   CHECK(strstr(err->msg, name) != NULL, "%s: message does not name %s: %s", what, name, err->msg);
-  if (also) CHECK(strstr(err->msg, also) != NULL, "%s: message lacks \"%s\": %s", what, also, err->msg);
+  if (also)
+    CHECK(strstr(err->msg, also) != NULL, "%s: message lacks \"%s\": %s", what, also, err->msg);
   printf("  %s -> %d: %s\n", what, rc, err->msg);
 }
 
 static int copy_prefix(const char *from, const char *to, long len) {
   FILE *in = fopen(from, "rb"), *out = fopen(to, "wb");
   if (!in || !out) {
-    if (in) fclose(in);
-    if (out) fclose(out);
+    if (in)
+      fclose(in);
+    if (out)
+      fclose(out);
     return -1;
   }
   for (long n = 0; n < len; n++) {
     int c = fgetc(in);
-    if (c == EOF) break;
+    if (c == EOF)
+      break;
     fputc(c, out);
   }
   fclose(in);
@@ -396,23 +422,27 @@ static int errors(const char *dir) {
   int rc;
 
   /* truncated copies of real files, compressed and not, cut at several places */
-  const vdbio_compression_t comps[3] = {VDBIO_COMPRESS_ZIP, VDBIO_COMPRESS_NONE, VDBIO_COMPRESS_BLOSC};
+  const vdbio_compression_t comps[3] = {VDBIO_COMPRESS_ZIP, VDBIO_COMPRESS_NONE,
+                                        VDBIO_COMPRESS_BLOSC};
   for (int c = 0; c < 3; c++) {
     vdbio_write_opts_t opt = {comps[c], 0};
     snprintf(path, sizeof path, "%s/vdbio_errors_%d.vdb", dir, c);
     CHECK(write_known(path, &opt, &err) == BK_OK, "write: %s", err.msg);
     long size = file_size(path);
-    const double cuts[] = {0.02, 0.3, 0.6, 0.9, -1.0};
+    /* inside the header, inside each grid, one byte short */
+    const long cuts[] = {40, size / 50, size * 3 / 10, size * 6 / 10, size * 9 / 10, size - 1};
     for (size_t n = 0; n < sizeof cuts / sizeof cuts[0]; n++) {
-      long len = cuts[n] < 0 ? size - 1 : (long)(cuts[n] * size);
+      long len = cuts[n];
       snprintf(bad, sizeof bad, "%s/vdbio_truncated_%d_%ld.vdb", dir, c, len);
       CHECK(copy_prefix(path, bad, len) == 0, "copy %s", bad);
       char what[128];
-      snprintf(what, sizeof what, "compression %d truncated to %ld of %ld bytes, resample", c, len, size);
+      snprintf(what, sizeof what, "compression %d truncated to %ld of %ld bytes, resample", c, len,
+               size);
       err.msg[0] = 0;
       rc = vdbio_resample_float(bad, "density", &KNOWN, out, "medium.ior_vdb", &err);
       expect_input_error(rc, &err, bad, what, "medium.ior_vdb");
-      snprintf(what, sizeof what, "compression %d truncated to %ld of %ld bytes, read_dense", c, len, size);
+      snprintf(what, sizeof what, "compression %d truncated to %ld of %ld bytes, read_dense", c,
+               len, size);
       err.msg[0] = 0;
       rc = vdbio_read_dense(bad, "radiance", 0, &dd, &err);
       expect_input_error(rc, &err, bad, what, NULL);
@@ -473,6 +503,146 @@ static int errors(const char *dir) {
   return failures != 0;
 }
 
+/* tests/data/vdbio_foreign.vdb (made by tests/data/vdbio_foreign.cpp): grids
+ * on [0,3]^3 of types and transforms baker never writes. */
+static double foreign_value(double i, double j, double k) { return 1.0 + i + 10.0 * j + 100.0 * k; }
+
+static int foreign(const char *path) {
+  bk_error_t err = {0};
+  vdbio_dense_t d, r, like;
+  int rc, found;
+
+  char **names = NULL, **types = NULL;
+  int count = 0;
+  rc = vdbio_list_grids(path, &names, &types, &count, &err);
+  CHECK(rc == BK_OK && count == 5, "list_grids: rc %d count %d %s", rc, count, err.msg);
+  const char *want_types[][2] = {{"dens_d", "double"},
+                                 {"vel_d", "vec3d"},
+                                 {"count_i", "int32"},
+                                 {"rotated", "float"},
+                                 {"frustum", "float"}};
+  for (int w = 0; rc == BK_OK && w < 5; w++) {
+    int hit = 0;
+    for (int g = 0; g < count; g++)
+      hit |= !strcmp(names[g], want_types[w][0]) && !strcmp(types[g], want_types[w][1]);
+    CHECK(hit, "grid %s (%s) not listed", want_types[w][0], want_types[w][1]);
+  }
+  if (rc == BK_OK)
+    vdbio_free_names(names, types, count);
+
+  /* double and Vec3d are converted; index (0,0,0) sits at (1,2,3), voxel 0.5 */
+  rc = vdbio_read_dense(path, "dens_d", 0, &d, &err);
+  CHECK(rc == BK_OK && d.nx == 4 && d.ny == 4 && d.nz == 4 && d.channels == 1,
+        "dens_d: rc %d %dx%dx%d %s", rc, d.nx, d.ny, d.nz, err.msg);
+  if (rc == BK_OK) {
+    double worst = 0.0;
+    for (int k = 0; k < 4; k++)
+      for (int j = 0; j < 4; j++)
+        for (int i = 0; i < 4; i++)
+          worst = fmax(worst, fabs(d.data[i + 4 * (j + 4 * k)] - foreign_value(i, j, k)));
+    CHECK(worst == 0.0, "dens_d values: worst error %g", worst);
+    CHECK(d.uniform_scale && d.voxel_size == 0.5 && d.index_to_world[0][3] == 1.0 &&
+              d.index_to_world[1][3] == 2.0 && d.index_to_world[2][3] == 3.0,
+          "dens_d transform");
+    vdbio_dense_free(&d);
+  }
+  rc = vdbio_read_dense(path, "vel_d", 1, &d, &err);
+  CHECK(rc == BK_OK && d.nx == 6 && d.channels == 3, "vel_d: rc %d nx %d ch %d %s", rc, d.nx,
+        d.channels, err.msg);
+  if (rc == BK_OK) {
+    const float *p = d.data + (2 + 6 * (3 + 6 * 4)) * 3; /* padded: dense (2,3,4) is (1,2,3) */
+    CHECK(p[0] == 1.5f && p[1] == 2.5f && p[2] == 3.5f, "vel_d(1,2,3) = %g %g %g", p[0], p[1],
+          p[2]);
+    CHECK(d.data[0] == 0.0f, "vel_d padding is background");
+    vdbio_dense_free(&d);
+  }
+
+  /* a rotated, non-uniform affine map: world = (1 - j, 2 + 0.5 i, 3 + 2 k) */
+  rc = vdbio_read_dense(path, "rotated", 0, &like, &err);
+  CHECK(rc == BK_OK, "rotated: %s", err.msg);
+  if (rc == BK_OK) {
+    const double m[3][4] = {{0, -1, 0, 1}, {0.5, 0, 0, 2}, {0, 0, 2, 3}};
+    double worst = 0.0;
+    for (int a = 0; a < 3; a++)
+      for (int b = 0; b < 4; b++)
+        worst = fmax(worst, fabs(like.index_to_world[a][b] - m[a][b]));
+    /* world_to_index inverts index_to_world */
+    for (int a = 0; a < 3; a++)
+      for (int b = 0; b < 4; b++) {
+        double v = like.world_to_index[a][3] * (b == 3);
+        for (int c = 0; c < 3; c++)
+          v += like.world_to_index[a][c] * like.index_to_world[c][b];
+        worst = fmax(worst, fabs(v - (a == b)));
+      }
+    CHECK(worst < 1e-12, "rotated matrices: worst error %g", worst);
+    CHECK(!like.uniform_scale && like.voxel_size == 0.5, "rotated: uniform %d voxel %g",
+          like.uniform_scale, like.voxel_size);
+    printf("  rotated: index_to_world rows (%g %g %g %g) (%g %g %g %g) (%g %g %g %g), voxel %g\n",
+           like.index_to_world[0][0], like.index_to_world[0][1], like.index_to_world[0][2],
+           like.index_to_world[0][3], like.index_to_world[1][0], like.index_to_world[1][1],
+           like.index_to_world[1][2], like.index_to_world[1][3], like.index_to_world[2][0],
+           like.index_to_world[2][1], like.index_to_world[2][2], like.index_to_world[2][3],
+           like.voxel_size);
+    /* dens_d through world space into the rotated box: rotated index (i,j,k)
+     * is dens_d index (-2j, i, 4k), on dens_d's voxels only for j = k = 0 */
+    rc = vdbio_read_dense_like(path, "dens_d", &like, &r, &found, &err);
+    CHECK(rc == BK_OK && found == 1 && r.channels == 1, "dens_d like rotated: %s", err.msg);
+    if (rc == BK_OK) {
+      worst = 0.0;
+      for (int k = 0; k < 4; k++)
+        for (int j = 0; j < 4; j++)
+          for (int i = 0; i < 4; i++) {
+            double want = (j == 0 && k == 0) ? foreign_value(0, i, 0) : 0.0;
+            worst = fmax(worst, fabs(r.data[i + 4 * (j + 4 * k)] - want));
+          }
+      CHECK(worst < 1e-4, "dens_d like rotated: worst error %g", worst);
+      vdbio_dense_free(&r);
+    }
+    vdbio_dense_free(&like);
+  }
+
+  /* resampling the rotated grid: trilinear reproduces its linear values
+   * wherever all 8 neighbours lie in [0,3]^3 */
+  grid_dims_t g = {20, 20, 40, 0.2f, {-2.5f, 1.5f, 2.5f}};
+  float *out = calloc(grid_count(&g), sizeof(float));
+  rc = vdbio_resample_float(path, "rotated", &g, out, "test.rotated", &err);
+  CHECK(rc == BK_OK, "resample rotated: %s", err.msg);
+  int inside = 0;
+  double worst = 0.0;
+  for (int k = 0; rc == BK_OK && k < g.nz; k++)
+    for (int j = 0; j < g.ny; j++)
+      for (int i = 0; i < g.nx; i++) {
+        double w[3];
+        centre_d(&g, i, j, k, w);
+        double ii = 2.0 * (w[1] - 2.0), jj = 1.0 - w[0], kk = 0.5 * (w[2] - 3.0);
+        if (ii < 0 || ii > 3 || jj < 0 || jj > 3 || kk < 0 || kk > 3)
+          continue;
+        inside++;
+        double want = foreign_value(ii, jj, kk);
+        worst = fmax(worst, fabs(out[grid_index(&g, i, j, k)] - want) / want);
+      }
+  CHECK(inside > 500 && worst < 1e-5, "resample rotated: %d inside, worst relative %g", inside,
+        worst);
+  printf("  resample_float rotated: %d points inside, worst relative error %.3g\n", inside, worst);
+  /* a double grid is accepted by resample_float */
+  rc = vdbio_resample_float(path, "dens_d", &g, out, "test.double", &err);
+  CHECK(rc == BK_OK, "resample double: %s", err.msg);
+  free(out);
+
+  /* refusals: an int grid, a frustum transform */
+  rc = vdbio_read_dense(path, "count_i", 0, &d, &err);
+  expect_input_error(rc, &err, path, "int32 grid, read_dense", "int32");
+  float one;
+  grid_dims_t g1 = {1, 1, 1, 0.5f, {1, 2, 3}};
+  rc = vdbio_resample_float(path, "count_i", &g1, &one, "medium.ior_vdb", &err);
+  expect_input_error(rc, &err, path, "int32 grid, resample", "int32");
+  rc = vdbio_read_dense(path, "frustum", 0, &d, &err);
+  expect_input_error(rc, &err, path, "frustum grid, read_dense", "unsupported");
+  rc = vdbio_read_dense_like(path, "count_i", &like, &r, &found, &err);
+  expect_input_error(rc, &err, path, "int32 grid, read_dense_like", "int32");
+  return failures != 0;
+}
+
 static int bench(const char *dir) {
   grid_dims_t d = {256, 256, 256, 1.0f / 256.0f, {0, 0, 0}};
   bk_error_t err = {0};
@@ -482,13 +652,15 @@ static int bench(const char *dir) {
       for (int i = 0; i < d.nx; i++) {
         float w[3];
         grid_voxel_center(&d, i, j, k, w);
-        float r2 = (w[0] - .5f) * (w[0] - .5f) + (w[1] - .5f) * (w[1] - .5f) + (w[2] - .5f) * (w[2] - .5f);
+        float r2 =
+            (w[0] - .5f) * (w[0] - .5f) + (w[1] - .5f) * (w[1] - .5f) + (w[2] - .5f) * (w[2] - .5f);
         f[grid_index(&d, i, j, k)] = r2 < 0.16f ? 1.0f + w[0] : 0.0f; /* a ball, 27% active */
       }
   char path[4096];
   snprintf(path, sizeof path, "%s/vdbio_bench.vdb", dir);
   vdbio_grid_t g = {"density", VDBIO_FLOAT, f, 0};
-  const vdbio_compression_t comps[3] = {VDBIO_COMPRESS_NONE, VDBIO_COMPRESS_ZIP, VDBIO_COMPRESS_BLOSC};
+  const vdbio_compression_t comps[3] = {VDBIO_COMPRESS_NONE, VDBIO_COMPRESS_ZIP,
+                                        VDBIO_COMPRESS_BLOSC};
   for (int c = 0; c < 3; c++) {
     vdbio_write_opts_t o = {comps[c], 0};
     double t0 = bk_now_ms();
@@ -500,7 +672,8 @@ static int bench(const char *dir) {
            c, t1 - t0, file_size(path), t2 - t1, rc);
   }
   size_t bad = 0;
-  for (size_t n = 0; n < grid_count(&d); n++) bad += fabsf(back[n] - f[n]) > 1e-6f;
+  for (size_t n = 0; n < grid_count(&d); n++)
+    bad += fabsf(back[n] - f[n]) > 1e-6f;
   printf("mismatches %zu\n", bad);
   remove(path);
   free(f);
@@ -508,25 +681,49 @@ static int bench(const char *dir) {
   return bad != 0;
 }
 
+static void mkdir_p(const char *dir) {
+  char buf[4096];
+  snprintf(buf, sizeof buf, "%s", dir);
+  for (char *p = buf + 1; *p; p++)
+    if (*p == '/') {
+      *p = 0;
+      mkdir(buf, 0755);
+      *p = '/';
+    }
+  mkdir(buf, 0755);
+}
+
 int main(int argc, char **argv) {
   if (argc != 3) {
-    fprintf(stderr, "usage: %s roundtrip|errors|bench DIR | write FILE\n", argv[0]);
+    fprintf(stderr, "usage: %s roundtrip|errors|write|bench DIR | foreign FILE\n", argv[0]);
     return 2;
   }
   bk_verbosity = 1;
   int rc;
+  if (!strcmp(argv[1], "foreign")) {
+    rc = foreign(argv[2]);
+    printf("foreign: %d failure(s)\n", failures);
+    return rc;
+  }
+  mkdir_p(argv[2]);
   if (!strcmp(argv[1], "write")) {
     bk_error_t err = {0};
     vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0};
-    rc = write_known(argv[2], &zip, &err);
-    if (rc) fprintf(stderr, "%s\n", err.msg);
+    char path[4096];
+    snprintf(path, sizeof path, "%s/known.vdb", argv[2]);
+    rc = write_known(path, &zip, &err);
+    if (rc)
+      fprintf(stderr, "%s\n", err.msg);
     return rc;
   }
-  mkdir(argv[2], 0755);
-  if (!strcmp(argv[1], "roundtrip")) rc = roundtrip(argv[2]);
-  else if (!strcmp(argv[1], "errors")) rc = errors(argv[2]);
-  else if (!strcmp(argv[1], "bench")) rc = bench(argv[2]);
-  else rc = 2;
+  if (!strcmp(argv[1], "roundtrip"))
+    rc = roundtrip(argv[2]);
+  else if (!strcmp(argv[1], "errors"))
+    rc = errors(argv[2]);
+  else if (!strcmp(argv[1], "bench"))
+    rc = bench(argv[2]);
+  else
+    rc = 2;
   printf("%s: %d failure(s)\n", argv[1], failures);
   return rc;
 }

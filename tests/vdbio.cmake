@@ -23,13 +23,11 @@ target_link_libraries(test_vdbio PRIVATE bakercore)
 set(VDBIO_TEST_DIR ${CMAKE_BINARY_DIR}/vdbio_test)
 add_test(NAME vdbio_roundtrip COMMAND test_vdbio roundtrip ${VDBIO_TEST_DIR}/roundtrip)
 add_test(NAME vdbio_errors COMMAND test_vdbio errors ${VDBIO_TEST_DIR}/errors)
+add_test(NAME vdbio_foreign COMMAND test_vdbio foreign ${BAKER_TEST_DIR}/data/vdbio_foreign.vdb)
 
 # The known file, shared by the external readers below.
-add_test(NAME vdbio_known_file COMMAND ${CMAKE_COMMAND} -E make_directory ${VDBIO_TEST_DIR})
-add_test(NAME vdbio_known_file_write COMMAND test_vdbio write ${VDBIO_TEST_DIR}/known.vdb)
-set_tests_properties(vdbio_known_file PROPERTIES FIXTURES_SETUP vdbio_dir)
-set_tests_properties(vdbio_known_file_write PROPERTIES FIXTURES_REQUIRED vdbio_dir
-                     FIXTURES_SETUP vdbio_known)
+add_test(NAME vdbio_known_file COMMAND test_vdbio write ${VDBIO_TEST_DIR})
+set_tests_properties(vdbio_known_file PROPERTIES FIXTURES_SETUP vdbio_known)
 
 find_program(VDB_PRINT_PROGRAM vdb_print)
 if(VDB_PRINT_PROGRAM)
