@@ -3,11 +3,27 @@
  * In: a validated scene (its meshes, medium, optional ior_vdb/density_vdb).
  * Out: per voxel n, sigma_s and sigma_a. Inside an object n = object IOR and
  * sigma = object coefficients; outside, the medium's. The boundary is smoothed
- * over `ior_smoothing` voxels from a signed distance d (in voxels, negative
- * inside): the blend weight is a smoothstep of d over [-w/2, +w/2]... (see
- * voxelize.c for the exact profile), so grad n exists and the n = mid-value
- * surface is the mesh surface. The inside test is a ray-parity vote along the
- * three axes, so open meshes (the Stanford bunny) still fill. */
+ * over s = `ior_smoothing` voxels from the exact signed distance d to the
+ * triangles (in voxels, negative inside): the object's weight is
+ *     w(d) = 1 - S((d + s/2) / s),   S(t) = 3t^2 - 2t^3 on [0, 1], clamped,
+ * so w = 1 for d <= -s/2, w = 0 for d >= s/2 and w = 0.5 exactly on the
+ * surface, and x = x_out + w (x_in - x_out) for x in n, sigma_s, sigma_a:
+ * grad n exists (|grad n| <= 1.5 |n_in - n_out| / s per voxel) and the
+ * n = (n_in + n_out)/2 isosurface is the mesh surface.
+ *
+ * Inside test: rays along x, y and z through the voxel centres, hit parity per
+ * axis (shared edges and vertices counted once, by the top-left rule). A ray
+ * with an odd number of hits passed through a hole and abstains; a voxel is
+ * inside when more axes say inside than outside (on a closed mesh: 2 of 3).
+ * So open meshes still fill: the Stanford bunny's base has holes, and a ray
+ * through one abstains while the two other axes see a closed body.
+ *
+ * Several objects are composited in scene order over the medium,
+ * x <- x + w (x_object - x): a later object overrides earlier ones where it is
+ * inside and blends smoothly at its surface (list a bubble after the glass
+ * around it). The medium is constant; ior_vdb replaces its n (values below 1,
+ * e.g. a zero background, are raised to 1 with a warning) and density_vdb
+ * scales its sigma_s and sigma_a voxel by voxel. */
 #ifndef BAKER_VOXELIZE_H
 #define BAKER_VOXELIZE_H
 

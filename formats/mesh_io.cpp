@@ -1,0 +1,517 @@
+// mesh_io.cpp: triangle meshes through OpenMesh, behind the C header mesh_io.h.
+//
+// OpenMesh's ASCII readers parse numbers with `istream >> float`, which fails
+// on "nan" and "inf": the OBJ reader then silently drops the vertex (shifting
+// every later index), and the OFF and PLY readers stop with garbage. So text
+// files are pre-scanned for vertices whose coordinates do not parse or are not
+// finite, and the loader names them; binary files carry NaN through, and the
+// final check on OpenMesh's vertices catches them.
+// GCC 12 flags OpenMesh's own PropertyT<Vec2f>::push_back (a value-initialised
+// temporary) as maybe-uninitialized; the warning is about OpenMesh, not us.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+#include <OpenMesh/Core/IO/MeshIO.hh> // before the kernel, so the readers register
+#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include <OpenMesh/Core/System/omstream.hh>
+
+#include <cerrno>
+#include <cfloat>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "mesh_io.h"
+
+namespace {
+
+typedef OpenMesh::TriMesh_ArrayKernelT<> om_mesh_t;
+
+// Captures OpenMesh's omerr()/omlog()/omout() in a string while a mesh is
+// read, so its chatter ("PolyMeshT::add_face: complex edge") does not reach
+// the user's terminal unasked and can be quoted in our messages. Those streams
+// write to std::cerr, std::clog and std::cout; their buffers are swapped for
+// ours meanwhile. (Re-connecting OpenMesh's streams instead would leak:
+// mostream::disconnect never frees what connect allocated.)
+struct om_capture {
+  std::ostringstream text;
+  std::streambuf *saved[3];
+  bool active;
+  om_capture() : active(true) {
+    saved[0] = std::cerr.rdbuf(text.rdbuf());
+    saved[1] = std::clog.rdbuf(text.rdbuf());
+    saved[2] = std::cout.rdbuf(text.rdbuf());
+  }
+  ~om_capture() { release(); }
+  // OpenMesh passes a line on at '\n', the rest when flushed.
+  void release() {
+    if (!active) return;
+    omerr().flush();
+    omlog().flush();
+    omout().flush();
+    std::cerr.rdbuf(saved[0]);
+    std::clog.rdbuf(saved[1]);
+    std::cout.rdbuf(saved[2]);
+    active = false;
+  }
+  // The captured lines on one line, repeats counted ("... complex edge (x12)"),
+  // at most `max` characters. *topology_only tells whether every line is
+  // OpenMesh refusing a non-manifold face, which mesh_check reports anyway.
+  std::string summary(bool *topology_only, size_t max = 300) const {
+    std::vector<std::string> lines;
+    std::vector<int> counts;
+    std::istringstream in(text.str());
+    std::string line;
+    long more = 0;
+    *topology_only = true;
+    while (std::getline(in, line)) {
+      while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+      if (line.empty()) continue;
+      if (line.find("complex edge") == std::string::npos &&
+          line.find("complex vertex") == std::string::npos)
+        *topology_only = false;
+      size_t k = 0;
+      while (k < lines.size() && lines[k] != line) k++;
+      if (k == lines.size()) {
+        if (lines.size() == 8) { // enough to say what happened
+          more++;
+          continue;
+        }
+        lines.push_back(line);
+        counts.push_back(0);
+      }
+      counts[k]++;
+    }
+    std::string out;
+    if (more) lines.push_back("and " + std::to_string(more) + " more"), counts.push_back(1);
+    for (size_t k = 0; k < lines.size(); k++) {
+      if (!out.empty()) out += "; ";
+      out += lines[k];
+      if (counts[k] > 1) out += " (x" + std::to_string(counts[k]) + ")";
+    }
+    if (out.size() > max) out = out.substr(0, max) + "...";
+    return out;
+  }
+};
+
+enum mesh_format { FMT_OBJ, FMT_PLY, FMT_OFF, FMT_STL, FMT_UNKNOWN };
+
+mesh_format format_of(const char *path, std::string *ext) {
+  const char *slash = strrchr(path, '/');
+  const char *dot = strrchr(slash ? slash : path, '.');
+  ext->clear();
+  if (!dot) return FMT_UNKNOWN;
+  for (const char *c = dot; *c; c++) *ext += (char)tolower((unsigned char)*c);
+  if (*ext == ".obj") return FMT_OBJ;
+  if (*ext == ".ply") return FMT_PLY;
+  if (*ext == ".off") return FMT_OFF;
+  if (*ext == ".stl") return FMT_STL;
+  return FMT_UNKNOWN;
+}
+
+// --- text pre-scan ------------------------------------------------------------
+
+// A cursor over a NUL-terminated text buffer that knows its line number.
+struct text_cursor {
+  const char *p;
+  int line;
+  void skip_space_in_line() {
+    while (*p == ' ' || *p == '\t' || *p == '\r') p++;
+  }
+  // Skips whitespace and newlines (and '#' comments when asked).
+  void skip_space(bool comments) {
+    for (;;) {
+      if (*p == '\n') {
+        line++;
+        p++;
+      } else if (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\f' || *p == '\v') {
+        p++;
+      } else if (comments && *p == '#') {
+        while (*p && *p != '\n') p++;
+      } else {
+        return;
+      }
+    }
+  }
+  void next_line() {
+    while (*p && *p != '\n') p++;
+    if (*p == '\n') {
+      p++;
+      line++;
+    }
+  }
+  // Copies the next whitespace-delimited token of this line (or any line).
+  std::string token(bool cross_lines, bool comments) {
+    if (cross_lines)
+      skip_space(comments);
+    else
+      skip_space_in_line();
+    const char *s = p;
+    while (*p && !isspace((unsigned char)*p)) p++;
+    return std::string(s, (size_t)(p - s));
+  }
+};
+
+// Parses a whole token as a number (strtod accepts nan, inf and overflow).
+bool parse_number(const std::string &tok, double *v) {
+  if (tok.empty()) return false;
+  char *end = nullptr;
+  errno = 0;
+  *v = strtod(tok.c_str(), &end);
+  return end && *end == 0;
+}
+
+bool fits_float(double v) {
+  return std::isfinite(v) && std::fabs(v) <= (double)FLT_MAX;
+}
+
+// "(nan, 0, 1)" as the coordinates will be stored (as floats).
+std::string coords_text(const double v[3]) {
+  char buf[128];
+  snprintf(buf, sizeof buf, "(%g, %g, %g)", (double)(float)v[0], (double)(float)v[1],
+           (double)(float)v[2]);
+  return buf;
+}
+
+// Checks three coordinate tokens; fills msg and returns false when bad.
+// msg becomes "LINE: WHO has ...", to follow "path:".
+bool check_coords(const std::string tok[3], int line, const std::string &who, std::string *msg) {
+  double v[3];
+  for (int a = 0; a < 3; a++) {
+    if (!parse_number(tok[a], &v[a])) {
+      *msg = std::to_string(line) + ": " + who + ": expected three numbers, coordinate " +
+             std::to_string(a + 1) + " is '" + tok[a] + "'";
+      return false;
+    }
+  }
+  for (int a = 0; a < 3; a++) {
+    if (!fits_float(v[a])) {
+      *msg = std::to_string(line) + ": " + who + " has a non-finite coordinate " + coords_text(v);
+      if (std::isfinite(v[a])) *msg += " (overflows a 32-bit float)";
+      return false;
+    }
+  }
+  return true;
+}
+
+// OBJ: every "v x y z" line. Returns the number of v lines through *count.
+bool prescan_obj(const char *text, int *count, std::string *msg) {
+  text_cursor c{text, 1};
+  int n = 0;
+  while (*c.p) {
+    c.skip_space_in_line();
+    if (c.p[0] == 'v' && (c.p[1] == ' ' || c.p[1] == '\t')) {
+      int line = c.line;
+      c.p++;
+      n++;
+      std::string tok[3];
+      for (int a = 0; a < 3; a++) tok[a] = c.token(false, false);
+      if (!check_coords(tok, line, "vertex " + std::to_string(n), msg))
+        return false;
+    }
+    c.next_line();
+  }
+  *count = n;
+  return true;
+}
+
+// ASCII OFF: header "OFF" (or COFF, NOFF, CNOFF...), counts, then vertices.
+// Vertex numbers are 0-based, as OFF faces use them. OpenMesh's OFF reader
+// knows no '#' comments (it reads garbage after one), so they are refused.
+bool prescan_off(const char *text, std::string *msg) {
+  text_cursor c{text, 1};
+  std::string head = c.token(true, false);
+  if (head.size() < 3 || head.compare(head.size() - 3, 3, "OFF") != 0) return true; // OpenMesh decides
+  if (head.find('4') != std::string::npos || head.find('n') != std::string::npos) return true;
+  const char *save = c.p;
+  int save_line = c.line;
+  if (c.token(true, false) == "BINARY") return true; // NaN passes through, checked after reading
+  c.p = save;
+  c.line = save_line;
+  const char *comment_msg = ": '#' comments are not supported by OpenMesh's OFF reader; remove them";
+  std::string counts[3];
+  for (int a = 0; a < 3; a++) {
+    counts[a] = c.token(true, false);
+    if (!counts[a].empty() && counts[a][0] == '#') {
+      *msg = std::to_string(c.line) + comment_msg;
+      return false;
+    }
+  }
+  double nv = 0;
+  if (!parse_number(counts[0], &nv) || nv < 0 || nv > 1e9) return true; // OpenMesh reports it
+  for (long i = 0; i < (long)nv; i++) {
+    c.skip_space(false);
+    if (!*c.p) return true; // truncated: OpenMesh will notice
+    int line = c.line;
+    if (*c.p == '#') {
+      *msg = std::to_string(line) + comment_msg;
+      return false;
+    }
+    std::string tok[3];
+    for (int a = 0; a < 3; a++) tok[a] = c.token(false, false);
+    if (!check_coords(tok, line, "vertex " + std::to_string(i), msg)) return false;
+    c.next_line(); // normals, colours and texture coordinates follow on the line
+  }
+  return true;
+}
+
+// ASCII PLY: the x, y, z properties of the "vertex" element; elements before it
+// are skipped token by token (list properties carry their own count).
+bool prescan_ply(const char *text, std::string *msg) {
+  struct prop {
+    std::string name;
+    bool list;
+  };
+  struct element {
+    std::string name;
+    long count;
+    std::vector<prop> props;
+  };
+  text_cursor c{text, 1};
+  if (c.token(true, false) != "ply") return true;
+  std::vector<element> elems;
+  bool ascii = false;
+  for (;;) {
+    c.skip_space(false);
+    if (!*c.p) return true; // no end_header: OpenMesh reports it
+    std::string kw = c.token(false, false);
+    if (kw == "format") {
+      ascii = c.token(false, false) == "ascii";
+    } else if (kw == "element") {
+      element e;
+      e.name = c.token(false, false);
+      double n = 0;
+      if (!parse_number(c.token(false, false), &n) || n < 0) return true;
+      e.count = (long)n;
+      elems.push_back(e);
+    } else if (kw == "property" && !elems.empty()) {
+      std::string type = c.token(false, false);
+      prop pr;
+      pr.list = type == "list";
+      if (pr.list) {
+        c.token(false, false);
+        c.token(false, false);
+      }
+      pr.name = c.token(false, false);
+      elems.back().props.push_back(pr);
+    } else if (kw == "end_header") {
+      c.next_line();
+      break;
+    }
+    c.next_line();
+  }
+  if (!ascii) return true; // binary: NaN passes through, checked after reading
+  for (const element &e : elems) {
+    int ix = -1, iy = -1, iz = -1;
+    bool is_vertex = e.name == "vertex";
+    for (size_t k = 0; k < e.props.size(); k++) {
+      if (e.props[k].name == "x") ix = (int)k;
+      if (e.props[k].name == "y") iy = (int)k;
+      if (e.props[k].name == "z") iz = (int)k;
+    }
+    for (long i = 0; i < e.count; i++) {
+      std::string tok[3];
+      int line = -1;
+      for (size_t k = 0; k < e.props.size(); k++) {
+        std::string t = c.token(true, false);
+        if (t.empty()) return true; // truncated: OpenMesh will notice
+        if (line < 0) line = c.line;
+        if (e.props[k].list) {
+          double n = 0;
+          if (!parse_number(t, &n) || n < 0) return true;
+          for (long m = 0; m < (long)n; m++) c.token(true, false);
+          continue;
+        }
+        if (is_vertex && (int)k == ix) tok[0] = t;
+        if (is_vertex && (int)k == iy) tok[1] = t;
+        if (is_vertex && (int)k == iz) tok[2] = t;
+      }
+      if (is_vertex && ix >= 0 && iy >= 0 && iz >= 0 &&
+          !check_coords(tok, line, "vertex " + std::to_string(i), msg))
+        return false;
+    }
+    if (is_vertex) return true;
+  }
+  return true;
+}
+
+// ASCII STL: every "vertex x y z"; a file whose size matches the binary
+// layout (84 + 50 bytes per facet) is binary even when it starts with "solid".
+bool prescan_stl(const char *text, size_t len, std::string *msg) {
+  if (len >= 84) {
+    uint32_t n;
+    memcpy(&n, text + 80, 4);
+    if (84 + 50 * (uint64_t)n == len) {
+      // binary: OpenMesh merges vertices by position and loses a NaN's facet,
+      // so look at the records here (normal, 3 vertices, attribute)
+      for (uint32_t f = 0; f < n; f++)
+        for (int q = 0; q < 3; q++) {
+          float v[3];
+          memcpy(v, text + 84 + 50 * (size_t)f + 12 + 12 * q, sizeof v);
+          if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) {
+            double d[3] = {v[0], v[1], v[2]};
+            *msg = " facet " + std::to_string(f) + " vertex " + std::to_string(q) +
+                   " has a non-finite coordinate " + coords_text(d);
+            return false;
+          }
+        }
+      return true;
+    }
+  }
+  text_cursor c{text, 1};
+  if (c.token(true, false) != "solid") return true;
+  long k = 0;
+  for (;;) {
+    std::string t = c.token(true, false);
+    if (t.empty()) return true;
+    if (t != "vertex") continue;
+    int line = c.line;
+    std::string tok[3];
+    for (int a = 0; a < 3; a++) tok[a] = c.token(false, false);
+    if (!check_coords(tok, line,
+                      "facet " + std::to_string(k / 3) + " vertex " + std::to_string(k % 3), msg))
+      return false;
+    k++;
+  }
+}
+
+} // namespace
+
+extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err) {
+  memset(out, 0, sizeof *out);
+  std::string ext;
+  mesh_format fmt = format_of(path, &ext);
+  if (fmt == FMT_UNKNOWN)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: unknown mesh format '%s': expected .obj, .ply, .off or .stl", path,
+                   ext.empty() ? "(no extension)" : ext.c_str());
+
+  // Missing or unreadable files are named here, before OpenMesh tries, and the
+  // same read feeds the pre-scan.
+  char *text = nullptr;
+  size_t len = 0;
+  bk_error_t read_err;
+  if (bk_read_file(path, &text, &len, &read_err) != BK_OK)
+    return bk_fail(err, BK_ERR_INPUT, "%s", read_err.msg);
+  std::string msg;
+  int obj_vertex_lines = -1;
+  bool ok = true;
+  switch (fmt) {
+  case FMT_OBJ: ok = prescan_obj(text, &obj_vertex_lines, &msg); break;
+  case FMT_OFF: ok = prescan_off(text, &msg); break;
+  case FMT_PLY: ok = prescan_ply(text, &msg); break;
+  case FMT_STL: ok = prescan_stl(text, len, &msg); break;
+  default: break;
+  }
+  free(text);
+  if (!ok) return bk_fail(err, BK_ERR_INPUT, "%s:%s", path, msg.c_str());
+
+  om_mesh_t mesh;
+  OpenMesh::IO::Options opts;
+  bool read_ok;
+  std::string chatter;
+  bool topology_only = true;
+  {
+    om_capture capture;
+    try {
+      read_ok = OpenMesh::IO::read_mesh(mesh, path, opts);
+    } catch (const std::exception &e) {
+      capture.release();
+      return bk_fail(err, BK_ERR_INPUT, "%s: OpenMesh failed to read it: %s", path, e.what());
+    }
+    capture.release();
+    chatter = capture.summary(&topology_only);
+  }
+  if (!read_ok)
+    return bk_fail(err, BK_ERR_INPUT, "%s: OpenMesh could not read it as %s%s%s", path,
+                   ext.c_str() + 1, chatter.empty() ? "" : ": ", chatter.c_str());
+  // faces OpenMesh could not attach are still read (with duplicated
+  // vertices) and mesh_check counts them; anything else may have lost data
+  if (!chatter.empty() && topology_only)
+    bk_log(2, "%s: OpenMesh says: %s", path, chatter.c_str());
+  else if (!chatter.empty())
+    bk_warn("%s: OpenMesh says: %s", path, chatter.c_str());
+  if (mesh.n_faces() == 0)
+    return bk_fail(err, BK_ERR_INPUT, "%s: contains no triangles (%zu vertices, 0 faces)%s%s", path,
+                   (size_t)mesh.n_vertices(), chatter.empty() ? "" : "; OpenMesh says: ",
+                   chatter.c_str());
+  // OpenMesh only adds vertices (duplicates for complex edges), so fewer than
+  // the file's "v" lines means it dropped some it could not parse.
+  if (obj_vertex_lines >= 0 && (long)mesh.n_vertices() < (long)obj_vertex_lines)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: OpenMesh read only %zu of its %d vertices (a coordinate it cannot parse?)",
+                   path, (size_t)mesh.n_vertices(), obj_vertex_lines);
+  if (mesh.n_vertices() > (size_t)INT32_MAX / 3 || mesh.n_faces() > (size_t)INT32_MAX / 3)
+    return bk_fail(err, BK_ERR_INPUT, "%s: too large (%zu vertices, %zu faces)", path,
+                   (size_t)mesh.n_vertices(), (size_t)mesh.n_faces());
+
+  int nv = (int)mesh.n_vertices(), nf = (int)mesh.n_faces();
+  out->positions = (float *)bk_calloc((size_t)nv * 3, sizeof(float), path, err);
+  out->indices = (int *)bk_calloc((size_t)nf * 3, sizeof(int), path, err);
+  if (!out->positions || !out->indices) {
+    mesh_io_free(out);
+    return BK_ERR_RUNTIME;
+  }
+  for (int i = 0; i < nv; i++) {
+    const om_mesh_t::Point &p = mesh.point(om_mesh_t::VertexHandle(i));
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+      double v[3] = {p[0], p[1], p[2]};
+      mesh_io_free(out);
+      return bk_fail(err, BK_ERR_INPUT, "%s: vertex %d has a non-finite coordinate %s", path, i,
+                     coords_text(v).c_str());
+    }
+    for (int a = 0; a < 3; a++) out->positions[3 * i + a] = p[a];
+  }
+  int t = 0;
+  for (om_mesh_t::FaceHandle f : mesh.faces()) {
+    int corner = 0;
+    for (om_mesh_t::VertexHandle v : mesh.fv_range(f)) {
+      if (corner < 3) out->indices[3 * t + corner] = v.idx();
+      corner++;
+    }
+    if (corner != 3) {
+      mesh_io_free(out);
+      return bk_fail(err, BK_ERR_RUNTIME, "%s: face %d has %d corners after triangulation", path,
+                     t, corner);
+    }
+    t++;
+  }
+  out->vertex_count = nv;
+  out->triangle_count = nf;
+  return BK_OK;
+}
+
+extern "C" int mesh_io_write_obj(const char *path, const mesh_tris_t *m, bk_error_t *err) {
+  int rc = bk_check_output_dir(path, err);
+  if (rc != BK_OK) return rc;
+  char temp[4200];
+  bk_temp_path(path, temp, sizeof temp);
+  FILE *f = fopen(temp, "w");
+  if (!f) return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot create %s: %s", path, temp, strerror(errno));
+  fprintf(f, "# written by baker mesh_io_write_obj: %d vertices, %d triangles\n", m->vertex_count,
+          m->triangle_count);
+  // %.9g round-trips a float exactly
+  for (int i = 0; i < m->vertex_count; i++)
+    fprintf(f, "v %.9g %.9g %.9g\n", m->positions[3 * i], m->positions[3 * i + 1],
+            m->positions[3 * i + 2]);
+  for (int t = 0; t < m->triangle_count; t++)
+    fprintf(f, "f %d %d %d\n", m->indices[3 * t] + 1, m->indices[3 * t + 1] + 1,
+            m->indices[3 * t + 2] + 1);
+  int bad = ferror(f);
+  if (fclose(f) != 0 || bad) {
+    remove(temp);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: write failed", path);
+  }
+  return bk_commit_temp(temp, path, err);
+}
+
+extern "C" void mesh_io_free(mesh_tris_t *m) {
+  if (!m) return;
+  free(m->positions);
+  free(m->indices);
+  memset(m, 0, sizeof *m);
+}
