@@ -1,3 +1,51 @@
-/* main.c: command dispatch (the full version lands with the viewing pass). */
+/* main.c: the `baker` command: dispatches to `bake` and `view`.
+ * Exit status: 0 success, 2 bad input or usage, 1 runtime failure. */
+#include <stdio.h>
+#include <string.h>
+
 #include "bake.h"
-int main(int argc, char **argv) { return argc > 1 ? bake_main(argc - 1, argv + 1) : 2; }
+#include "clhost.h"
+#include "common.h"
+
+static void usage(FILE *out) {
+  fprintf(out,
+          "baker %s: offline lighting baker for refractive objects in participating media\n"
+          "\n"
+          "usage:\n"
+          "  baker bake SCENE.json -o OUT.vdb [options]   voxelize, trace photons, write OpenVDB\n"
+          "  baker view IN.vdb -o OUT.exr [options]       render a baked VDB to OpenEXR/PNG\n"
+          "  baker devices                                list OpenCL platforms and devices\n"
+          "  baker --version | --help\n"
+          "\n"
+          "`baker bake --help` and `baker view --help` list every option.\n"
+          "Exit status: 0 success, 2 bad input or usage, 1 runtime failure.\n",
+          BAKER_VERSION);
+}
+
+int main(int argc, char **argv) {
+  if (argc < 2) {
+    usage(stderr);
+    return BK_ERR_INPUT;
+  }
+  const char *cmd = argv[1];
+  if (!strcmp(cmd, "bake")) return bake_main(argc - 1, argv + 1);
+  if (!strcmp(cmd, "view")) {
+    fprintf(stderr, "baker view: the viewing pass is not built in this version\n");
+    return BK_ERR_RUNTIME;
+  }
+  if (!strcmp(cmd, "devices")) {
+    clh_list_devices(stdout);
+    return BK_OK;
+  }
+  if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) {
+    usage(stdout);
+    return BK_OK;
+  }
+  if (!strcmp(cmd, "--version")) {
+    printf("baker %s\n", BAKER_VERSION);
+    return BK_OK;
+  }
+  fprintf(stderr, "baker: unknown command '%s'\n\n", cmd);
+  usage(stderr);
+  return BK_ERR_INPUT;
+}
