@@ -6,6 +6,7 @@
 #include "bake.h"
 #include "clhost.h"
 #include "common.h"
+#include "view.h"
 
 static void usage(FILE *out) {
   fprintf(out,
@@ -29,10 +30,7 @@ int main(int argc, char **argv) {
   }
   const char *cmd = argv[1];
   if (!strcmp(cmd, "bake")) return bake_main(argc - 1, argv + 1);
-  if (!strcmp(cmd, "view")) {
-    fprintf(stderr, "baker view: the viewing pass is not built in this version\n");
-    return BK_ERR_RUNTIME;
-  }
+  if (!strcmp(cmd, "view")) return view_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "devices")) {
     clh_list_devices(stdout);
     return BK_OK;

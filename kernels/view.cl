@@ -1,0 +1,45 @@
+/* view.cl: the viewing pass, one work-item per pixel (see view.h for the math).
+ *
+ * Specialised by the host with -D flags so that only what the file contains
+ * is computed: HAS_REFRACTION (n varies: curved rays, else straight),
+ * INTEGRATOR (0 Euler, 1 RK4), GREY (grey σt, packed with S = σs L̄ in one
+ * float4), HOMOGENEOUS (RGB σt constant, passed in the parameters). The
+ * defaults below only serve the device-less compile check. */
+#include "view.h"
+
+#ifndef HAS_REFRACTION
+#define HAS_REFRACTION 1
+#endif
+#ifndef INTEGRATOR
+#define INTEGRATOR VIEW_EULER
+#endif
+#ifndef GREY
+#define GREY 0
+#endif
+#ifndef HOMOGENEOUS
+#define HOMOGENEOUS 0
+#endif
+
+__kernel void view_render(const view_params_t p, __global const float *medium,
+                          __global const float *sigma_t, __global const float *ng,
+                          __global const unsigned char *bricks, __global float *rgba,
+                          __global uint *steps) {
+  int px = (int)get_global_id(0), py = (int)get_global_id(1);
+  if (px >= p.width || py >= p.height) return;
+  view_fields f;
+  f.medium = medium;
+  f.sigma_t = sigma_t;
+  f.ng = ng;
+  f.bricks = bricks;
+  view_flags fl;
+  fl.refraction = HAS_REFRACTION;
+  fl.grey = GREY;
+  fl.integrator = INTEGRATOR;
+  fl.homogeneous = HOMOGENEOUS;
+  float out[4];
+  uint n;
+  view_march_pixel(&p, f, fl, px, py, out, &n);
+  size_t o = (size_t)py * (size_t)p.width + (size_t)px;
+  vstore4((float4)(out[0], out[1], out[2], out[3]), o, rgba);
+  steps[o] = n;
+}
