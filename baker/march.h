@@ -1,0 +1,121 @@
+/* march.h: photon marching (pipeline stage 5), on OpenCL or in plain C.
+ *
+ * In: the scene (lights, photons.count/seed/integrator/step, already
+ * overridden by the command line) and the voxelized volume (n, σs, σa).
+ * Out: the `radiance` grid, L̄ = φ/(4π) in W m^-2 sr^-1, 3 floats per voxel,
+ * estimated by track length: each photon adds Φ·ℓ/(4π V) to each voxel it
+ * crosses (ℓ its path length in the voxel, m; V the voxel volume), with Φ
+ * integrated exactly over the voxel, Φ0 (1 - e^{-σt ℓ})/σt (kernels/march.h).
+ *
+ * Stages and what they cost (bk_timings_t rows): "octree" (the constant-block
+ * pyramid of n, baker/octree.h, and the float4 field of ∇n and n the march
+ * samples, ∇n by kernels/ior.h's central differences), "photon generation"
+ * (light set-up: the photons themselves are made in the kernel from their
+ * index, kernels/photons.h), "photon marching".
+ *
+ * Accumulation is 64-bit fixed point, one counter per voxel and channel,
+ * added with atom_add on ulong (cl_khr_int64_base_atomics): sums are exact
+ * and independent of the order photons arrive in. The scale rule: a photon
+ * deposits at most Φ0 (path_cap + D) W·voxel in all (the path cap is
+ * PM_MAX_PATH_DIAGONALS grid diagonals D; the last straight piece is at most
+ * one more D), so with P the total photon power of the brightest channel,
+ *   S = 2^62 / (P (path_cap + D))   quanta per W·voxel
+ * keeps every counter, and even the sum over all counters, below 2^62 (half
+ * the ulong range, leaving room for the rounding of each deposit to the
+ * nearest quantum). A deposit of a typical photon over one voxel is then
+ * Φ0·S = 2^62 / (N (path_cap + D)) quanta: about 1e7 for N = 1e8 photons on a
+ * 128^3 grid, a relative quantum of 1e-7 (and the deposit itself is a float,
+ * good to 6e-8).
+ *
+ * One channel instead of three when the medium is grey and every light has
+ * the same colour: the march carries the sum of RGB and the result is
+ * coloured at the end (a third of the atomics). */
+#ifndef BAKER_MARCH_H
+#define BAKER_MARCH_H
+
+#include "clhost.h"
+#include "kernels/march.h"
+#include "octree.h"
+#include "photons.h"
+#include "scene.h"
+#include "voxelize.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Photons per kernel launch: progress between launches, and PoCL never holds
+ * the queue for long. */
+#define PM_CHUNK 65536u
+
+typedef struct pm_stats {
+  uint64_t photons, missed_grid, left_grid, absorbed, step_limit;
+  uint64_t steps;      /* march iterations: integrator steps + straight block crossings */
+  uint64_t voxels;     /* voxel crossings (deposits) */
+  double path_voxels;  /* total path length inside the grid, voxels */
+  double ms_octree, ms_generate, ms_march;
+  double ms_build;     /* OpenCL program build (or cache load), part of ms_march */
+} pm_stats_t;
+
+/* Everything the march needs, prepared once on the host. */
+typedef struct pm_setup {
+  pm_params params;
+  ph_setup_t lights;
+  grid_dims_t dims;
+  size_t voxels;
+  int channels;          /* 1 or 3 */
+  int has_refraction, homogeneous, grey;
+  float *ng;             /* has_refraction: 4 floats per voxel, ∇n (1/voxel) and n */
+  oct_pyramid_t pyramid; /* has_refraction */
+  float *sigma;          /* !homogeneous: channels floats per voxel, σt per voxel length */
+  double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
+  int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
+} pm_setup_t;
+
+/* The fixed-point scale for total photon power `power_max` (W, brightest
+ * channel) and a bound `path_bound` (voxels) on any photon's deposited path. */
+double pm_fixed_scale(double power_max, double path_bound);
+
+/* Builds the pyramid, the n/∇n field, the extinction grid and the lights.
+ * Timings (may be NULL) get the "octree" and "photon generation" rows. */
+int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timings_t *timings,
+               pm_stats_t *stats, bk_error_t *err);
+void pm_setup_free(pm_setup_t *s);
+/* Treat every block as varying (after pm_prepare): the march then steps
+ * everywhere, as the paper's reference pipeline without its octree. */
+void pm_disable_octree(pm_setup_t *s);
+
+/* Marches every photon into acc (channels counters per voxel, zeroed by the
+ * caller): in plain C on this thread, or with OpenCL on cl. */
+int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err);
+int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+              bk_error_t *err);
+/* acc -> radiance (3 floats per voxel, W m^-2 sr^-1). */
+void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);
+
+/* The whole stage: cl NULL marches on the host. Adds the "octree",
+ * "photon generation" and "photon marching" timing rows. */
+int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float *radiance,
+            pm_stats_t *stats, bk_timings_t *timings, bk_error_t *err);
+
+/* Host-only, for tests: the path of photon `index` of the setup as points in
+ * world coordinates (3 floats each: the light's origin, the grid entry, then
+ * the end of every march iteration). *count is the number of points the path
+ * had (only the first max_points are stored). res may be NULL. */
+int pm_trace_photon(const pm_setup_t *s, uint32_t index, float *points, int max_points,
+                    int *count, pm_result *res, bk_error_t *err);
+/* The same for a ray given by its world origin and direction. */
+int pm_trace_ray(const pm_setup_t *s, const float origin[3], const float dir[3], float *points,
+                 int max_points, int *count, pm_result *res, bk_error_t *err);
+
+/* For the precision test: n deposits of `value` quanta through the march's
+ * deposit function into one counter, on the host or on cl (per_item deposits
+ * per work-item). */
+uint64_t pm_deposit_repeat_host(float value, uint64_t n);
+int pm_deposit_repeat_cl(clh_context_t *cl, float value, uint32_t items, uint32_t per_item,
+                         uint64_t *sum, bk_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

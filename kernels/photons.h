@@ -1,0 +1,133 @@
+/* photons.h: photon generation from a photon index, shared by host and device.
+ *
+ * In: a light prepared on the host (ph_light, in voxel coordinates: u = (x -
+ * origin) / voxel_size) and the photon's index k within that light's share of
+ * the photons. Out: the photon's origin, unit direction and power. Nothing is
+ * stored per photon: the march kernel calls ph_sample with its own index, and
+ * the host path calls the very same function.
+ *
+ * The 2D point is Hammersley, (k / count, radical inverse base 2 of k), with a
+ * Cranley–Patterson rotation (a, b) -> fract(a + r_u, b + r_v) derived from
+ * the scene seed (ph_light.rot_u, rot_v), so that different seeds give
+ * different but equally well stratified sets.
+ *  - directional: a rectangle perpendicular to the direction that covers the
+ *    grid's projection, placed one voxel before the grid; origin = corner +
+ *    a U + b V. Power per photon E A / N (A the rectangle's area in m^2).
+ *  - spot: uniform in solid angle within the cone of half angle theta:
+ *    cos t = 1 - a (1 - cos theta), phi = 2 pi b. Power I Omega / N with
+ *    Omega = 2 pi (1 - cos theta).
+ *  - point: the same with cos theta = -1 (whole sphere), power I 4 pi / N.
+ * Photons that start outside the grid are advanced to where they enter it
+ * (ph_enter_grid); those that never hit it are counted as missed. */
+#ifndef BAKER_PHOTONS_KERNEL_H
+#define BAKER_PHOTONS_KERNEL_H
+
+#include "shared.h"
+
+#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
+#define PH_DEVICE 1
+/* a kernel built without LIGHT_* flags keeps every generator */
+#if !defined(LIGHT_DIRECTIONAL) && !defined(LIGHT_SPOT) && !defined(LIGHT_POINT)
+#define LIGHT_DIRECTIONAL 1
+#define LIGHT_SPOT 1
+#define LIGHT_POINT 1
+#endif
+#else
+#define PH_DEVICE 0
+#endif
+
+#define PH_DIRECTIONAL 0 /* same values as light_type_t in baker/scene.h */
+#define PH_SPOT 1
+#define PH_POINT 2
+
+/* One light as the march sees it. Plain floats so the layout is the same in
+ * C and OpenCL C; pinned at 96 bytes. */
+typedef struct ph_light {
+  float px, py, pz; /* spot, point: position; directional: rectangle corner */
+  int type;         /* PH_DIRECTIONAL, PH_SPOT, PH_POINT */
+  float dx, dy, dz; /* unit direction (spot axis, directional direction) */
+  float cos_max;    /* spot: cos of the half angle; point: -1 */
+  float ux, uy, uz; /* directional: rectangle edge U (voxels); spot/point: unit basis vector */
+  float rot_u;      /* Cranley–Patterson rotation of the first coordinate */
+  float vx, vy, vz; /* directional: rectangle edge V (voxels); spot/point: unit basis vector */
+  float rot_v;      /* ... and of the second */
+  float power[3];   /* W per photon, RGB (grey kernels use power[0] only) */
+  bk_uint first;    /* this light's photons are [first, first + count) */
+  bk_uint count;
+  bk_uint pad[3];
+} ph_light;
+BK_STATIC_ASSERT(sizeof(ph_light) == 96, "ph_light layout is shared with kernels");
+
+/* Radical inverse base 2 of k in [0, 1): the bits of k mirrored about the
+ * binary point. 24 bits are kept so the float is exact and below 1. */
+BK_INLINE float ph_radical_inverse2(bk_uint k) {
+  k = (k << 16) | (k >> 16);
+  k = ((k & 0x00ff00ffu) << 8) | ((k & 0xff00ff00u) >> 8);
+  k = ((k & 0x0f0f0f0fu) << 4) | ((k & 0xf0f0f0f0u) >> 4);
+  k = ((k & 0x33333333u) << 2) | ((k & 0xccccccccu) >> 2);
+  k = ((k & 0x55555555u) << 1) | ((k & 0xaaaaaaaau) >> 1);
+  return (float)(k >> 8) * (1.0f / 16777216.0f);
+}
+
+/* x + r wrapped into [0, 1) for x, r in [0, 1). */
+BK_INLINE float ph_rotate(float x, float r) {
+  float y = x + r;
+  y = y >= 1.0f ? y - 1.0f : y;
+  return y < 1.0f ? y : 0.99999994f; /* float rounding of x + r - 1 can give 1 */
+}
+
+/* The rotated Hammersley point k of n. */
+BK_INLINE void ph_hammersley(bk_uint k, bk_uint n, float rot_u, float rot_v, float *a, float *b) {
+  float u = (float)k / (float)n;
+  *a = ph_rotate(u < 1.0f ? u : 0.99999994f, rot_u);
+  *b = ph_rotate(ph_radical_inverse2(k), rot_v);
+}
+
+/* Origin and unit direction of photon k (0 <= k < count) of light L, voxel
+ * coordinates. The LIGHT_* flags of a specialised kernel drop the generators
+ * of light types the scene does not have. */
+BK_INLINE void ph_sample(BK_CONSTANT const ph_light *L, bk_uint k, bk_v3 *origin, bk_v3 *dir) {
+  float a, b;
+  ph_hammersley(k, L->count, L->rot_u, L->rot_v, &a, &b);
+  bk_v3 d = v3(L->dx, L->dy, L->dz);
+  bk_v3 u = v3(L->ux, L->uy, L->uz), w = v3(L->vx, L->vy, L->vz);
+#if !PH_DEVICE || LIGHT_DIRECTIONAL
+  if (L->type == PH_DIRECTIONAL) {
+    *origin = v3_madd(v3_madd(v3(L->px, L->py, L->pz), u, a), w, b);
+    *dir = d;
+    return;
+  }
+#endif
+#if !PH_DEVICE || LIGHT_SPOT || LIGHT_POINT
+  /* spot and point: uniform in solid angle about d down to cos_max */
+  float ct = 1.0f - a * (1.0f - L->cos_max);
+  float st = sqrt(fmax(0.0f, 1.0f - ct * ct));
+  float phi = 6.283185307179586f * b;
+  float cp = cos(phi), sp = sin(phi);
+  *origin = v3(L->px, L->py, L->pz);
+  *dir = v3_normalize(v3_madd(v3_madd(v3_scale(d, ct), u, st * cp), w, st * sp));
+#endif
+}
+
+/* Where the ray o + t d (unit d) first meets the box [0, n] of the grid, for
+ * t >= 0. Returns 0 when it misses; else *t_enter (0 when o is inside). */
+BK_INLINE int ph_enter_grid(const bk_grid g, bk_v3 o, bk_v3 d, float *t_enter) {
+  float t0 = 0.0f, t1 = 3.0e38f;
+  float ov[3] = {o.x, o.y, o.z}, dv[3] = {d.x, d.y, d.z};
+  float nv[3] = {(float)g.nx, (float)g.ny, (float)g.nz};
+  for (int a = 0; a < 3; a++) {
+    if (dv[a] == 0.0f) {
+      if (ov[a] < 0.0f || ov[a] > nv[a]) return 0;
+      continue;
+    }
+    float inv = 1.0f / dv[a];
+    float ta = (0.0f - ov[a]) * inv, tb = (nv[a] - ov[a]) * inv;
+    float lo = fmin(ta, tb), hi = fmax(ta, tb);
+    t0 = fmax(t0, lo);
+    t1 = fmin(t1, hi);
+  }
+  *t_enter = t0;
+  return t0 < t1;
+}
+
+#endif
