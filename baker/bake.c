@@ -12,6 +12,7 @@
 #include "clhost.h"
 #include "common.h"
 #include "grid.h"
+#include "march.h"
 #include "voxelize.h"
 
 static void bake_usage(FILE *out) {
@@ -120,8 +121,13 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   scene_t scene;
   volume_t vol;
   bk_timings_t timings;
+  clh_context_t cl;
+  pm_stats_t stats;
   float *extinction = NULL, *density = NULL, *ext_grey = NULL, *sca_grey = NULL;
+  float *radiance = NULL;
   memset(&vol, 0, sizeof vol);
+  memset(&cl, 0, sizeof cl);
+  memset(&stats, 0, sizeof stats);
   memset(&timings, 0, sizeof timings);
   int rc = bk_check_output_dir(out_path, err);
   if (rc) return rc;
@@ -135,9 +141,26 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
 
   rc = vox_build(&scene, &vol, &timings, err);
   if (rc) goto done;
+  size_t n = grid_count(&vol.dims);
+
+  /* photons: a scene without lights still gets an (empty) radiance grid */
+  radiance = bk_calloc(n * 3, sizeof(float), "radiance grid", err);
+  if (!radiance) {
+    rc = err->code;
+    goto done;
+  }
+  if (scene.light_count > 0) {
+    if (!opt->host_only) {
+      t0 = bk_now_ms();
+      rc = clh_init(&cl, opt->device, err);
+      if (rc) goto done;
+      bk_timings_add(&timings, "OpenCL init", bk_now_ms() - t0, "%s", cl.device_name);
+    }
+    rc = pm_bake(opt->host_only ? NULL : &cl, &scene, &vol, radiance, &stats, &timings, err);
+    if (rc) goto done;
+  }
 
   t0 = bk_now_ms();
-  size_t n = grid_count(&vol.dims);
   rc = derive_medium_grids(&vol, &extinction, &density, err);
   if (rc) goto done;
   vdbio_grid_t grids[8];
@@ -157,6 +180,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
     grids[g++] = (vdbio_grid_t){"scattering", VDBIO_VEC3, vol.sigma_s, 1};
   }
   grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, density, 0};
+  grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, radiance, 1};
 
   char hash[32], bounds[160];
   snprintf(hash, sizeof hash, "%016" PRIx64, scene.hash);
@@ -171,6 +195,16 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
       {"grid_bounds", VDBIO_META_STRING, bounds, 0, 0},
       {"grid_resolution", VDBIO_META_INT, NULL, scene.resolution, 0},
       {"ior_smoothing_voxels", VDBIO_META_FLOAT, NULL, 0, scene.ior_smoothing},
+      {"photon_count", VDBIO_META_INT, NULL, (long long)stats.photons, 0},
+      {"photon_integrator", VDBIO_META_STRING, scene_integrator_name(scene.integrator), 0, 0},
+      {"photon_step_voxels", VDBIO_META_FLOAT, NULL, 0, scene.step},
+      {"photon_seed", VDBIO_META_INT, NULL, scene.seed, 0},
+      {"photons_missed_grid", VDBIO_META_INT, NULL, (long long)stats.missed_grid, 0},
+      {"photons_left_grid", VDBIO_META_INT, NULL, (long long)stats.left_grid, 0},
+      {"photons_absorbed", VDBIO_META_INT, NULL, (long long)stats.absorbed, 0},
+      {"photons_step_limit", VDBIO_META_INT, NULL, (long long)stats.step_limit, 0},
+      {"photon_steps", VDBIO_META_INT, NULL, (long long)stats.steps, 0},
+      {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : cl.device_name, 0, 0},
   };
   rc = vdbio_write(out_path, &vol.dims, grids, g, meta, (int)(sizeof meta / sizeof meta[0]),
                    &opt->write, err);
@@ -180,6 +214,12 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   if (bk_verbosity >= 1) {
     printf("baked %s -> %s (%dx%dx%d voxels of %g m)\n", scene_path, out_path, vol.dims.nx,
            vol.dims.ny, vol.dims.nz, vol.dims.voxel_size);
+    if (stats.photons)
+      printf("photons: %llu traced, %llu missed the grid, %llu left it, %llu absorbed, "
+             "%llu stopped at the step limit\n",
+             (unsigned long long)stats.photons, (unsigned long long)stats.missed_grid,
+             (unsigned long long)stats.left_grid, (unsigned long long)stats.absorbed,
+             (unsigned long long)stats.step_limit);
     bk_timings_print(&timings, stdout);
     fflush(stdout);
   }
@@ -188,6 +228,8 @@ done:
   free(density);
   free(ext_grey);
   free(sca_grey);
+  free(radiance);
+  clh_release(&cl);
   vox_free(&vol);
   scene_free(&scene);
   return rc;
