@@ -11,9 +11,12 @@
 
 #include "clhost.h"
 #include "common.h"
+#include "frames.h"
 #include "grid.h"
 #include "march.h"
 #include "voxelize.h"
+
+static int expand_scene_paths(scene_t *s, int frame, bk_error_t *err);
 
 static void bake_usage(FILE *out) {
   fprintf(out,
@@ -136,6 +139,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   rc = scene_load(scene_path, &scene, err);
   if (rc) return rc;
   apply_overrides(opt, &scene);
+  if ((rc = expand_scene_paths(&scene, frame, err))) goto done;
   bk_timings_add(&timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
                  scene.object_count, scene.light_count);
 
@@ -233,6 +237,78 @@ done:
   vox_free(&vol);
   scene_free(&scene);
   return rc;
+}
+
+/* Frame patterns also work inside the scene: a mesh sequence or a Houdini
+ * smoke cache (density_vdb "smoke.$F4.vdb") follows the frame. */
+static int expand_scene_paths(scene_t *s, int frame, bk_error_t *err) {
+  char buf[SCENE_PATH_MAX];
+  int rc = BK_OK;
+  for (int i = 0; i < s->object_count && !rc; i++)
+    if (!(rc = frames_expand(s->objects[i].mesh, frame, buf, sizeof buf, err)))
+      memcpy(s->objects[i].mesh, buf, sizeof buf);
+  scene_vdb_ref_t *refs[2] = {&s->density_vdb, &s->ior_vdb};
+  for (int i = 0; i < 2 && !rc; i++)
+    if (refs[i]->present && !(rc = frames_expand(refs[i]->file, frame, buf, sizeof buf, err)))
+      memcpy(refs[i]->file, buf, sizeof buf);
+  return rc;
+}
+
+/* Which frames to bake: --frames, else $SLURM_ARRAY_TASK_ID when the output
+ * holds a frame pattern (one frame per array task), else the single frame 0
+ * for a plain output path. */
+static int choose_frames(const bake_options_t *opt, frames_range_t *range, bk_error_t *err) {
+  const char *slurm = getenv("SLURM_ARRAY_TASK_ID");
+  int patterned = frames_has_pattern(opt->out_path);
+  if (opt->frames) {
+    int rc = frames_parse(opt->frames, "--frames", range, err);
+    if (rc) return rc;
+  } else if (patterned && slurm && *slurm) {
+    int rc = frames_parse(slurm, "$SLURM_ARRAY_TASK_ID", range, err);
+    if (rc) return rc;
+  } else if (patterned) {
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: the output holds a frame pattern but no frame was given "
+                   "(--frames A-B, or run as a Slurm array task)", opt->out_path);
+  } else {
+    *range = (frames_range_t){0, 0, 1};
+  }
+  if (frames_count(range) > 1 && !patterned)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: %d frames would all write this one file; put #### or $F4 in the "
+                   "output path", opt->out_path, frames_count(range));
+  return BK_OK;
+}
+
+static int run_frames(const bake_options_t *opt, bk_error_t *err) {
+  frames_range_t range;
+  int rc = choose_frames(opt, &range, err);
+  if (rc) return rc;
+  int count = frames_count(&range), baked = 0, skipped = 0;
+  for (int i = 0; i < count; i++) {
+    int frame = frames_at(&range, i);
+    char scene_path[SCENE_PATH_MAX], out_path[SCENE_PATH_MAX];
+    if ((rc = frames_expand(opt->scene_path, frame, scene_path, sizeof scene_path, err)) ||
+        (rc = frames_expand(opt->out_path, frame, out_path, sizeof out_path, err)))
+      return rc;
+    if (!opt->force && output_complete(out_path)) {
+      bk_log(1, "%s exists and is complete: skipped (--force re-bakes it)", out_path);
+      skipped++;
+      continue;
+    }
+    if (count > 1) bk_log(1, "frame %d (%d of %d)", frame, i + 1, count);
+    if ((rc = bake_frame(opt, scene_path, out_path, frame, err))) {
+      if (count > 1) {
+        char msg[sizeof err->msg];
+        snprintf(msg, sizeof msg, "frame %d: %s", frame, err->msg);
+        snprintf(err->msg, sizeof err->msg, "%s", msg);
+      }
+      return rc;
+    }
+    baked++;
+  }
+  if (count > 1) bk_log(1, "%d frames baked, %d skipped as already complete", baked, skipped);
+  return BK_OK;
 }
 
 int bake_main(int argc, char **argv) {
@@ -335,12 +411,7 @@ int bake_main(int argc, char **argv) {
   }
 
   bk_error_t err = {0, ""};
-  int rc = BK_OK;
-  if (!opt.force && output_complete(opt.out_path)) {
-    bk_log(1, "%s exists and is complete: skipped (--force re-bakes it)", opt.out_path);
-    return BK_OK;
-  }
-  rc = bake_frame(&opt, opt.scene_path, opt.out_path, 0, &err);
+  int rc = run_frames(&opt, &err);
   if (rc) fprintf(stderr, "baker bake: %s\n", err.msg);
   return rc;
 }
