@@ -41,6 +41,17 @@ void view_usage(FILE *out);
  * one-sided on the faces: kernels/ior.h, as the photon march) and n. */
 void view_ng_field(int nx, int ny, int nz, const float *ior, float *ng);
 
+/* The layout the kernel reads 4-float fields in: src (nx*ny*nz voxels of 4
+ * floats) with one layer of replicated edge voxels around it, into dst of
+ * (nx+2)*(ny+2)*(nz+2) voxels. */
+void view_pad4(int nx, int ny, int nz, const float *src, float *dst);
+
+/* Where camera rays may walk straight inside refracting bricks: per voxel,
+ * the Chebyshev distance in voxels (capped at VIEW_FLAT_MAX) to the nearest
+ * voxel whose ∇n (from view_ng_field) is not zero. scratch: nx*ny*nz bytes. */
+void view_flat_field(int nx, int ny, int nz, const float *ng, unsigned char *flat,
+                     unsigned char *scratch);
+
 #ifdef __cplusplus
 }
 #endif

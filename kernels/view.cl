@@ -22,8 +22,8 @@
 
 __kernel void view_render(const view_params_t p, __global const float *medium,
                           __global const float *sigma_t, __global const float *ng,
-                          __global const unsigned char *bricks, __global float *rgba,
-                          __global uint *steps) {
+                          __global const unsigned char *bricks, __global const uchar *flat,
+                          __global float *rgba, __global uint *steps) {
   int px = (int)get_global_id(0), py = (int)get_global_id(1);
   if (px >= p.width || py >= p.height) return;
   view_fields f;
@@ -31,6 +31,7 @@ __kernel void view_render(const view_params_t p, __global const float *medium,
   f.sigma_t = sigma_t;
   f.ng = ng;
   f.bricks = bricks;
+  f.flat = flat;
   view_flags fl;
   fl.refraction = HAS_REFRACTION;
   fl.grey = GREY;

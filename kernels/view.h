@@ -3,7 +3,10 @@
  * In: a pinhole camera and the baked fields resampled onto one dense grid,
  * packed by the host as one float4 per voxel {S = σs·L̄ (RGB), σt} (grey) or
  * {S, unused} plus {σt RGB, unused} (RGB), and {∇n, n} (one float4 per
- * voxel, the same field the photon march reads). Out: per pixel
+ * voxel, the same field the photon march reads), each stored with one layer
+ * of replicated edge voxels around it (view_pad4); per 8³ brick a byte of
+ * flags and, with refraction, per voxel the distance to the nearest ∇n ≠ 0
+ * (view_flat_field). Out: per pixel
  *   L = ∫ T(t) σs(x) L̄(x) dt + T_end·L_background,  RGBA with A = 1 − mean(T_end).
  * Everything here works in voxel coordinates u (voxel (i,j,k) spans [i, i+1),
  * its value sits at i + 0.5; the box is [0,nx]×[0,ny]×[0,nz]). The host maps
@@ -15,13 +18,16 @@
  *   Euler (the paper's scheme): x += (Δs/n) v,  v += Δs ∇n;  or classic RK4
  * on (x, v). ∇n is the central difference of n at voxel centres (one-sided
  * on the grid's faces: kernels/ior.h, as for the photons), n and ∇n both
- * trilinear in between, so one float4 lookup gives both. Where n is
- * constant (grid-wide: HAS_REFRACTION = 0; locally: an 8³ brick whose n, with
- * a 3-voxel margin, is one value) the ray walks straight with longer steps.
- * Where, besides, S and σt are constant over a brick (with the 1-voxel
- * margin trilinear sampling reads; e.g. unlit fog), one step crosses the
- * whole brick, which the exact integration below makes exact; a point on a
- * brick face belongs to the brick the ray enters (the DDA rule).
+ * trilinear in between, so one float4 lookup gives both. Where ∇n = 0 the
+ * solution is a straight line and the ray walks it without the ray
+ * equation: grid-wide (HAS_REFRACTION = 0), across an 8³ brick whose n, with
+ * a 3-voxel margin, is one value, and along a chord that keeps every
+ * trilinear stencil it reads where ∇n = 0 (view_flat_at). Where, besides, S
+ * and σt are constant over a brick (with the 1-voxel margin trilinear
+ * sampling reads; e.g. unlit fog), one step crosses the whole brick, which
+ * the exact integration below makes exact; a point on a brick face belongs
+ * to the brick the ray enters (the DDA rule). Consecutive straight bricks of
+ * varying medium are one chord, sampled at most straight_step apart.
  * Each step of chord length Δ takes σt and S = σs L̄ (interpolated as one
  * field, so a step reads one float4 per trilinear corner) at the chord's
  * midpoint as constant and is integrated exactly:
@@ -43,11 +49,9 @@
 #define VIEW_BRICK_SHIFT 3       /* flags per 8³ voxels */
 #define VIEW_BRICK_N_CONST 1     /* n is one value over the brick and VIEW_BRICK_MARGIN around */
 #define VIEW_BRICK_MEDIUM_CONST 2 /* S and σt are, over the brick and 1 voxel around */
-#define VIEW_BRICK_MARGIN 3      /* voxels around a brick that must share its n */
-/* A straight step starting inside a constant brick stays where trilinear ∇n
- * is zero: the margin, less 1 voxel of central difference and 0.5 of
- * trilinear support. */
-#define VIEW_BRICK_STEP_MAX 1.5f
+/* Voxels around a brick that must share its n, so that trilinear ∇n (1 voxel
+ * of central difference, 0.5 of trilinear support) is zero over the brick. */
+#define VIEW_BRICK_MARGIN 3
 #define VIEW_DIR_EPS 1e-12f
 
 enum { VIEW_EULER = 0, VIEW_RK4 = 1 };
@@ -65,10 +69,9 @@ typedef struct view_params {
   int bx, by, bz;     /* brick counts, ceil(n / 8) */
   int max_steps;      /* per ray (curved rays trapped by total internal reflection) */
   float step;         /* voxels, curved march */
-  float straight_step;/* voxels, where n is constant grid-wide */
-  float brick_step;   /* voxels, inside a constant brick */
+  float straight_step;/* voxels, most, where n is constant (a brick's or the grid's) */
 } view_params_t;
-BK_STATIC_ASSERT(sizeof(view_params_t) == 6 * 12 + 12 * 4, "view_params_t is a kernel argument");
+BK_STATIC_ASSERT(sizeof(view_params_t) == 6 * 12 + 11 * 4, "view_params_t is a kernel argument");
 
 /* Feature switches; the kernel passes compile-time constants so the unused
  * paths vanish, the host tests pass any combination. */
@@ -84,11 +87,22 @@ typedef struct view_fields {
   BK_GLOBAL const float *sigma_t;         /* 4 per voxel: σt (RGB), when not grey */
   BK_GLOBAL const float *ng;              /* 4 per voxel: ∇n (per voxel length), n >= 1 */
   BK_GLOBAL const unsigned char *bricks;  /* VIEW_BRICK_* flags per brick */
+  BK_GLOBAL const unsigned char *flat;    /* refraction: per voxel, see view_flat_at */
 } view_fields;
 
 BK_INLINE float view_minf(float a, float b) { return a < b ? a : b; }
 BK_INLINE float view_maxf(float a, float b) { return a > b ? a : b; }
 BK_INLINE float view_max3(bk_v3 a) { return view_maxf(a.x, view_maxf(a.y, a.z)); }
+/* floor and ceil to int for |x| < 2^31: PoCL's floor() is a generic
+ * sequence with three branches, the hottest thing in a sample. */
+BK_INLINE int view_floori(float x) {
+  int i = (int)x;
+  return (float)i > x ? i - 1 : i;
+}
+BK_INLINE int view_ceili(float x) {
+  int i = (int)x;
+  return (float)i < x ? i + 1 : i;
+}
 
 /* Direction (voxel space, unit length) through image point (fx, fy) in
  * pixels, y down from the top row: pixel centres are at px + 0.5. */
@@ -134,32 +148,56 @@ BK_INLINE int view_clip_segment(bk_v3 a, bk_v3 *b, bk_v3 bmax) {
   return 1;
 }
 
-/* Trilinear stencil at voxel coordinate u, clamped to the edge voxels (as
- * bk_sample_trilinear): the lower corner's index, the index steps to the
- * upper corners and the fractions; computed once, applied to every field. */
+/* The 4-float fields (medium, σt, ng) are stored padded: one layer of
+ * replicated edge voxels around the box, (nx+2)·(ny+2)·(nz+2) voxels, voxel
+ * (i,j,k) at padded index (i+1, j+1, k+1) (view_pad4 on the host). Trilinear
+ * sampling then needs no per-corner clamps and equals sampling clamped to
+ * the edge voxels (as bk_sample_trilinear). Points far outside the box (RK4
+ * stages) are clamped onto the padding, where the value is the edge's. */
+BK_INLINE bk_long view_pad_sy(const view_params_t *p) { return (bk_long)p->nx + 2; }
+BK_INLINE bk_long view_pad_sz(const view_params_t *p) {
+  return ((bk_long)p->nx + 2) * ((bk_long)p->ny + 2);
+}
+
+/* Trilinear stencil at voxel coordinate u: the lower corner's padded index
+ * and the fractions; computed once, applied to every field. The value of
+ * voxel i sits at u = i + 0.5, padded index i + 1, so the lower corner is
+ * floor(u + 0.5), a truncation once clamped to >= 0. */
 typedef struct view_tri {
-  bk_long base, dx, dy, dz;
+  bk_long base;
   float tx, ty, tz;
 } view_tri;
 
+/* Clamps to [0, hi]; NaN goes to 0, so no lookup ever leaves the array. */
+BK_INLINE float view_clamp_pad(float x, float hi) {
+  x = x > 0.0f ? x : 0.0f;
+  return x < hi ? x : hi;
+}
+
 BK_INLINE view_tri view_tri_at(const view_params_t *p, bk_v3 u) {
   view_tri t;
-  float fx = u.x - 0.5f, fy = u.y - 0.5f, fz = u.z - 0.5f;
-  float flx = floor(fx), fly = floor(fy), flz = floor(fz);
-  t.tx = fx - flx;
-  t.ty = fy - fly;
-  t.tz = fz - flz;
-  int i0 = (int)flx, j0 = (int)fly, k0 = (int)flz;
-  int i1 = bk_clampi(i0 + 1, 0, p->nx - 1), j1 = bk_clampi(j0 + 1, 0, p->ny - 1);
-  int k1 = bk_clampi(k0 + 1, 0, p->nz - 1);
-  i0 = bk_clampi(i0, 0, p->nx - 1);
-  j0 = bk_clampi(j0, 0, p->ny - 1);
-  k0 = bk_clampi(k0, 0, p->nz - 1);
-  const bk_long sy = (bk_long)p->nx, sz = (bk_long)p->nx * (bk_long)p->ny;
-  t.base = (bk_long)i0 + sy * j0 + sz * k0;
-  t.dx = i1 - i0;
-  t.dy = (j1 - j0) * sy;
-  t.dz = (k1 - k0) * sz;
+#if VIEW_DEVICE
+  /* the same operations on the three axes at once (bit-identical results) */
+  float4 f = (float4)(u.x, u.y, u.z, 0.0f) + 0.5f;
+  f = select((float4)(0.0f), f, f > 0.0f);
+  float4 hi = (float4)((float)p->nx, (float)p->ny, (float)p->nz, 0.0f) + 0.99f;
+  f = select(hi, f, f < hi);
+  int4 i = convert_int4(f);
+  float4 fr = f - convert_float4(i);
+  t.tx = fr.x;
+  t.ty = fr.y;
+  t.tz = fr.z;
+  t.base = (bk_long)i.x + view_pad_sy(p) * i.y + view_pad_sz(p) * i.z;
+#else
+  float fx = view_clamp_pad(u.x + 0.5f, (float)p->nx + 0.99f);
+  float fy = view_clamp_pad(u.y + 0.5f, (float)p->ny + 0.99f);
+  float fz = view_clamp_pad(u.z + 0.5f, (float)p->nz + 0.99f);
+  int i0 = (int)fx, j0 = (int)fy, k0 = (int)fz;
+  t.tx = fx - (float)i0;
+  t.ty = fy - (float)j0;
+  t.tz = fz - (float)k0;
+  t.base = (bk_long)i0 + view_pad_sy(p) * j0 + view_pad_sz(p) * k0;
+#endif
   return t;
 }
 
@@ -187,13 +225,13 @@ BK_INLINE view_vec4 view_lerp4_host(view_vec4 a, view_vec4 b, float t) {
 #define VIEW_LERP4(a, b, t) view_lerp4_host((a), (b), (t))
 #endif
 
-BK_INLINE view_f4 view_gather4(BK_GLOBAL const float *f, const view_tri *t) {
-  const bk_long b = t->base;
-  view_vec4 c00 = VIEW_LERP4(VIEW_LOAD4(f, b), VIEW_LOAD4(f, b + t->dx), t->tx);
-  view_vec4 c10 = VIEW_LERP4(VIEW_LOAD4(f, b + t->dy), VIEW_LOAD4(f, b + t->dy + t->dx), t->tx);
-  view_vec4 c01 = VIEW_LERP4(VIEW_LOAD4(f, b + t->dz), VIEW_LOAD4(f, b + t->dz + t->dx), t->tx);
-  view_vec4 c11 = VIEW_LERP4(VIEW_LOAD4(f, b + t->dz + t->dy),
-                             VIEW_LOAD4(f, b + t->dz + t->dy + t->dx), t->tx);
+BK_INLINE view_f4 view_gather4(const view_params_t *p, BK_GLOBAL const float *f,
+                               const view_tri *t) {
+  const bk_long b = t->base, dy = view_pad_sy(p), dz = view_pad_sz(p);
+  view_vec4 c00 = VIEW_LERP4(VIEW_LOAD4(f, b), VIEW_LOAD4(f, b + 1), t->tx);
+  view_vec4 c10 = VIEW_LERP4(VIEW_LOAD4(f, b + dy), VIEW_LOAD4(f, b + dy + 1), t->tx);
+  view_vec4 c01 = VIEW_LERP4(VIEW_LOAD4(f, b + dz), VIEW_LOAD4(f, b + dz + 1), t->tx);
+  view_vec4 c11 = VIEW_LERP4(VIEW_LOAD4(f, b + dz + dy), VIEW_LOAD4(f, b + dz + dy + 1), t->tx);
   view_vec4 c0 = VIEW_LERP4(c00, c10, t->ty), c1 = VIEW_LERP4(c01, c11, t->ty);
   view_vec4 r = VIEW_LERP4(c0, c1, t->tz);
   view_f4 o = {r.x, r.y, r.z, r.w};
@@ -204,7 +242,7 @@ BK_INLINE view_f4 view_gather4(BK_GLOBAL const float *f, const view_tri *t) {
 BK_INLINE float view_n_grad(const view_params_t *p, BK_GLOBAL const float *ng, bk_v3 u,
                             bk_v3 *grad) {
   view_tri t = view_tri_at(p, u);
-  view_f4 q = view_gather4(ng, &t);
+  view_f4 q = view_gather4(p, ng, &t);
   *grad = v3(q.x, q.y, q.z);
   return q.w;
 }
@@ -241,31 +279,42 @@ BK_INLINE void view_step_rk4(const view_params_t *p, BK_GLOBAL const float *ng, 
 /* Brick index along one axis. A point on a face belongs to the brick the
  * ray moves into (the DDA rule), so a ray on a face never stalls there. */
 BK_INLINE int view_brick_axis(float u, float d, int n) {
-  int i = d < 0.0f ? (int)ceil(u) - 1 : (int)floor(u);
+  int i = d < 0.0f ? view_ceili(u) - 1 : view_floori(u);
   return bk_clampi(i, 0, n - 1) >> VIEW_BRICK_SHIFT;
 }
 
-BK_INLINE int view_brick_flags(const view_params_t *p, BK_GLOBAL const unsigned char *bricks,
-                               bk_v3 u, bk_v3 d) {
-  int i = view_brick_axis(u.x, d.x, p->nx), j = view_brick_axis(u.y, d.y, p->ny);
-  int k = view_brick_axis(u.z, d.z, p->nz);
-  return bricks[i + p->bx * (j + p->by * k)];
+/* The brick holding u for a ray moving along d (the DDA rule): its indices
+ * in b and its VIEW_BRICK_* flags (returned). */
+BK_INLINE int view_brick_find(const view_params_t *p, BK_GLOBAL const unsigned char *bricks,
+                              bk_v3 u, bk_v3 d, int b[3]) {
+  b[0] = view_brick_axis(u.x, d.x, p->nx);
+  b[1] = view_brick_axis(u.y, d.y, p->ny);
+  b[2] = view_brick_axis(u.z, d.z, p->nz);
+  return bricks[b[0] + p->bx * (b[1] + p->by * b[2])];
 }
 
-/* Moves *u along unit d to where it leaves its brick and returns the
- * distance. The leaving coordinate is set exactly onto the face, so the next
- * lookup finds the next brick. */
-BK_INLINE float view_brick_cross(const view_params_t *p, bk_v3 *u, bk_v3 d) {
+/* 1/d per axis, 0 where d is (nearly) zero: that axis is never crossed. */
+BK_INLINE bk_v3 view_inv_dir(bk_v3 d) {
+  return v3(d.x > -VIEW_DIR_EPS && d.x < VIEW_DIR_EPS ? 0.0f : 1.0f / d.x,
+            d.y > -VIEW_DIR_EPS && d.y < VIEW_DIR_EPS ? 0.0f : 1.0f / d.y,
+            d.z > -VIEW_DIR_EPS && d.z < VIEW_DIR_EPS ? 0.0f : 1.0f / d.z);
+}
+
+/* Moves *u along unit d (inverse inv, view_inv_dir) to where it leaves brick
+ * b (view_brick_find) and returns the distance. The leaving coordinate is set
+ * exactly onto the face, so the next lookup finds the next brick. */
+BK_INLINE float view_brick_exit(const view_params_t *p, const int b[3], bk_v3 *u, bk_v3 d,
+                                bk_v3 inv) {
   const int B = 1 << VIEW_BRICK_SHIFT;
-  float uu[3] = {u->x, u->y, u->z}, dd[3] = {d.x, d.y, d.z};
+  float uu[3] = {u->x, u->y, u->z}, ii[3] = {inv.x, inv.y, inv.z};
   int nn[3] = {p->nx, p->ny, p->nz};
   float t = 1e30f, face = 0.0f;
   int axis = -1;
   for (int a = 0; a < 3; a++) {
-    if (dd[a] > -VIEW_DIR_EPS && dd[a] < VIEW_DIR_EPS) continue;
-    float lo = (float)(view_brick_axis(uu[a], dd[a], nn[a]) * B);
-    float f = dd[a] > 0.0f ? view_minf(lo + (float)B, (float)nn[a]) : lo;
-    float ta = view_maxf((f - uu[a]) / dd[a], 0.0f);
+    if (ii[a] == 0.0f) continue;
+    float lo = (float)(b[a] * B);
+    float f = ii[a] > 0.0f ? view_minf(lo + (float)B, (float)nn[a]) : lo;
+    float ta = view_maxf((f - uu[a]) * ii[a], 0.0f);
     if (ta < t) t = ta, face = f, axis = a;
   }
   if (axis < 0) return 0.0f; /* d is zero: nothing to cross */
@@ -297,31 +346,59 @@ BK_INLINE float view_seg_weight(float tau) {
 }
 
 /* Integrates one segment of length len (voxels) whose medium is sampled at
- * its midpoint um, into L and T. Grey media evaluate one channel, not three. */
+ * its midpoint um, into L and T. Grey media evaluate one channel, not three,
+ * and keep their transmittance in T->x alone (the caller copies it to y, z). */
 BK_INLINE void view_segment(const view_params_t *p, view_fields f, view_flags fl, bk_v3 um,
                             float len, bk_v3 *L, bk_v3 *T) {
   view_tri t = view_tri_at(p, um);
-  view_f4 m = view_gather4(f.medium, &t);
-  bk_v3 src = v3(m.x, m.y, m.z), w, tr;
+  view_f4 m = view_gather4(p, f.medium, &t);
+  bk_v3 src = v3(m.x, m.y, m.z);
   if (fl.grey) {
     float trans, wg = view_seg_terms(m.w * len, &trans);
-    w = v3(wg, wg, wg);
-    tr = v3(trans, trans, trans);
-  } else {
-    bk_v3 st = p->sigma_t;
-    if (!fl.homogeneous) {
-      view_f4 q = view_gather4(f.sigma_t, &t);
-      st = v3(q.x, q.y, q.z);
-    }
-    w.x = view_seg_terms(st.x * len, &tr.x);
-    w.y = view_seg_terms(st.y * len, &tr.y);
-    w.z = view_seg_terms(st.z * len, &tr.z);
+    *L = v3_madd(*L, src, T->x * wg * len);
+    T->x *= trans;
+    return;
   }
+  bk_v3 st = p->sigma_t, w, tr;
+  if (!fl.homogeneous) {
+    view_f4 q = view_gather4(p, f.sigma_t, &t);
+    st = v3(q.x, q.y, q.z);
+  }
+  w.x = view_seg_terms(st.x * len, &tr.x);
+  w.y = view_seg_terms(st.y * len, &tr.y);
+  w.z = view_seg_terms(st.z * len, &tr.z);
   *L = v3_add(*L, v3_scale(v3_mul(v3_mul(*T, src), w), len));
   *T = v3_mul(*T, tr);
 }
 
-/* The whole camera ray of pixel (px, py): rgba and the number of steps. */
+/* The largest transmittance left, for the cutoff: grey media keep it in x. */
+BK_INLINE float view_t_max(view_flags fl, bk_v3 T) { return fl.grey ? T.x : view_max3(T); }
+
+/* Where ∇n is zero around a voxel: `flat` holds per voxel the Chebyshev
+ * distance D (voxels, at most VIEW_FLAT_MAX) to the nearest voxel whose ∇n
+ * is not zero. A straight chord of length D − 2.5 from any point of the
+ * voxel keeps every trilinear stencil it reads (±1 voxel) where ∇n = 0, so
+ * the ray equation's solution is that chord, exactly. */
+#define VIEW_FLAT_MAX 8
+#define VIEW_FLAT_MARGIN 2.5f
+
+BK_INLINE int view_flat_at(const view_params_t *p, BK_GLOBAL const unsigned char *flat, bk_v3 u) {
+  int i = bk_clampi(view_floori(u.x), 0, p->nx - 1), j = bk_clampi(view_floori(u.y), 0, p->ny - 1);
+  int k = bk_clampi(view_floori(u.z), 0, p->nz - 1);
+  return flat[(bk_long)i + (bk_long)p->nx * ((bk_long)j + (bk_long)p->ny * k)];
+}
+
+/* The whole camera ray of pixel (px, py): rgba and the number of steps.
+ * The ray is cut into chords, each integrated by uniform steps:
+ *  - a brick of constant medium where ∇n = 0: one step across it;
+ *  - consecutive bricks of constant n and varying medium (the whole box
+ *    without refraction) are gathered into one chord stepped at most
+ *    straight_step apart: per step one trilinear lookup and one segment;
+ *  - inside refracting bricks, a flat chord (view_flat_at) stepped as
+ *    finely as the curved steps around it, without their ∇n lookups;
+ *  - elsewhere, one curved step of the ray equation (Euler or RK4).
+ * All segments go through one call site so the compiler keeps L and T in
+ * registers. */
 BK_INLINE void view_march_pixel(const view_params_t *p, view_fields f, view_flags fl, int px,
                                 int py, float rgba[4], bk_uint *steps_out) {
   bk_v3 o = p->cam_pos;
@@ -331,57 +408,100 @@ BK_INLINE void view_march_pixel(const view_params_t *p, view_fields f, view_flag
   bk_uint steps = 0;
   float t0, t1;
   if (view_box_hit(o, d, bmax, &t0, &t1)) {
-    if (!fl.refraction) {
-      /* straight: steps of straight_step, whole bricks where the medium is
-       * constant, the last step ending exactly at the exit */
-      float t = t0;
-      bk_v3 x = v3_madd(o, d, t0);
-      for (int s = 0; s < p->max_steps && t < t1; s++) {
-        bk_v3 xn = x;
-        float h = 0.0f;
-        if (view_brick_flags(p, f.bricks, x, d) & VIEW_BRICK_MEDIUM_CONST)
-          h = view_brick_cross(p, &xn, d);
-        if (h <= 0.0f) { /* a varying medium, or on the grid's far face */
-          h = p->straight_step;
-          xn = v3_madd(x, d, h);
-        }
-        if (t + h >= t1) {
-          h = t1 - t;
-          xn = v3_madd(o, d, t1);
-        }
-        view_segment(p, f, fl, v3_madd(x, d, 0.5f * h), h, &L, &T);
-        steps++;
-        t += h;
-        x = xn;
-        if (view_max3(T) < VIEW_T_CUTOFF) break;
-      }
-    } else {
-      bk_v3 x = v3_madd(o, d, t0);
+    bk_v3 x = v3_madd(o, d, t0), dir = d, v = d, inv = view_inv_dir(d);
+    if (fl.refraction) {
       bk_v3 g;
-      bk_v3 v = v3_scale(d, view_n_grad(p, f.ng, x, &g));
-      for (int s = 0; s < p->max_steps; s++) {
-        bk_v3 xn = x, vn = v;
-        bk_v3 dir = v3_normalize(v);
-        int bf = view_brick_flags(p, f.bricks, x, dir);
-        if (bf & VIEW_BRICK_N_CONST) { /* straight: the ray equation has ∇n = 0 here */
-          float h = (bf & VIEW_BRICK_MEDIUM_CONST) ? view_brick_cross(p, &xn, dir) : 0.0f;
-          if (h <= 0.0f) xn = v3_madd(x, dir, p->brick_step); /* also on the grid's far face */
-        } else if (fl.integrator == VIEW_RK4) {
-          view_step_rk4(p, f.ng, p->step, &xn, &vn);
+      v = v3_scale(d, view_n_grad(p, f.ng, x, &g));
+    }
+    bk_v3 run_a = x; /* a pending straight chord of varying medium from run_a along dir */
+    float run = 0.0f;
+    int done = 0;
+    for (int it = 0; !done && steps < (bk_uint)p->max_steps && it < p->max_steps; it++) {
+      bk_v3 ca = x, cd = dir; /* this iteration's chord: ca + cd·[0, clen] in cn steps */
+      float clen = 0.0f;
+      int cn = 1, flush = 0;
+      int bb[3];
+      int bf = view_brick_find(p, f.bricks, x, dir, bb);
+      if (!fl.refraction || (bf & VIEW_BRICK_N_CONST)) {
+        bk_v3 xn = x;
+        float h = view_brick_exit(p, bb, &xn, dir, inv);
+        if (!(h > 0.0f)) { /* on the grid's far face: out */
+          done = flush = 1;
+        } else if (!(bf & VIEW_BRICK_MEDIUM_CONST)) {
+          if (run == 0.0f) run_a = x;
+          run += h;
+          x = xn;
+          continue;
+        } else if (run > 0.0f) {
+          flush = 1; /* the pending chord first; this brick on the next turn */
         } else {
-          view_step_euler(p, f.ng, p->step, &xn, &vn);
+          clen = h;
+          x = xn;
         }
-        int last = view_clip_segment(x, &xn, bmax);
-        bk_v3 seg = v3_sub(xn, x);
-        float len = v3_length(seg);
-        if (len > 0.0f) view_segment(p, f, fl, v3_madd(x, seg, 0.5f), len, &L, &T);
-        steps++;
-        x = xn;
-        v = vn;
-        if (last || view_max3(T) < VIEW_T_CUTOFF) break;
+      } else {
+        int D = view_flat_at(p, f.flat, x);
+        if (D >= 3) { /* ∇n = 0 for a while: a straight chord */
+          bk_v3 xn = v3_madd(x, dir, (float)D - VIEW_FLAT_MARGIN), xb = x;
+          int last = view_clip_segment(x, &xn, bmax);
+          float h = v3_length(v3_sub(xn, x)), hb;
+          if ((bf & VIEW_BRICK_MEDIUM_CONST) &&
+              (hb = view_brick_exit(p, bb, &xb, dir, inv)) > 0.0f) {
+            if (hb < h) xn = xb, h = hb, last = 0; /* up to the brick's face, in one step */
+            if (run > 0.0f) {
+              flush = 1;
+            } else {
+              clen = h;
+              x = xn;
+              done = last;
+            }
+          } else if (run > 0.0f) {
+            flush = 1;
+          } else { /* its own chord, sampled as finely as the curved steps around it */
+            clen = h;
+            cn = view_ceili(h / view_minf(p->step, p->straight_step));
+            if (cn < 1) cn = 1;
+            x = xn;
+            done = last;
+          }
+        } else if (run > 0.0f) {
+          flush = 1;
+        } else {
+          bk_v3 xn = x, vn = v;
+          if (fl.integrator == VIEW_RK4)
+            view_step_rk4(p, f.ng, p->step, &xn, &vn);
+          else
+            view_step_euler(p, f.ng, p->step, &xn, &vn);
+          done = view_clip_segment(x, &xn, bmax);
+          bk_v3 seg = v3_sub(xn, x);
+          clen = v3_length(seg);
+          if (clen > 0.0f) cd = v3_scale(seg, 1.0f / clen);
+          x = xn;
+          v = vn;
+          dir = v3_normalize(v);
+          inv = view_inv_dir(dir);
+        }
+      }
+      if (flush) {
+        ca = run_a;
+        clen = run;
+        cn = view_ceili(run / p->straight_step);
+        if (cn < 1) cn = 1;
+        run = 0.0f;
+      }
+      if (clen > 0.0f) {
+        const float h = clen / (float)cn;
+        for (int i = 0; i < cn; i++) {
+          view_segment(p, f, fl, v3_madd(ca, cd, ((float)i + 0.5f) * h), h, &L, &T);
+          steps++;
+          if (view_t_max(fl, T) < VIEW_T_CUTOFF) {
+            done = 1;
+            break;
+          }
+        }
       }
     }
   }
+  if (fl.grey) T.y = T.z = T.x;
   L = v3_add(L, v3_mul(T, p->background));
   rgba[0] = L.x;
   rgba[1] = L.y;

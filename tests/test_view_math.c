@@ -128,11 +128,14 @@ static void test_camera(void) {
 
 /* Homogeneous cube of N³ voxels: the host runs the kernel's march, through
  * every code path (straight/curved, Euler/RK4, grey/RGB, lookups/constants,
- * brick-crossing steps), against the closed form. */
+ * brick-crossing steps, flat chords, mixed bricks), against the closed form. */
 static void test_march(void) {
   enum { N = 16 };
   static float medium[N * N * N * 4], st4[N * N * N * 4], ng[N * N * N * 4];
-  static unsigned char bricks[8];
+  enum { CHECKER = 0x80 }; /* a pattern flag of the variants below, not a brick flag */
+  static unsigned char bricks[8], flat[N * N * N], scratch[N * N * N];
+  enum { NP = (N + 2) * (N + 2) * (N + 2) }; /* the padded layout the march reads */
+  static float medium_p[NP * 4], st4_p[NP * 4], ng_p[NP * 4];
   const float Lb[3] = {1.0f, 0.5f, 0.25f}, sigs[3] = {0.1f, 0.05f, 0.02f};
   const float rgb_t[3] = {0.12f, 0.05f, 0.3f}, grey_t = 0.12f;
   view_params_t p = cam_params(60.0f, 33, 33);
@@ -141,18 +144,28 @@ static void test_march(void) {
   p.bx = p.by = p.bz = 2;
   p.step = 0.5f;
   p.straight_step = 1.0f;
-  p.brick_step = 1.0f;
   p.max_steps = 10000;
   p.background = v3(0.2f, 0.1f, 0.0f);
   p.sigma_t = v3(rgb_t[0], rgb_t[1], rgb_t[2]);
-  /* refraction, grey, integrator, homogeneous; brick flags */
-  const struct { view_flags fl; unsigned char bricks; } var[] = {
-      {{0, 0, VIEW_EULER, 0}, 0},
-      {{0, 0, VIEW_EULER, 1}, VIEW_BRICK_MEDIUM_CONST},
-      {{0, 1, VIEW_EULER, 0}, 0},
-      {{1, 0, VIEW_EULER, 0}, VIEW_BRICK_N_CONST},
-      {{1, 1, VIEW_RK4, 0}, 0},
-      {{1, 0, VIEW_EULER, 1}, VIEW_BRICK_N_CONST | VIEW_BRICK_MEDIUM_CONST},
+  /* refraction, grey, integrator, homogeneous; brick flags; flat distances
+   * from view_flat_field (straight chords inside refracting bricks), else 0
+   * (curved steps everywhere) */
+  const struct { view_flags fl; unsigned char bricks; int flat; } var[] = {
+      {{0, 0, VIEW_EULER, 0}, 0, 0},
+      {{0, 0, VIEW_EULER, 1}, VIEW_BRICK_MEDIUM_CONST, 0},
+      {{0, 1, VIEW_EULER, 0}, 0, 0},
+      {{1, 0, VIEW_EULER, 0}, VIEW_BRICK_N_CONST, 0},
+      {{1, 1, VIEW_RK4, 0}, 0, 0},
+      {{1, 0, VIEW_EULER, 1}, VIEW_BRICK_N_CONST | VIEW_BRICK_MEDIUM_CONST, 0},
+      {{1, 1, VIEW_EULER, 0}, 0, 1},
+      {{1, 0, VIEW_RK4, 1}, VIEW_BRICK_MEDIUM_CONST, 1},
+      /* CHECKER: the flags alternate brick by brick (the medium is constant
+       * either way), so chords of varying bricks, single-step bricks, flat
+       * chords and curved steps follow one another along a ray */
+      {{0, 1, VIEW_EULER, 0}, CHECKER | VIEW_BRICK_MEDIUM_CONST, 0},
+      {{1, 1, VIEW_EULER, 0}, CHECKER | VIEW_BRICK_MEDIUM_CONST | VIEW_BRICK_N_CONST, 1},
+      {{1, 0, VIEW_RK4, 0}, CHECKER | VIEW_BRICK_N_CONST, 1},
+      {{1, 1, VIEW_EULER, 0}, CHECKER | VIEW_BRICK_N_CONST, 0},
   };
   for (size_t vi = 0; vi < sizeof var / sizeof var[0]; vi++) {
     const view_flags fl = var[vi].fl;
@@ -164,8 +177,21 @@ static void test_march(void) {
       ng[4 * i] = ng[4 * i + 1] = ng[4 * i + 2] = 0.0f;
       ng[4 * i + 3] = 1.0f;
     }
-    memset(bricks, var[vi].bricks, sizeof bricks);
-    view_fields f = {medium, st4, ng, bricks};
+    for (int b = 0; b < 8; b++) /* bricks (b&1, b>>1&1, b>>2): checker by parity */
+      bricks[b] = !(var[vi].bricks & CHECKER) ? var[vi].bricks
+                  : ((b & 1) + (b >> 1 & 1) + (b >> 2)) % 2 ? (var[vi].bricks & ~CHECKER) : 0;
+    if (var[vi].flat) {
+      view_flat_field(N, N, N, ng, flat, scratch);
+      CHECK(flat[0] == VIEW_FLAT_MAX && flat[N * N * N / 2] == VIEW_FLAT_MAX,
+            "constant n: flat distances %d %d, want %d", flat[0], flat[N * N * N / 2],
+            VIEW_FLAT_MAX);
+    } else {
+      memset(flat, 0, sizeof flat);
+    }
+    view_pad4(N, N, N, medium, medium_p);
+    view_pad4(N, N, N, st4, st4_p);
+    view_pad4(N, N, N, ng, ng_p);
+    view_fields f = {medium_p, st4_p, ng_p, bricks, flat};
     const int px[3] = {16, 25, 0}, py[3] = {16, 9, 32};
     for (int k = 0; k < 3; k++) {
       float rgba[4];
@@ -183,7 +209,7 @@ static void test_march(void) {
               py[k], c, rgba[c], want, D, steps);
       }
       if (k == 0) CHECK(fabsf(D - N) < 1e-4f, "centre ray crosses %g voxels", D);
-      if (k == 0 && (var[vi].bricks & VIEW_BRICK_MEDIUM_CONST))
+      if (k == 0 && (var[vi].bricks & VIEW_BRICK_MEDIUM_CONST) && !(var[vi].bricks & CHECKER))
         CHECK(steps <= 4,
               "variant %zu: constant bricks should be crossed in one step each, took %u", vi,
               steps);
@@ -210,15 +236,51 @@ static void test_march(void) {
   }
 }
 
+/* Flat distances: one voxel of n = 1.2 in n = 1 makes ∇n nonzero on its six
+ * face neighbours; every voxel's distance must be the brute-force Chebyshev
+ * distance to those, capped at VIEW_FLAT_MAX. */
+static void test_flat(void) {
+  enum { NX = 20, NY = 17, NZ = 23 };
+  static float ior[NX * NY * NZ], ng[4 * NX * NY * NZ];
+  static unsigned char flat[NX * NY * NZ], scratch[NX * NY * NZ];
+  for (int i = 0; i < NX * NY * NZ; i++) ior[i] = 1.0f;
+  ior[5 + NX * (6 + NY * 7)] = 1.2f;
+  ior[19 + NX * (0 + NY * 22)] = 1.1f; /* a corner: one-sided differences */
+  view_ng_field(NX, NY, NZ, ior, ng);
+  view_flat_field(NX, NY, NZ, ng, flat, scratch);
+  int bad = 0, nonzero = 0;
+  for (int k = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      for (int i = 0; i < NX; i++) {
+        int want = VIEW_FLAT_MAX;
+        for (int c = 0; c < NX * NY * NZ; c++) {
+          if (ng[4 * c] == 0.0f && ng[4 * c + 1] == 0.0f && ng[4 * c + 2] == 0.0f) continue;
+          int ci = c % NX, cj = (c / NX) % NY, ck = c / (NX * NY);
+          int dd = abs(ci - i);
+          if (abs(cj - j) > dd) dd = abs(cj - j);
+          if (abs(ck - k) > dd) dd = abs(ck - k);
+          if (dd < want) want = dd;
+        }
+        int got = flat[i + NX * (j + NY * k)];
+        nonzero += want == 0;
+        if (got != want && bad++ < 5)
+          CHECK(0, "flat (%d,%d,%d) = %d, want %d", i, j, k, got, want);
+      }
+  /* six around the interior voxel; the corner itself (one-sided) and three more */
+  CHECK(nonzero == 6 + 4, "%d voxels with nonzero grad n, want 10", nonzero);
+  CHECK(bad == 0, "%d flat distances wrong", bad);
+}
+
 /* n(u) = sqrt(n0² + 2 a u_y) on a 64³ grid; march from u0 until x passes 56. */
 static float ray_error(int integrator, float h) {
   enum { N = 64 };
-  static float ior[N * N * N], ng[4 * N * N * N];
+  static float ior[N * N * N], ng[4 * N * N * N], ng_p[4 * (N + 2) * (N + 2) * (N + 2)];
   const float n0 = 1.2f, a = 0.01f;
   for (int k = 0; k < N; k++)
     for (int j = 0; j < N; j++)
       for (int i = 0; i < N; i++) ior[i + N * (j + N * k)] = sqrtf(n0 * n0 + 2.0f * a * (j + 0.5f));
   view_ng_field(N, N, N, ior, ng);
+  view_pad4(N, N, N, ng, ng_p);
   view_params_t p;
   memset(&p, 0, sizeof p);
   p.nx = p.ny = p.nz = N;
@@ -228,9 +290,9 @@ static float ray_error(int integrator, float h) {
   const bk_v3 v0 = v;
   for (int s = 0; s < 100000 && x.x < 56.0f; s++) {
     if (integrator == VIEW_RK4)
-      view_step_rk4(&p, ng, h, &x, &v);
+      view_step_rk4(&p, ng_p, h, &x, &v);
     else
-      view_step_euler(&p, ng, h, &x, &v);
+      view_step_euler(&p, ng_p, h, &x, &v);
   }
   float t = (x.x - u0.x) / v0.x;
   float y = u0.y + v0.y * t + 0.5f * a * t * t;
@@ -257,6 +319,7 @@ int main(int argc, char **argv) {
   if (all || !strcmp(what, "camera")) test_camera();
   if (all || !strcmp(what, "march")) test_march();
   if (all || !strcmp(what, "rays")) test_rays();
+  if (all || !strcmp(what, "flat")) test_flat();
   if (failures) fprintf(stderr, "%d check(s) failed\n", failures);
   return failures ? 1 : 0;
 }
