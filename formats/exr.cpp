@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <exception>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace {
@@ -85,7 +86,9 @@ extern "C" int exr_write_rgba(const char *path, int width, int height, const flo
       if (info->comments) Imf::addComments(header, info->comments);
     }
     {
-      Imf::RgbaOutputFile file(temp, header, Imf::WRITE_RGBA);
+      /* ZIP blocks are compressed on every core (OpenEXR's own thread pool) */
+      int threads = (int)std::thread::hardware_concurrency();
+      Imf::RgbaOutputFile file(temp, header, Imf::WRITE_RGBA, threads > 1 ? threads : 0);
       file.setFrameBuffer(px.data(), 1, (size_t)width);
       file.writePixels(height);
     } // closes the file before the rename

@@ -20,6 +20,10 @@
  *                     OpenCL kernel and by the same code compiled for the host
  *                     (--device host), Euler and RK4: the images agree (99.5% of
  *                     pixels within 0.2%; grazing rays may part ways).
+ *   lens DIR          a slab of light behind a ball of n = 1.5, above the line of
+ *                     sight: seen without the ball it lies in the upper half of
+ *                     the ball's disc, through the ball in the lower half (a
+ *                     ball lens inverts; brightness-weighted row, > 2 px each way).
  *   bad CASE DIR      bad input exits 2, names the file, writes no image. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -407,6 +411,84 @@ static void test_host_device(const char *dir) {
   }
 }
 
+/* --- a ball lens inverts what lies behind it --------------------------------- */
+
+/* A ball of n = 1.5 (radius 0.3 at z = -0.4) in a clear medium (σt = 0.2)
+ * whose only light is a horizontal slab behind it and above the line of
+ * sight (y in [0.12, 0.32], z in [0.3, 0.9]: beyond the focal length
+ * nD/(4(n−1)) = 0.45 from the centre). Without the ball (n = 1) the slab
+ * shows in the upper half of the ball's disc; through the ball its image is
+ * real and inverted, in the lower half. Measured: the brightness-weighted
+ * row of the pixels inside the disc, relative to the disc's centre row. */
+static double lens_centroid(const char *dir, int lens, int *ok) {
+  enum { N = 48 };
+  grid_dims_t d = {N, N, N, 2.0f / N, {-1.0f, -1.0f, -1.0f}};
+  size_t n = grid_count(&d);
+  float *rad = calloc(n * 3, sizeof(float)), *st = calloc(n, sizeof(float));
+  float *ior = calloc(n, sizeof(float));
+  for (int k = 0; k < N; k++)
+    for (int j = 0; j < N; j++)
+      for (int i = 0; i < N; i++) {
+        size_t v = grid_index(&d, i, j, k);
+        float c[3];
+        grid_voxel_center(&d, i, j, k, c);
+        float r = sqrtf(c[0] * c[0] + c[1] * c[1] + (c[2] + 0.4f) * (c[2] + 0.4f));
+        float w = fminf(fmaxf(0.5f - (r - 0.3f) / (2.0f * d.voxel_size), 0.0f), 1.0f);
+        ior[v] = lens ? 1.0f + 0.5f * w * w * (3.0f - 2.0f * w) : 1.0f;
+        int slab = c[1] >= 0.12f && c[1] <= 0.32f && c[2] >= 0.3f && c[2] <= 0.9f;
+        for (int q = 0; q < 3; q++) rad[3 * v + q] = slab ? 1.0f : 0.0f;
+        st[v] = 0.2f;
+      }
+  vdbio_grid_t g[3] = {{"radiance", VDBIO_VEC3, rad, 1}, {"ior", VDBIO_FLOAT, ior, 0},
+                       {"extinction", VDBIO_FLOAT, st, 0}};
+  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0};
+  bk_error_t err;
+  char vdb[4096], exr[4096];
+  snprintf(vdb, sizeof vdb, "%s/view_lens%d.vdb", dir, lens);
+  snprintf(exr, sizeof exr, "%s/view_lens%d.exr", dir, lens);
+  int rc = vdbio_write(vdb, &d, g, 3, NULL, 0, &wo, &err);
+  free(rad), free(st), free(ior);
+  *ok = 0;
+  if (rc) {
+    CHECK(0, "%s", err.msg);
+    return 0.0;
+  }
+  /* camera on the axis through the ball's centre; the disc's angular radius
+   * is asin(0.3 / 3.6) = 4.8 deg, 11 px at this fov and height */
+  const cam_t c = {{0, 0, -4}, {0, 0, -0.4}, {0, 1, 0}, 24.0, 64, 48};
+  rc = run_view(vdb, "-o", exr, "--camera-pos", "0,0,-4", "--look-at", "0,0,-0.4", "--fov", "24",
+                "--resolution", "64x48", "-q", NULL);
+  CHECK(rc == 0, "view of %s failed (%d)", vdb, rc);
+  int w, h;
+  float *img = NULL;
+  if (rc || exr_read_rgba(exr, &w, &h, &img, &err) != BK_OK) return 0.0;
+  double disc = asin(0.3 / 3.6), px_per_tan = 0.5 * h / tan(0.5 * c.fov * 3.14159265358979 / 180);
+  double rdisc = tan(disc) * px_per_tan, sum = 0.0, wy = 0.0;
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++) {
+      double dx = x + 0.5 - 0.5 * w, dy = y + 0.5 - 0.5 * h;
+      if (dx * dx + dy * dy > 0.8 * 0.8 * rdisc * rdisc) continue; /* inside the disc */
+      double b = img[4 * ((size_t)y * w + x)];
+      sum += b;
+      wy += b * dy;
+    }
+  free(img);
+  CHECK(sum > 0.0, "%s: nothing bright inside the disc", exr);
+  *ok = sum > 0.0;
+  return sum > 0.0 ? wy / sum : 0.0;
+}
+
+static void test_lens(const char *dir) {
+  int ok0, ok1;
+  double plain = lens_centroid(dir, 0, &ok0), lens = lens_centroid(dir, 1, &ok1);
+  printf("slab behind the disc: brightness-weighted row %+.2f px without the ball, %+.2f px "
+         "through it (rows grow downwards; disc radius ~11 px)\n", plain, lens);
+  if (!ok0 || !ok1) return;
+  CHECK(plain < -2.0, "without the ball the slab should show above the centre: %+.2f px", plain);
+  CHECK(lens > 2.0, "through the ball the slab should be inverted, below the centre: %+.2f px",
+        lens);
+}
+
 /* --- a file from pyopenvdb ---------------------------------------------------- */
 
 static int parse3(const char *s, double v[3]) {
@@ -547,8 +629,8 @@ int main(int argc, char **argv) {
   if (argc < 3) {
     fprintf(
         stderr,
-        "usage: test_view_render cube|cube_rgb|sequence|host_device DIR | pyfile VDB DIR NAME ARGS "
-        "| bad CASE DIR [FILE]\n");
+        "usage: test_view_render cube|cube_rgb|sequence|host_device|lens DIR | pyfile VDB DIR NAME "
+        "ARGS | bad CASE DIR [FILE]\n");
     return 2;
   }
   const char *what = argv[1];
@@ -563,6 +645,8 @@ int main(int argc, char **argv) {
     test_sequence(dir);
   else if (!strcmp(what, "host_device"))
     test_host_device(dir);
+  else if (!strcmp(what, "lens"))
+    test_lens(dir);
   else if (!strcmp(what, "pyfile"))
     test_pyfile(argv[2], dir, argv[4], argc - 5, argv + 5);
   else if (!strcmp(what, "bad"))
