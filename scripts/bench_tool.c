@@ -1,0 +1,86 @@
+/* bench_tool: image measurements for scripts/bench that Python cannot make
+ * here (no OpenEXR module for /usr/bin/python3).
+ *
+ *   bench_tool exrdiff TEST.exr REF.exr
+ *
+ * In: two RGBA OpenEXR images of the same size (formats/exr.h reads them).
+ * Out: one JSON line on stdout,
+ *   {"rel_rms": e, "rms": d, "ref_rms": r, "width": w, "height": h,
+ *    "nonfinite": k, "max_abs": m}
+ * with the relative RMS error over the R, G, B values of every pixel
+ *   e = sqrt( sum (test - ref)^2 / sum ref^2 ),
+ * d = sqrt(mean (test - ref)^2), r = sqrt(mean ref^2), k the number of
+ * non-finite values in TEST (the writer turns NaN into 0 and clamps inf to the
+ * half range, so k counts what reached the file) and m the largest |test-ref|.
+ * Alpha is left out: it is coverage, not radiance. A reference that is black
+ * everywhere gives e = null (the ratio is undefined).
+ * Exit status: 0 success, 2 bad input (unreadable files, sizes differ). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common.h"
+#include "formats/exr.h"
+
+static void usage(FILE *out) {
+  fprintf(out,
+          "usage: bench_tool exrdiff TEST.exr REF.exr\n"
+          "  prints {\"rel_rms\": ..., \"rms\": ..., \"ref_rms\": ..., \"width\": ..., "
+          "\"height\": ..., \"nonfinite\": ..., \"max_abs\": ...}\n"
+          "  rel_rms = sqrt(sum (TEST-REF)^2 / sum REF^2) over R, G, B of all pixels\n");
+}
+
+static int exrdiff(const char *test_path, const char *ref_path) {
+  bk_error_t err = {0, ""};
+  float *test = NULL, *ref = NULL;
+  int tw = 0, th = 0, rw = 0, rh = 0;
+  int rc = exr_read_rgba(test_path, &tw, &th, &test, &err);
+  if (rc) goto error;
+  rc = exr_read_rgba(ref_path, &rw, &rh, &ref, &err);
+  if (rc) goto error;
+  if (tw != rw || th != rh) {
+    rc = bk_fail(&err, BK_ERR_INPUT, "%s is %dx%d but the reference %s is %dx%d: render both "
+                 "at the same --resolution", test_path, tw, th, ref_path, rw, rh);
+    goto error;
+  }
+  /* double sums: a 800x600 image has 1.4 M values, float would lose digits */
+  double sum_d2 = 0.0, sum_r2 = 0.0, max_abs = 0.0;
+  long long nonfinite = 0;
+  size_t pixels = (size_t)tw * (size_t)th;
+  for (size_t p = 0; p < pixels; p++) {
+    for (int c = 0; c < 3; c++) {
+      double t = test[4 * p + c], r = ref[4 * p + c];
+      if (!isfinite(t)) {
+        nonfinite++;
+        continue;
+      }
+      double d = t - r;
+      sum_d2 += d * d;
+      sum_r2 += r * r;
+      if (fabs(d) > max_abs) max_abs = fabs(d);
+    }
+  }
+  double n = (double)pixels * 3.0;
+  printf("{\"rel_rms\": ");
+  if (sum_r2 > 0.0) printf("%.9g", sqrt(sum_d2 / sum_r2));
+  else printf("null");
+  printf(", \"rms\": %.9g, \"ref_rms\": %.9g, \"width\": %d, \"height\": %d, "
+         "\"nonfinite\": %lld, \"max_abs\": %.9g}\n",
+         sqrt(sum_d2 / n), sqrt(sum_r2 / n), tw, th, nonfinite, max_abs);
+error:
+  if (rc) fprintf(stderr, "bench_tool exrdiff: %s\n", err.msg);
+  free(test);
+  free(ref);
+  return rc;
+}
+
+int main(int argc, char **argv) {
+  if (argc == 4 && !strcmp(argv[1], "exrdiff")) return exrdiff(argv[2], argv[3]);
+  if (argc == 2 && (!strcmp(argv[1], "-h") || !strcmp(argv[1], "--help"))) {
+    usage(stdout);
+    return BK_OK;
+  }
+  usage(stderr);
+  return BK_ERR_INPUT;
+}
