@@ -356,6 +356,12 @@ int ad_pdf_from_weights(const double *weights, int nx, int ny, float floor_fract
 
 int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, size_t voxels,
                  float floor_fraction, ad_pdf_t *pdf, bk_error_t *err) {
+  return ad_build_pdf_weighted(origin_masks, selected, NULL, voxels, floor_fraction, pdf, err);
+}
+
+int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
+                          const float *voxel_weight, size_t voxels, float floor_fraction,
+                          ad_pdf_t *pdf, bk_error_t *err) {
   if (!pdf) return bk_fail(err, BK_ERR_RUNTIME, "adaptive pdf: missing output");
   memset(pdf, 0, sizeof *pdf);
   if (voxels > 0 && (!origin_masks || !selected))
@@ -366,7 +372,7 @@ int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, size_t v
   for (size_t v = 0; v < voxels; v++) {
     uint64_t m = origin_masks[v];
     if (!selected[v] || !m) continue;
-    double share = 1.0 / (double)__builtin_popcountll(m);
+    double share = (voxel_weight ? (double)voxel_weight[v] : 1.0) / (double)__builtin_popcountll(m);
     while (m) {
       pdf->importance[__builtin_ctzll(m)] += share;
       m &= m - 1;
@@ -379,279 +385,280 @@ int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, size_t v
 
 /* --- the reconstruction filter ------------------------------------------------ */
 
-/* Shell r = 0 for d = 0, else the smallest r with |d|^2 <= r^2. */
-static int shell_of(int d2) {
-  int r = (int)sqrt((double)d2);
-  while (r * r < d2) r++;
-  while (r > 0 && (r - 1) * (r - 1) >= d2) r--;
-  return r;
-}
-
-int ad_sphere_size(int r) {
-  if (r < 0) return 0;
-  int n = 0;
-  for (int z = -r; z <= r; z++)
-    for (int y = -r; y <= r; y++)
-      for (int x = -r; x <= r; x++) n += x * x + y * y + z * z <= r * r;
-  return n;
-}
-
-/* The filter's tables (see kernels/adaptive.h): the offsets of the sphere of
- * radius rmax grouped by shell (3 ints each; within a shell in z, y, x order,
- * so host and device sum alike), the shell starts (rmax + 2 entries), and the
- * Gaussian weights, row r (radius) column q (squared length), AD_Q_MAX + 1
- * columns, for r = 0..AD_FILTER_MAX_RADIUS. */
-typedef struct filter_tables {
-  int *offsets, *start;
-  float *weights;
-  int n_offsets;
-} filter_tables_t;
-
-static void free_tables(filter_tables_t *t) {
-  free(t->offsets);
-  free(t->start);
-  free(t->weights);
-  memset(t, 0, sizeof *t);
-}
-
-#define AD_WEIGHT_COUNT ((AD_FILTER_MAX_RADIUS + 1) * (AD_Q_MAX + 1))
-
-static int filter_tables(int rmax, filter_tables_t *t, bk_error_t *err) {
-  memset(t, 0, sizeof *t);
-  int total = ad_sphere_size(rmax);
-  t->offsets = bk_calloc((size_t)total * 3, sizeof(int), "filter shell table", err);
-  t->start = bk_calloc((size_t)rmax + 2, sizeof(int), "filter shell table", err);
-  t->weights = bk_calloc(AD_WEIGHT_COUNT, sizeof(float), "filter weights", err);
-  if (!t->offsets || !t->start || !t->weights) {
-    free_tables(t);
-    return BK_ERR_RUNTIME;
+/* The 1D Gaussian weights (kernels/adaptive.h): row q (level), column |d|. */
+#define AD_WEIGHT_COUNT (AD_WROW * AD_WROW)
+static void filter_weights(float *w) {
+  for (int i = 0; i < AD_WEIGHT_COUNT; i++) w[i] = 0.0f;
+  for (int q = 1; q <= AD_FILTER_MAX_LEVEL; q++) {
+    double sigma = (double)AD_FILTER_SIGMA * q;
+    for (int d = 0; d <= q; d++) w[q * AD_WROW + d] = (float)exp(-(double)(d * d) / (2.0 * sigma * sigma));
   }
-  int n = 0;
-  for (int s = 0; s <= rmax; s++) {
-    t->start[s] = n;
-    for (int z = -rmax; z <= rmax; z++)
-      for (int y = -rmax; y <= rmax; y++)
-        for (int x = -rmax; x <= rmax; x++) {
-          int d2 = x * x + y * y + z * z;
-          if (d2 > rmax * rmax || shell_of(d2) != s) continue;
-          t->offsets[3 * n] = x;
-          t->offsets[3 * n + 1] = y;
-          t->offsets[3 * n + 2] = z;
-          n++;
-        }
-  }
-  t->start[rmax + 1] = n;
-  t->n_offsets = n;
-  for (int r = 0; r <= AD_FILTER_MAX_RADIUS; r++) {
-    double sigma = (double)AD_FILTER_SIGMA * r;
-    for (int q = 0; q <= r * r; q++)
-      t->weights[r * (AD_Q_MAX + 1) + q] =
-          r == 0 ? 1.0f : (float)exp(-(double)q / (2.0 * sigma * sigma));
-  }
-  return BK_OK;
 }
 
-static int check_filter_args(const grid_dims_t *d, const float *radiance, const uint32_t *count,
-                             const float *mean_weight, float alpha, int max_radius,
-                             const float *out_radiance, size_t *voxels, bk_error_t *err) {
+static int check_filter_args(const grid_dims_t *d, int channels, const float *radiance,
+                             const float *count, const float *mean_weight, float alpha,
+                             int levels, const float *out_radiance, size_t *voxels,
+                             bk_error_t *err) {
   int rc = grid_size(d, 3 * sizeof(float), "adaptive filter", voxels, err);
   if (rc != BK_OK) return rc;
+  if (channels != 1 && channels != 3)
+    return bk_fail(err, BK_ERR_RUNTIME, "adaptive filter: %d channels: expected 1 or 3", channels);
   if (!(alpha >= 0.0f) || isinf(alpha))
     return bk_fail(err, BK_ERR_INPUT, "adaptive.alpha: expected a finite number >= 0, got %g",
                    (double)alpha);
-  if (max_radius < 0 || max_radius > AD_FILTER_MAX_RADIUS)
-    return bk_fail(err, BK_ERR_INPUT, "adaptive filter: maximum radius %d: expected 0..%d voxels",
-                   max_radius, AD_FILTER_MAX_RADIUS);
+  if (levels < 0 || levels > AD_FILTER_MAX_LEVEL)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "adaptive filter: largest radius %g voxels: expected 0..%g in half voxels",
+                   0.5 * levels, 0.5 * AD_FILTER_MAX_LEVEL);
   if (!radiance || !count || !mean_weight || !out_radiance)
     return bk_fail(err, BK_ERR_RUNTIME, "adaptive filter: missing input or output array");
   if (out_radiance == radiance)
     return bk_fail(err, BK_ERR_RUNTIME,
                    "adaptive filter: the output must not alias the input radiance");
+  size_t bytes;
+  if (!bk_mul3_size(*voxels, (size_t)channels * (levels > 0 ? (size_t)levels : 1),
+                    sizeof(float), &bytes))
+    return bk_fail(err, BK_ERR_INPUT, "adaptive filter: grid %dx%dx%d overflows the address space",
+                   d->nx, d->ny, d->nz);
   return BK_OK;
 }
 
+/* The host filter: a pass over z slices first, first + step, ... with its
+ * own scratch (AD_SLICE_SCRATCH). */
 typedef struct filter_job {
-  const float *rgb;
-  const uint32_t *count;
-  const float *mean_weight;
-  const filter_tables_t *tab;
+  int pass; /* 0: means into M, 1: differences and the choice */
+  const float *f, *count, *mean_weight, *weights;
+  float *M, *scratch;
   bk_grid g;
-  float alpha;
-  int rmax;
+  int C, Q;
+  float alpha, noise_k;
   float *out, *radius;
-  int first, step; /* z slices first, first + step, ... */
+  int first, step;
 } filter_job_t;
 
 static void *filter_slices(void *arg) {
   const filter_job_t *job = arg;
-  const bk_grid g = job->g;
-  for (int k = job->first; k < g.nz; k += job->step)
-    for (int j = 0; j < g.ny; j++)
-      for (int i = 0; i < g.nx; i++) {
-        size_t v = (size_t)i + (size_t)g.nx * ((size_t)j + (size_t)g.ny * (size_t)k);
-        float o[3];
-        int r = ad_filter_voxel(job->rgb, job->count, job->mean_weight, job->tab->offsets,
-                                job->tab->start, job->tab->weights, g, job->alpha, job->rmax, i,
-                                j, k, o);
-        job->out[3 * v] = o[0];
-        job->out[3 * v + 1] = o[1];
-        job->out[3 * v + 2] = o[2];
-        if (job->radius) job->radius[v] = (float)r;
-      }
+  for (int k = job->first; k < job->g.nz; k += job->step) {
+    const bk_long dq = (bk_long)job->g.nx * job->g.ny * job->g.nz * job->C * job->Q;
+    if (job->pass == 0)
+      ad_means_slice(job->f, job->weights, job->scratch, job->M, job->M + dq, job->g, k, job->Q,
+                     job->C);
+    else
+      ad_select_slice(job->f, job->M, job->M + dq, job->count, job->mean_weight, job->scratch,
+                      job->g, k, job->alpha, job->noise_k, job->Q, job->C, job->out, job->radius);
+  }
   return NULL;
 }
 
-int ad_filter_host(const grid_dims_t *d, const float *radiance, const uint32_t *count,
-                   const float *mean_weight, float alpha, int max_radius, float *out_radiance,
-                   float *out_radius, bk_error_t *err) {
+int ad_filter_host(const grid_dims_t *d, int channels, const float *radiance, const float *count,
+                   const float *mean_weight, float alpha, float noise_k, int levels,
+                   float *out_radiance, float *out_radius, bk_error_t *err) {
   size_t voxels;
-  filter_tables_t tab;
-  int rc = check_filter_args(d, radiance, count, mean_weight, alpha, max_radius, out_radiance,
-                             &voxels, err);
+  float weights[AD_WEIGHT_COUNT];
+  filter_job_t jobs[AD_MAX_THREADS];
+  pthread_t tid[AD_MAX_THREADS];
+  float *scratch = NULL, *M = NULL;
+  int rc = check_filter_args(d, channels, radiance, count, mean_weight, alpha, levels,
+                             out_radiance, &voxels, err);
   if (rc != BK_OK) return rc;
-  rc = filter_tables(max_radius, &tab, err);
-  if (rc != BK_OK) return rc;
-
+  if (levels == 0 || alpha == 0.0f) { /* nothing to filter */
+    memcpy(out_radiance, radiance, voxels * channels * sizeof(float));
+    if (out_radius) memset(out_radius, 0, voxels * sizeof(float));
+    return BK_OK;
+  }
+  filter_weights(weights);
   long cpus = sysconf(_SC_NPROCESSORS_ONLN);
   int threads = cpus < 1 ? 1 : cpus > AD_MAX_THREADS ? AD_MAX_THREADS : (int)cpus;
   if (threads > d->nz) threads = d->nz;
-  filter_job_t jobs[AD_MAX_THREADS];
-  pthread_t tid[AD_MAX_THREADS];
-  int started = 0;
-  for (int t = 0; t < threads; t++) {
-    filter_job_t *job = &jobs[t];
-    job->rgb = radiance;
-    job->count = count;
-    job->mean_weight = mean_weight;
-    job->tab = &tab;
-    job->g = kernel_grid(d);
-    job->alpha = alpha;
-    job->rmax = max_radius;
-    job->out = out_radiance;
-    job->radius = out_radius;
-    job->first = t;
-    job->step = threads;
+  const size_t per = (size_t)AD_SLICE_SCRATCH(d->nx, d->ny, channels, levels);
+  scratch = bk_calloc((size_t)threads, per * sizeof(float), "filter scratch", err);
+  M = bk_calloc(voxels, (size_t)AD_MEANS_FLOATS(channels, levels) * sizeof(float), "filter means",
+                err);
+  if (!scratch || !M) {
+    rc = BK_ERR_RUNTIME;
+    goto error;
   }
-  /* thread 0 is this one; a thread that cannot start leaves its slices to
-   * the caller's thread, so the result never depends on the thread count */
-  for (int t = 1; t < threads; t++) {
-    if (pthread_create(&tid[t], NULL, filter_slices, &jobs[t]) != 0) break;
-    started = t;
+  for (int pass = 0; pass < 2; pass++) {
+    for (int t = 0; t < threads; t++) {
+      filter_job_t *job = &jobs[t];
+      job->pass = pass;
+      job->f = radiance;
+      job->count = count;
+      job->mean_weight = mean_weight;
+      job->weights = weights;
+      job->M = M;
+      job->scratch = scratch + (size_t)t * per;
+      job->g = kernel_grid(d);
+      job->C = channels;
+      job->Q = levels;
+      job->alpha = alpha;
+      job->noise_k = noise_k;
+      job->out = out_radiance;
+      job->radius = out_radius;
+      job->first = t;
+      job->step = threads;
+    }
+    /* thread 0 is this one; a thread that cannot start leaves its slices to
+     * the caller's thread, so the result never depends on the thread count */
+    int started = 0;
+    for (int t = 1; t < threads; t++) {
+      if (pthread_create(&tid[t], NULL, filter_slices, &jobs[t]) != 0) break;
+      started = t;
+    }
+    filter_slices(&jobs[0]);
+    for (int t = 1; t <= started; t++) pthread_join(tid[t], NULL);
+    for (int t = started + 1; t < threads; t++) filter_slices(&jobs[t]);
   }
-  filter_slices(&jobs[0]);
-  for (int t = 1; t <= started; t++) pthread_join(tid[t], NULL);
-  for (int t = started + 1; t < threads; t++) filter_slices(&jobs[t]);
-  free_tables(&tab);
-  return BK_OK;
+  rc = BK_OK;
+error:
+  free(scratch);
+  free(M);
+  return rc;
 }
 
-int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_t *d, cl_mem rgb,
-                         cl_mem count, cl_mem mean_weight, float alpha, int max_radius,
-                         cl_mem out_rgb, cl_mem out_radius, bk_error_t *err) {
+int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_t *d,
+                         int channels, cl_mem rgb, cl_mem count, cl_mem mean_weight, float alpha,
+                         float noise_k, int levels, cl_mem out_rgb, cl_mem out_radius,
+                         bk_error_t *err) {
   cl_program own = NULL;
-  cl_kernel kernel = NULL;
-  cl_mem off_buf = NULL, start_buf = NULL, w_buf = NULL;
+  cl_kernel km = NULL, ks = NULL;
+  cl_mem w_buf = NULL, s_buf = NULL, m_buf = NULL;
   cl_int cerr = CL_SUCCESS;
-  filter_tables_t tab;
+  float weights[AD_WEIGHT_COUNT];
+  char opts[64], b1[32], b2[32];
   size_t voxels;
   int rc = grid_size(d, 3 * sizeof(float), "adaptive filter", &voxels, err);
   if (rc != BK_OK) return rc;
+  if (channels != 1 && channels != 3)
+    return bk_fail(err, BK_ERR_RUNTIME, "adaptive filter: %d channels: expected 1 or 3", channels);
   if (!(alpha >= 0.0f) || isinf(alpha))
     return bk_fail(err, BK_ERR_INPUT, "adaptive.alpha: expected a finite number >= 0, got %g",
                    (double)alpha);
-  if (max_radius < 0 || max_radius > AD_FILTER_MAX_RADIUS)
-    return bk_fail(err, BK_ERR_INPUT, "adaptive filter: maximum radius %d: expected 0..%d voxels",
-                   max_radius, AD_FILTER_MAX_RADIUS);
-  rc = filter_tables(max_radius, &tab, err);
-  if (rc != BK_OK) return rc;
+  if (levels < 1 || levels > AD_FILTER_MAX_LEVEL)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "adaptive filter: largest radius %g voxels: expected 0.5..%g in half voxels",
+                   0.5 * levels, 0.5 * AD_FILTER_MAX_LEVEL);
   rc = BK_ERR_RUNTIME;
+  /* work-items, each with a slice of scratch: a few per core on a CPU, one
+   * per slice elsewhere */
+  size_t items = cl->is_cpu ? (size_t)4 * (cl->compute_units ? cl->compute_units : 1) : (size_t)d->nz;
+  if (items > (size_t)d->nz) items = (size_t)d->nz;
+  const size_t scratch_bytes =
+      (size_t)AD_SLICE_SCRATCH(d->nx, d->ny, channels, levels) * items * sizeof(float);
+  const size_t m_bytes = voxels * (size_t)AD_MEANS_FLOATS(channels, levels) * sizeof(float);
+  if ((cl_ulong)m_bytes > cl->max_alloc || (cl_ulong)scratch_bytes > cl->max_alloc) {
+    bk_fail(err, BK_ERR_RUNTIME,
+            "adaptive filter: the %dx%dx%d grid needs %s in one buffer for radii up to %g "
+            "voxels; %s allows %s (lower the resolution)",
+            d->nx, d->ny, d->nz,
+            bk_format_bytes((double)(m_bytes > scratch_bytes ? m_bytes : scratch_bytes), b1,
+                            sizeof b1),
+            0.5 * levels, cl->device_name, bk_format_bytes((double)cl->max_alloc, b2, sizeof b2));
+    goto error;
+  }
   if (!program) {
-    if (clh_build(cl, "filter.cl", "", &own, err) != BK_OK) goto error;
+    snprintf(opts, sizeof opts, "-DAD_CH=%d -DAD_QMAX=%d", channels, levels);
+    if (clh_build(cl, "filter.cl", opts, &own, err) != BK_OK) goto error;
     program = own;
   }
-  off_buf = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                           (size_t)tab.n_offsets * 3 * sizeof(int), tab.offsets, &cerr);
+  filter_weights(weights);
+  w_buf = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof weights,
+                         weights, &cerr);
   CLH_CHECK(cerr, err, error);
-  start_buf = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                             ((size_t)max_radius + 2) * sizeof(int), tab.start, &cerr);
+  s_buf = clCreateBuffer(cl->context, CL_MEM_READ_WRITE, scratch_bytes, NULL, &cerr);
   CLH_CHECK(cerr, err, error);
-  w_buf = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                         AD_WEIGHT_COUNT * sizeof(float), tab.weights, &cerr);
+  m_buf = clCreateBuffer(cl->context, CL_MEM_READ_WRITE, m_bytes, NULL, &cerr);
   CLH_CHECK(cerr, err, error);
-  kernel = clCreateKernel(program, "ad_filter", &cerr);
+  km = clCreateKernel(program, "ad_means", &cerr);
+  CLH_CHECK(cerr, err, error);
+  ks = clCreateKernel(program, "ad_select", &cerr);
   CLH_CHECK(cerr, err, error);
   bk_grid g = kernel_grid(d);
   cl_int want = out_radius != NULL;
-  CLH_CHECK(clSetKernelArg(kernel, 0, sizeof(cl_mem), &rgb), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 1, sizeof(cl_mem), &count), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 2, sizeof(cl_mem), &mean_weight), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 3, sizeof(cl_mem), &off_buf), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 4, sizeof(cl_mem), &start_buf), err, error);
-  cl_int rmax = max_radius;
-  CLH_CHECK(clSetKernelArg(kernel, 5, sizeof(cl_mem), &w_buf), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 6, sizeof(bk_grid), &g), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 7, sizeof(float), &alpha), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 8, sizeof(cl_int), &rmax), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 9, sizeof(cl_int), &want), err, error);
-  CLH_CHECK(clSetKernelArg(kernel, 10, sizeof(cl_mem), &out_rgb), err, error);
+  CLH_CHECK(clSetKernelArg(km, 0, sizeof(cl_mem), &rgb), err, error);
+  CLH_CHECK(clSetKernelArg(km, 1, sizeof(cl_mem), &w_buf), err, error);
+  CLH_CHECK(clSetKernelArg(km, 2, sizeof(cl_mem), &s_buf), err, error);
+  CLH_CHECK(clSetKernelArg(km, 3, sizeof(cl_mem), &m_buf), err, error);
+  CLH_CHECK(clSetKernelArg(km, 4, sizeof(bk_grid), &g), err, error);
+  cl_mem sargs[5] = {rgb, m_buf, count, mean_weight, s_buf};
+  for (cl_uint a = 0; a < 5; a++)
+    CLH_CHECK(clSetKernelArg(ks, a, sizeof(cl_mem), &sargs[a]), err, error);
+  CLH_CHECK(clSetKernelArg(ks, 5, sizeof(bk_grid), &g), err, error);
+  CLH_CHECK(clSetKernelArg(ks, 6, sizeof(float), &alpha), err, error);
+  CLH_CHECK(clSetKernelArg(ks, 7, sizeof(float), &noise_k), err, error);
+  CLH_CHECK(clSetKernelArg(ks, 8, sizeof(cl_int), &want), err, error);
+  CLH_CHECK(clSetKernelArg(ks, 9, sizeof(cl_mem), &out_rgb), err, error);
   /* a NULL buffer is a NULL pointer in the kernel, which want = 0 never touches */
-  CLH_CHECK(clSetKernelArg(kernel, 11, sizeof(cl_mem), &out_radius), err, error);
-  size_t global[3] = {(size_t)d->nx, (size_t)d->ny, (size_t)d->nz};
-  CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, kernel, 3, NULL, global, NULL, 0, NULL, NULL), err,
+  CLH_CHECK(clSetKernelArg(ks, 10, sizeof(cl_mem), &out_radius), err, error);
+  /* work-groups of one: the work-items spread over the compute units */
+  size_t local = 1;
+  CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, km, 1, NULL, &items, &local, 0, NULL, NULL), err,
+            error);
+  CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, ks, 1, NULL, &items, &local, 0, NULL, NULL), err,
             error);
   CLH_CHECK(clFinish(cl->queue), err, error);
   rc = BK_OK;
 error:
-  if (kernel) clReleaseKernel(kernel);
-  if (off_buf) clReleaseMemObject(off_buf);
-  if (start_buf) clReleaseMemObject(start_buf);
+  if (km) clReleaseKernel(km);
+  if (ks) clReleaseKernel(ks);
   if (w_buf) clReleaseMemObject(w_buf);
+  if (s_buf) clReleaseMemObject(s_buf);
+  if (m_buf) clReleaseMemObject(m_buf);
   if (own) clReleaseProgram(own);
-  free_tables(&tab);
   return rc;
 }
 
-int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, const float *radiance,
-                 const uint32_t *count, const float *mean_weight, float alpha, int max_radius,
-                 float *out_radiance, float *out_radius, bk_error_t *err) {
+int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const float *radiance,
+                 const float *count, const float *mean_weight, float alpha, float noise_k,
+                 int levels, float *out_radiance, float *out_radius, bk_error_t *err) {
   cl_mem rgb = NULL, cnt = NULL, wm = NULL, out = NULL, rad = NULL;
   cl_int cerr = CL_SUCCESS;
   size_t voxels;
-  char b1[32], b2[32];
-  int rc = check_filter_args(d, radiance, count, mean_weight, alpha, max_radius, out_radiance,
-                             &voxels, err);
+  int rc = check_filter_args(d, channels, radiance, count, mean_weight, alpha, levels,
+                             out_radiance, &voxels, err);
   if (rc != BK_OK) return rc;
+  if (levels == 0 || alpha == 0.0f) /* nothing to filter: the host copies */
+    return ad_filter_host(d, channels, radiance, count, mean_weight, alpha, noise_k, levels,
+                          out_radiance, out_radius, err);
   rc = BK_ERR_RUNTIME;
-  size_t rgb_bytes = voxels * 3 * sizeof(float), one_bytes = voxels * sizeof(float);
-  if ((cl_ulong)rgb_bytes > cl->max_alloc) {
-    bk_fail(err, BK_ERR_RUNTIME,
-            "adaptive filter: the %dx%dx%d radiance grid needs %s in one buffer; %s allows %s",
-            d->nx, d->ny, d->nz, bk_format_bytes((double)rgb_bytes, b1, sizeof b1),
-            cl->device_name, bk_format_bytes((double)cl->max_alloc, b2, sizeof b2));
-    goto error;
-  }
-  rgb = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, rgb_bytes,
-                       (void *)radiance, &cerr);
+  size_t rgb_bytes = voxels * channels * sizeof(float), one_bytes = voxels * sizeof(float);
+  /* a CPU device works in place on the host arrays; a GPU copies */
+  const cl_mem_flags in = CL_MEM_READ_ONLY | (cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR);
+  const cl_mem_flags outf = CL_MEM_WRITE_ONLY | (cl->is_cpu ? CL_MEM_USE_HOST_PTR : 0);
+  rgb = clCreateBuffer(cl->context, in, rgb_bytes, (void *)radiance, &cerr);
   CLH_CHECK(cerr, err, error);
-  cnt = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                       voxels * sizeof(uint32_t), (void *)count, &cerr);
+  cnt = clCreateBuffer(cl->context, in, one_bytes, (void *)count, &cerr);
   CLH_CHECK(cerr, err, error);
-  wm = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, one_bytes,
-                      (void *)mean_weight, &cerr);
+  wm = clCreateBuffer(cl->context, in, one_bytes, (void *)mean_weight, &cerr);
   CLH_CHECK(cerr, err, error);
-  out = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY, rgb_bytes, NULL, &cerr);
+  out = clCreateBuffer(cl->context, outf, rgb_bytes, cl->is_cpu ? out_radiance : NULL, &cerr);
   CLH_CHECK(cerr, err, error);
   if (out_radius) {
-    rad = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY, one_bytes, NULL, &cerr);
+    rad = clCreateBuffer(cl->context, outf, one_bytes, cl->is_cpu ? out_radius : NULL, &cerr);
     CLH_CHECK(cerr, err, error);
   }
-  if (ad_filter_cl_buffers(cl, NULL, d, rgb, cnt, wm, alpha, max_radius, out, rad, err) != BK_OK)
+  if (ad_filter_cl_buffers(cl, NULL, d, channels, rgb, cnt, wm, alpha, noise_k, levels, out, rad,
+                           err) != BK_OK)
     goto error;
-  CLH_CHECK(clEnqueueReadBuffer(cl->queue, out, CL_TRUE, 0, rgb_bytes, out_radiance, 0, NULL,
-                                NULL), err, error);
-  if (out_radius)
-    CLH_CHECK(clEnqueueReadBuffer(cl->queue, rad, CL_TRUE, 0, one_bytes, out_radius, 0, NULL,
+  if (cl->is_cpu) {
+    /* make the host arrays current (no copy on PoCL) */
+    cl_mem both[2] = {out, rad};
+    size_t sizes[2] = {rgb_bytes, one_bytes};
+    for (int b = 0; b < 2; b++) {
+      if (!both[b]) continue;
+      void *p = clEnqueueMapBuffer(cl->queue, both[b], CL_TRUE, CL_MAP_READ, 0, sizes[b], 0, NULL,
+                                   NULL, &cerr);
+      CLH_CHECK(cerr, err, error);
+      CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, both[b], p, 0, NULL, NULL), err, error);
+    }
+    CLH_CHECK(clFinish(cl->queue), err, error);
+  } else {
+    CLH_CHECK(clEnqueueReadBuffer(cl->queue, out, CL_TRUE, 0, rgb_bytes, out_radiance, 0, NULL,
                                   NULL), err, error);
+    if (out_radius)
+      CLH_CHECK(clEnqueueReadBuffer(cl->queue, rad, CL_TRUE, 0, one_bytes, out_radius, 0, NULL,
+                                    NULL), err, error);
+  }
   rc = BK_OK;
 error:
   if (rgb) clReleaseMemObject(rgb);
@@ -659,5 +666,364 @@ error:
   if (wm) clReleaseMemObject(wm);
   if (out) clReleaseMemObject(out);
   if (rad) clReleaseMemObject(rad);
+  return rc;
+}
+
+/* --- the adaptive bake ----------------------------------------------------------- */
+
+void ad_bake_defaults(ad_bake_opts_t *o) {
+  memset(o, 0, sizeof *o);
+  o->filter = 1;
+  o->max_radius = AD_DEFAULT_MAX_RADIUS;
+  o->smooth_radius = AD_DEFAULT_SMOOTH_RADIUS;
+  o->floor_fraction = AD_DEFAULT_FLOOR;
+  o->pilot_cells = AD_PILOT_CELLS;
+  o->noise_k = AD_DEFAULT_NOISE_K;
+  o->importance = AD_IMPORTANCE_GRADIENT;
+}
+
+int ad_pilot_shift(const grid_dims_t *d, int pilot_cells) {
+  int longest = d->nx > d->ny ? d->nx : d->ny;
+  if (d->nz > longest) longest = d->nz;
+  int s = 0;
+  while (s < 10 && pilot_cells > 0 && (longest >> s) > pilot_cells) s++;
+  return s;
+}
+
+/* The pilot's coarse grid: cells of 2^shift voxels a side over the same
+ * corner (the last ones may stick out of the grid). */
+static grid_dims_t coarse_dims(const grid_dims_t *d, int shift) {
+  grid_dims_t c = *d;
+  int m = (1 << shift) - 1;
+  c.nx = (d->nx + m) >> shift;
+  c.ny = (d->ny + m) >> shift;
+  c.nz = (d->nz + m) >> shift;
+  c.voxel_size = d->voxel_size * (float)(1 << shift);
+  return c;
+}
+
+/* The largest grey scattering coefficient of the voxels of each coarse
+ * cell, layers [lo, hi) of cells along z (one range per core: the layers
+ * own disjoint cells). */
+typedef struct scat_job {
+  const volume_t *vol;
+  int shift;
+  float *scat;
+} scat_job_t;
+
+static void coarse_scattering_range(void *arg, size_t lo, size_t hi) {
+  const scat_job_t *j = arg;
+  const grid_dims_t *d = &j->vol->dims;
+  const int shift = j->shift;
+  grid_dims_t c = coarse_dims(d, shift);
+  for (size_t v = grid_index(&c, 0, 0, (int)lo); v < grid_index(&c, 0, 0, (int)hi); v++)
+    j->scat[v] = 0.0f;
+  int k1 = (int)hi << shift;
+  if (k1 > d->nz) k1 = d->nz;
+  for (int k = (int)lo << shift; k < k1; k++)
+    for (int jy = 0; jy < d->ny; jy++) {
+      size_t row = grid_index(d, 0, jy, k);
+      float *crow = j->scat + grid_index(&c, 0, jy >> shift, k >> shift);
+      const float *s = j->vol->sigma_s + 3 * row;
+      for (int i = 0; i < d->nx; i++) {
+        float g = (s[3 * i] + s[3 * i + 1] + s[3 * i + 2]) * (1.0f / 3.0f);
+        float *o = &crow[i >> shift];
+        if (g > *o) *o = g;
+      }
+    }
+}
+
+/* Per coarse cell: the pilot's mean radiance over its voxels in the grid
+ * (3 floats) and the largest grey scattering coefficient of those voxels. */
+static void coarse_fields(const pm_setup_t *p, const uint64_t *acc, const volume_t *vol, int shift,
+                          float *rgb, float *scat) {
+  const grid_dims_t *d = &vol->dims;
+  grid_dims_t c = coarse_dims(d, shift);
+  const int ch = p->channels;
+  scat_job_t job = {vol, shift, scat};
+  pm_parallel((size_t)c.nz, 1, coarse_scattering_range, &job);
+  for (int k = 0; k < c.nz; k++)
+    for (int j = 0; j < c.ny; j++)
+      for (int i = 0; i < c.nx; i++) {
+        size_t v = grid_index(&c, i, j, k);
+        /* voxels of this cell inside the grid */
+        int ex = (i + 1) << shift > d->nx ? d->nx - (i << shift) : 1 << shift;
+        int ey = (j + 1) << shift > d->ny ? d->ny - (j << shift) : 1 << shift;
+        int ez = (k + 1) << shift > d->nz ? d->nz - (k << shift) : 1 << shift;
+        double inv = 1.0 / ((double)ex * ey * ez);
+        for (int q = 0; q < 3; q++)
+          rgb[3 * v + q] = (float)((double)acc[ch * v + (ch == 1 ? 0 : q)] * p->to_radiance[q] * inv);
+      }
+}
+
+/* The grey march's counters to one float per voxel (grey_range), and one
+ * float per voxel to RGB (colour_range), on every core. */
+typedef struct scale_job {
+  const uint64_t *acc; /* grey_range: 2 counters per voxel, radiance first */
+  const float *in;     /* colour_range */
+  float *out;
+  float k[3];
+} scale_job_t;
+
+static void grey_range(void *arg, size_t lo, size_t hi) {
+  const scale_job_t *j = arg;
+  for (size_t v = lo; v < hi; v++) j->out[v] = (float)j->acc[2 * v] * j->k[0];
+}
+
+static void colour_range(void *arg, size_t lo, size_t hi) {
+  const scale_job_t *j = arg;
+  for (size_t v = lo; v < hi; v++) {
+    j->out[3 * v] = j->in[v] * j->k[0];
+    j->out[3 * v + 1] = j->in[v] * j->k[1];
+    j->out[3 * v + 2] = j->in[v] * j->k[2];
+  }
+}
+
+static int run_march(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *st,
+                     bk_error_t *err) {
+  return cl ? pm_run_cl(cl, s, acc, st, err) : pm_run_host(s, acc, st, err);
+}
+
+int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
+            const ad_bake_opts_t *opt, float *radiance, float *photon_count, float *photon_weight,
+            float *filter_radius, ad_stats_t *stats, bk_timings_t *timings, bk_error_t *err) {
+  pm_setup_t base, pilot, main;
+  ad_stats_t local;
+  ad_bake_opts_t defaults;
+  uint64_t *pacc = NULL, *masks = NULL, *acc = NULL;
+  float *prgb = NULL, *pscat = NULL, *tables = NULL, *count = NULL, *weight = NULL;
+  float *raw = NULL, *filtered = NULL, *vw = NULL;
+  uint8_t *sel = NULL;
+  double t0;
+  memset(&base, 0, sizeof base);
+  if (!stats) stats = &local;
+  memset(stats, 0, sizeof *stats);
+  if (!opt) {
+    ad_bake_defaults(&defaults);
+    opt = &defaults;
+  }
+  if (scene->pilot < 0)
+    return bk_fail(err, BK_ERR_INPUT, "%s: adaptive.pilot: expected a photon count >= 0, got %d",
+                   scene->path, scene->pilot);
+  if (!(scene->alpha >= 0.0f) || isinf(scene->alpha))
+    return bk_fail(err, BK_ERR_INPUT, "%s: adaptive.alpha: expected a finite number >= 0, got %g",
+                   scene->path, (double)scene->alpha);
+  if (!(opt->max_radius >= 0.0f && opt->max_radius <= 0.5f * AD_FILTER_MAX_LEVEL))
+    return bk_fail(err, BK_ERR_INPUT, "adaptive filter: largest radius %g: expected 0..%g voxels",
+                   (double)opt->max_radius, 0.5 * AD_FILTER_MAX_LEVEL);
+  const int levels = (int)(2.0f * opt->max_radius + 0.5f);
+
+  int rc = pm_prepare(scene, vol, &base, NULL, &stats->march, err);
+  if (rc != BK_OK) return rc;
+  stats->ms_octree = stats->march.ms_octree;
+  stats->ms_generate = stats->march.ms_generate;
+  const grid_dims_t *d = &base.dims;
+  const size_t V = base.voxels;
+  const int nl = base.lights.count > 0 ? base.lights.count : 1;
+  const int TF = AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y);
+  rc = BK_ERR_RUNTIME;
+  tables = bk_calloc((size_t)nl, TF * sizeof(float), "adaptive PDF tables", err);
+  if (!tables) goto error;
+
+  /* phase 1: the pilot, on coarse cells over the full-resolution field */
+  const int shift = ad_pilot_shift(d, opt->pilot_cells);
+  const grid_dims_t cd = coarse_dims(d, shift);
+  const size_t CV = grid_count(&cd);
+  stats->coarse_shift = shift;
+  stats->pilot_photons = scene->pilot;
+  t0 = bk_now_ms();
+  int have_pilot = scene->pilot > 0 && base.lights.count > 0;
+  if (have_pilot) {
+    rc = pm_derive(&base, scene, (uint64_t)scene->pilot, &pilot, err);
+    if (rc != BK_OK) goto error;
+    pm_use_pilot(&pilot, shift, NULL);
+    rc = BK_ERR_RUNTIME;
+    masks = bk_calloc(pm_mask_count(&pilot), sizeof(uint64_t), "adaptive origin masks", err);
+    pacc = bk_calloc(pm_acc_count(&pilot), sizeof(uint64_t), "adaptive pilot accumulator", err);
+    if (!masks || !pacc) goto error;
+    pilot.masks = masks;
+    rc = run_march(cl, &pilot, pacc, &stats->pilot, err);
+    if (rc != BK_OK) goto error;
+  }
+  stats->ms_pilot = bk_now_ms() - t0;
+
+  /* the distribution: selection on the pilot, one PDF per light */
+  t0 = bk_now_ms();
+  double pdf_min = 1.0, pdf_max = 1.0;
+  if (have_pilot) {
+    rc = BK_ERR_RUNTIME;
+    prgb = bk_calloc(CV, 3 * sizeof(float), "adaptive pilot radiance", err);
+    pscat = bk_calloc(CV, sizeof(float), "adaptive pilot scattering", err);
+    sel = bk_calloc(CV, 1, "adaptive selection", err);
+    if (!prgb || !pscat || !sel) goto error;
+    coarse_fields(&pilot, pacc, vol, shift, prgb, pscat);
+    ad_select_opts_t so = {scene->gradient_threshold, scene->luminance_threshold,
+                           opt->smooth_radius};
+    rc = ad_select_voxels(&cd, prgb, pscat, &so, sel, &stats->select, err);
+    if (rc != BK_OK) goto error;
+    if (opt->importance != AD_IMPORTANCE_UNIT) {
+      rc = BK_ERR_RUNTIME;
+      vw = bk_calloc(CV, 2 * sizeof(float), "adaptive importance", err);
+      if (!vw) goto error;
+      rc = ad_pilot_fields(&cd, prgb, opt->smooth_radius, vw + CV, vw, err);
+      if (rc != BK_OK) goto error;
+      for (size_t v = 0; v < CV; v++) {
+        double x = opt->importance == AD_IMPORTANCE_LUMINANCE ? vw[CV + v] : vw[v];
+        vw[v] = (float)(opt->importance == AD_IMPORTANCE_GRADIENT_23 ? pow(x, 2.0 / 3.0) : x);
+      }
+    }
+    pdf_min = 1e30;
+    pdf_max = 0.0;
+    /* tables follow the main march's lights (base's: the same photon count);
+     * the pilot's may lack a faint light that got no pilot photon, which
+     * then keeps the uniform PDF */
+    for (int l = 0; l < base.lights.count; l++) {
+      ad_pdf_t pdf;
+      int p = -1;
+      for (int q = 0; q < pilot.lights.count; q++)
+        if (pilot.lights.scene_index[q] == base.lights.scene_index[l]) p = q;
+      if (p >= 0) {
+        rc = ad_build_pdf_weighted(masks + (size_t)p * CV, sel, vw, CV, opt->floor_fraction,
+                                   &pdf, err);
+      } else {
+        memset(&pdf, 0, sizeof pdf);
+        double zero[AD_CELLS] = {0};
+        rc = ad_pdf_from_weights(zero, AD_CELLS_X, AD_CELLS_Y, 1.0f, pdf.table, pdf.cell_pdf, err);
+      }
+      if (rc != BK_OK) goto error;
+      memcpy(tables + (size_t)l * TF, pdf.table, TF * sizeof(float));
+      if (bk_verbosity >= 2) {
+        char line[AD_CELLS_X * 8 + 1];
+        bk_log(2, "adaptive: light %d: pdf per cell (rows b, columns a), %zu selected cells "
+                  "with origin data", l, pdf.selected_reached);
+        for (int y = 0; y < AD_CELLS_Y; y++) {
+          int at = 0;
+          for (int x = 0; x < AD_CELLS_X; x++)
+            at += snprintf(line + at, sizeof line - at, " %6.2f", (double)pdf.cell_pdf[x + AD_CELLS_X * y]);
+          bk_log(2, "  %s", line);
+        }
+      }
+      for (int c = 0; c < AD_CELLS; c++) {
+        pdf_min = fmin(pdf_min, pdf.cell_pdf[c]);
+        pdf_max = fmax(pdf_max, pdf.cell_pdf[c]);
+      }
+    }
+  } else {
+    double zero[AD_CELLS] = {0};
+    for (int l = 0; l < nl; l++) {
+      rc = ad_pdf_from_weights(zero, AD_CELLS_X, AD_CELLS_Y, 1.0f, tables + (size_t)l * TF, NULL,
+                               err);
+      if (rc != BK_OK) goto error;
+    }
+  }
+  stats->pdf_min = (float)pdf_min;
+  stats->pdf_max = (float)pdf_max;
+  stats->ms_distribution = bk_now_ms() - t0;
+
+  /* phase 2: warped Hammersley photons of weight 1/pdf */
+  t0 = bk_now_ms();
+  rc = pm_derive(&base, scene, (uint64_t)scene->photon_count, &main, err);
+  if (rc != BK_OK) goto error;
+  rc = pm_use_pdf(&main, tables, 1.0 / pdf_min, err);
+  if (rc != BK_OK) goto error;
+  stats->ms_generate += bk_now_ms() - t0;
+  t0 = bk_now_ms();
+  rc = BK_ERR_RUNTIME;
+  acc = bk_calloc(pm_acc_count(&main), sizeof(uint64_t), "adaptive accumulator", err);
+  count = photon_count ? photon_count : bk_calloc(V, sizeof(float), "photon count grid", err);
+  weight = photon_weight ? photon_weight : bk_calloc(V, sizeof(float), "photon weight grid", err);
+  if (!acc || !count || !weight) goto error;
+  if (main.lights.count > 0) {
+    rc = run_march(cl, &main, acc, &stats->march, err);
+    if (rc != BK_OK) goto error;
+  }
+  const int C = main.channels;
+  const int filter_on = opt->filter && scene->alpha > 0.0f && levels > 0;
+  /* grey: the filter works on the one channel the march carried (its
+   * luminance is proportional), and colours the result after */
+  double grey_k = main.to_radiance[0] + main.to_radiance[1] + main.to_radiance[2];
+  if (filter_on) {
+    raw = bk_calloc(V, (size_t)C * sizeof(float), "adaptive raw radiance", err);
+    if (!raw) goto error;
+    if (C == 1) {
+      scale_job_t job = {acc, NULL, raw, {(float)grey_k, 0.0f, 0.0f}};
+      pm_parallel(V, PM_GRAIN, grey_range, &job);
+    } else
+      pm_to_radiance(&main, acc, raw);
+  } else {
+    pm_to_radiance(&main, acc, radiance);
+  }
+  pm_unpack_weights(&main, acc, count, weight);
+  free(acc);
+  acc = NULL;
+  stats->ms_march = bk_now_ms() - t0;
+
+  /* reconstruction */
+  t0 = bk_now_ms();
+  stats->filtered = filter_on;
+  stats->max_radius = filter_on ? 0.5f * levels : 0.0f;
+  if (filter_on) {
+    filtered = C == 1 ? bk_calloc(V, sizeof(float), "adaptive filtered radiance", err) : radiance;
+    if (!filtered) goto error;
+    rc = cl ? ad_filter_cl(cl, d, C, raw, count, weight, scene->alpha, opt->noise_k, levels,
+                           filtered, filter_radius, err)
+            : ad_filter_host(d, C, raw, count, weight, scene->alpha, opt->noise_k, levels,
+                             filtered, filter_radius, err);
+    if (rc != BK_OK) goto error;
+    if (C == 1) {
+      scale_job_t job = {NULL, filtered, radiance,
+                         {(float)(main.to_radiance[0] / grey_k),
+                          (float)(main.to_radiance[1] / grey_k),
+                          (float)(main.to_radiance[2] / grey_k)}};
+      pm_parallel(V, PM_GRAIN, colour_range, &job);
+    }
+  } else if (filter_radius) {
+    memset(filter_radius, 0, V * sizeof(float));
+  }
+  stats->ms_filter = bk_now_ms() - t0;
+
+  if (timings) {
+    bk_timings_add(timings, "octree", stats->ms_octree, "%s",
+                   base.has_refraction ? "constant-block pyramid of n, n/grad n field"
+                                       : "n constant: one straight DDA per photon");
+    bk_timings_add(timings, "pilot marching", stats->ms_pilot,
+                   "%d pilot photons, origin data on %dx%dx%d cells of %d^3 voxels",
+                   have_pilot ? scene->pilot : 0, cd.nx, cd.ny, cd.nz, 1 << shift);
+    bk_timings_add(timings, "photon distribution", stats->ms_distribution,
+                   "%zu cells selected, pdf %.2f..%.2f", stats->select.selected, pdf_min, pdf_max);
+    bk_timings_add(timings, "photon generation", stats->ms_generate,
+                   "%d light(s), in-kernel Hammersley warped by the PDF", base.lights.count);
+    double sec = stats->ms_march > 0.0 ? stats->ms_march / 1000.0 : 1e-9;
+    bk_timings_add(timings, "photon marching", stats->ms_march,
+                   "%llu photons, %.0f M voxels/s%s", (unsigned long long)stats->march.photons,
+                   stats->march.voxels / sec * 1e-6, cl ? "" : ", host C");
+    if (filter_on)
+      bk_timings_add(timings, "filtering", stats->ms_filter, "alpha %g, radius <= %g voxels%s",
+                     (double)scene->alpha, 0.5 * levels, cl ? "" : ", host C");
+    else
+      bk_timings_add(timings, "filtering", stats->ms_filter, "off");
+  }
+  bk_log(2,
+         "adaptive: pilot %d photons on %dx%dx%d cells, thresholds gradient %g /m, luminance %g; "
+         "%zu of %zu cells selected; pdf %.3f..%.3f; %llu photons marched",
+         have_pilot ? scene->pilot : 0, cd.nx, cd.ny, cd.nz,
+         (double)stats->select.gradient_threshold, (double)stats->select.luminance_threshold,
+         stats->select.selected, stats->select.considered, pdf_min, pdf_max,
+         (unsigned long long)stats->march.photons);
+  rc = BK_OK;
+error:
+  free(pacc);
+  free(masks);
+  free(acc);
+  free(prgb);
+  free(pscat);
+  free(sel);
+  free(vw);
+  free(tables);
+  free(raw);
+  if (filtered != radiance) free(filtered);
+  if (count != photon_count) free(count);
+  if (weight != photon_weight) free(weight);
+  pm_setup_free(&base);
   return rc;
 }

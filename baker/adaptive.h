@@ -1,33 +1,53 @@
-/* adaptive.h: the adaptive pipeline (DESIGN.md §3 stage 6) around the photon
- * march: voxel selection and the sampling PDF (phase 1), and the
- * reconstruction filter (after phase 2). The march itself (pilot and main
- * photons) lives in baker/march.c; the math both sides share is in
+/* adaptive.h: the adaptive pipeline (DESIGN.md §3 stage 6): a pilot march,
+ * voxel selection and a sampling PDF per light (phase 1), a march of
+ * photons drawn from that PDF with weights 1/(N pdf) (phase 2), and the
+ * reconstruction filter. ad_bake runs it all; the march is baker/march.c's
+ * (modes PM_MODE_PILOT and PM_MODE_WEIGHTED of kernels/march.h) on one
+ * prepared setup, and the math shared with the kernels is in
  * kernels/adaptive.h (cells, origin masks, the PDF warp, the filter).
  *
- * How a bake uses it, per frame:
- *  1. Pilot march, uniform Hammersley points, `adaptive.pilot` photons (~4000).
- *     It writes the pilot radiance (3 floats per voxel) and the origin masks:
- *     one uint64_t per voxel per light, light major (ad_origin_index), bit c
- *     set when a pilot photon from light-domain cell c = ad_cell_of(a, b)
- *     crossed the voxel (ad_origin_mark).
- *  2. ad_select_voxels on the pilot radiance: voxels whose luminance gradient
+ * What ad_bake does, per frame:
+ *  1. Pilot march, uniform Hammersley points, `adaptive.pilot` photons (~4000)
+ *     through the full-resolution n field, depositing into coarse cells of
+ *     2^s voxels a side, s the smallest with the longest axis >> s <=
+ *     AD_PILOT_CELLS (4^3 voxels at 128^3): 4000 photon tracks are a few per
+ *     cell there, where at full resolution most voxels would see none and
+ *     every gradient would be noise. It yields the pilot radiance per cell
+ *     and the origin masks: one uint64_t per cell per light, light major
+ *     (ad_origin_index), bit c set when a pilot photon from light-domain cell
+ *     c = ad_cell_of(a, b) crossed the cell (ad_origin_mark).
+ *  2. ad_select_voxels on the pilot cells: those whose luminance gradient
  *     exceeds a threshold (edges, caustics) or whose luminance is below one
  *     (shadows). Thresholds are explicit or automatic (ad_auto_thresholds,
  *     the rule is documented there).
- *  3. ad_build_pdf, per light: a 2D PDF over the light's 8x8 cells that
- *     favours the cells whose photons reached selected voxels, mixed with the
- *     uniform density so that every cell keeps pdf >= floor_fraction.
- *     Upload pdf.table (AD_TABLE_FLOATS(8, 8) floats per light).
+ *  3. ad_build_pdf_weighted, per light: a 2D PDF over the light's 8x8 cells
+ *     that favours the cells whose photons reached selected cells, each
+ *     selected cell weighing by its pilot luminance gradient (by default,
+ *     AD_IMPORTANCE_GRADIENT: an edge that is bright matters more to the
+ *     error than a faint one; measured on the sphere scene it lowers the
+ *     error at equal photons by 10% against 1 per cell), mixed with the
+ *     uniform density so that every cell keeps pdf >= floor_fraction (1/2:
+ *     the Hammersley points converge about as 1/N, so a region sampled at
+ *     density p has 1/p times the error; 1/4 cost more in the sparse fog
+ *     than it gained at the edges).
  *  4. Main march: photon k of N takes its Hammersley point u, warps it with
  *     ad_pdf_warp(table, 8, 8, u) -> (x, pdf), generates the photon from x and
  *     multiplies its power (light power / N) by w = 1/pdf. Per voxel it keeps
- *     the photon count and the sum of w over the photons that crossed it; the
+ *     the photon count and the sum of w over the photons that entered it; the
  *     mean weight w_mean = sum / count (0 where count is 0) is the
  *     `photon_weight` grid and the count the `photon_count` grid. w_mean is 1
  *     for uniform sampling, < 1 where the PDF concentrated photons.
- *  5. ad_filter_host / ad_filter_cl on the radiance with count and w_mean:
- *     radius min(round(alpha * w_mean), centre-surround radius), see
- *     kernels/adaptive.h. The radius grid is a debug output.
+ *     One packed atomic per voxel entry (kernels/march.h) makes this march
+ *     about 1.2x the reference's cost per photon (bench_adaptive).
+ *  5. The filter (ad_filter_host / ad_filter_cl) on the radiance with count
+ *     and w_mean: radius min(alpha * w_mean, centre-surround radius) in half
+ *     voxels, capped at AD_DEFAULT_MAX_RADIUS, see kernels/adaptive.h. A grey
+ *     march (one channel) is filtered as one channel and coloured after. The
+ *     radius grid is a debug output.
+ * Timing rows: "octree", "pilot marching", "photon distribution" (selection
+ * and PDFs), "photon generation" (light set-up; the photons themselves are
+ * made in the kernel), "photon marching" (with the unpacking of the
+ * accumulators), "filtering".
  *
  * Arrays are dense, x-fastest (grid.h); the caller allocates outputs. */
 #ifndef BAKER_ADAPTIVE_H
@@ -38,6 +58,9 @@
 #include "clhost.h"
 #include "grid.h"
 #include "kernels/adaptive.h"
+#include "march.h"
+#include "scene.h"
+#include "voxelize.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -47,8 +70,18 @@ extern "C" {
 #define AD_AUTO_GRADIENT_PERCENTILE 0.90f /* at most the top 10% of reached voxels */
 #define AD_AUTO_GRADIENT_OUTLIER 4.0f     /* and at least 4 median gradients */
 #define AD_AUTO_SHADOW_FRACTION 0.1f      /* shadow: a decade below the median */
-#define AD_DEFAULT_SMOOTH_RADIUS 1        /* box pre-smoothing of the pilot, voxels */
-#define AD_DEFAULT_FLOOR 0.25f            /* pdf >= 1/4: weights <= 4 */
+#define AD_DEFAULT_SMOOTH_RADIUS 1        /* box pre-smoothing of the pilot, cells */
+#define AD_DEFAULT_FLOOR 0.5f             /* pdf >= 1/2: weights <= 2 */
+#define AD_DEFAULT_MAX_RADIUS 1.0f        /* voxels (bench_adaptive: 2 gains 2% for twice the cost) */
+#define AD_PILOT_CELLS 32                 /* the pilot's coarse grid, cells along the longest axis */
+#define AD_DEFAULT_NOISE_K 2.0f           /* filter: first step within 2 lum / count */
+
+/* What each selected pilot cell adds to the PDF (spread over the light
+ * cells that reached it). */
+#define AD_IMPORTANCE_UNIT 0        /* 1 */
+#define AD_IMPORTANCE_GRADIENT 1    /* its luminance gradient */
+#define AD_IMPORTANCE_LUMINANCE 2   /* its luminance */
+#define AD_IMPORTANCE_GRADIENT_23 3 /* gradient^(2/3) */
 
 /* Selection flags, per voxel. */
 #define AD_SEL_GRADIENT 1u
@@ -122,6 +155,12 @@ typedef struct ad_pdf {
 int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, size_t voxels,
                  float floor_fraction, ad_pdf_t *pdf, bk_error_t *err);
 
+/* The same with a weight per voxel (NULL: 1 each) in place of the 1 each
+ * selected voxel spreads. */
+int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
+                          const float *voxel_weight, size_t voxels, float floor_fraction,
+                          ad_pdf_t *pdf, bk_error_t *err);
+
 /* The general form: a table (AD_TABLE_FLOATS(nx, ny) floats) from
  * non-negative cell weights (nx * ny, row major, cell = col + nx * row), with
  * the same floor mixture; cell_pdf (may be NULL) receives the densities the
@@ -129,32 +168,75 @@ int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, size_t v
 int ad_pdf_from_weights(const double *weights, int nx, int ny, float floor_fraction,
                         float *table, float *cell_pdf, bk_error_t *err);
 
-/* Number of voxels in the integer sphere |d|^2 <= r^2 (1, 7, 33, 123, ...). */
-int ad_sphere_size(int r);
-
 /* Reconstruction filter on the host (threads over z slices), the reference
- * the OpenCL path is tested against. radiance: 3 floats per voxel; count,
- * mean_weight: one per voxel (mean of w = 1/pdf, see above); alpha >= 0;
- * max_radius in [0, AD_FILTER_MAX_RADIUS]. out_radiance (3 per voxel, must
- * not alias radiance) gets the filtered radiance; out_radius (NULL: not
- * wanted) the radius used per voxel, in voxels. */
-int ad_filter_host(const grid_dims_t *d, const float *radiance, const uint32_t *count,
-                   const float *mean_weight, float alpha, int max_radius, float *out_radiance,
-                   float *out_radius, bk_error_t *err);
+ * the OpenCL path is tested against. radiance: `channels` (1 or 3) floats
+ * per voxel (1: a grey value, its own luminance); count, mean_weight: one
+ * float per voxel (mean of w = 1/pdf, see above); alpha >= 0; noise_k: the
+ * first step's noise scale (< 0: no test, the slides' rule); levels: the
+ * largest level, twice the largest radius in voxels, in
+ * [0, AD_FILTER_MAX_LEVEL] (kernels/adaptive.h). out_radiance (channels per
+ * voxel, must not alias radiance) gets the filtered radiance; out_radius
+ * (NULL: not wanted) the radius used per voxel, in voxels (multiples of
+ * 1/2). Needs `levels` grids of `channels` floats of scratch. */
+int ad_filter_host(const grid_dims_t *d, int channels, const float *radiance, const float *count,
+                   const float *mean_weight, float alpha, float noise_k, int levels,
+                   float *out_radiance, float *out_radius, bk_error_t *err);
 
-/* The same on the OpenCL device (kernels/filter.cl): uploads, runs, reads
- * back. Same arguments, same results up to float rounding. */
-int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, const float *radiance,
-                 const uint32_t *count, const float *mean_weight, float alpha, int max_radius,
-                 float *out_radiance, float *out_radius, bk_error_t *err);
+/* The same on the OpenCL device (kernels/filter.cl): two launches, in place
+ * on the host arrays on a CPU device, uploads and read-backs on a GPU. Same
+ * arguments, same results up to float rounding. */
+int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const float *radiance,
+                 const float *count, const float *mean_weight, float alpha, float noise_k,
+                 int levels, float *out_radiance, float *out_radius, bk_error_t *err);
 
 /* For a pipeline that keeps the grids on the device: enqueues the filter on
- * existing buffers (rgb, out_rgb: 3 floats per voxel; count: uint per voxel;
- * mean_weight, out_radius: float per voxel; out_radius may be NULL) and waits.
- * `program` is kernels/filter.cl from clh_build, or NULL to build it here. */
-int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_t *d, cl_mem rgb,
-                         cl_mem count, cl_mem mean_weight, float alpha, int max_radius,
-                         cl_mem out_rgb, cl_mem out_radius, bk_error_t *err);
+ * existing buffers (rgb, out_rgb: channels floats per voxel; count,
+ * mean_weight, out_radius: float per voxel; out_radius may be NULL) and
+ * waits. levels >= 1. `program` is kernels/filter.cl from clh_build with
+ * -DAD_CH=channels -DAD_QMAX=levels, or NULL to build it here. */
+int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_t *d,
+                         int channels, cl_mem rgb, cl_mem count, cl_mem mean_weight, float alpha,
+                         float noise_k, int levels, cl_mem out_rgb, cl_mem out_radius,
+                         bk_error_t *err);
+
+/* --- the whole stage --------------------------------------------------------- */
+
+typedef struct ad_bake_opts {
+  int filter;           /* 0: no reconstruction (--no-filter: the raw, unbiased estimate) */
+  float max_radius;     /* filter radius cap, voxels, 0..AD_FILTER_MAX_LEVEL / 2 */
+  int smooth_radius;    /* pilot pre-smoothing, cells (ad_select_opts_t) */
+  float floor_fraction; /* PDF floor, (0, 1] */
+  int pilot_cells;      /* the pilot grid's cells along the longest axis */
+  float noise_k;        /* filter: the first step's noise allowance (kernels/adaptive.h) */
+  int importance;       /* AD_IMPORTANCE_*: what a selected cell spreads over its origins */
+} ad_bake_opts_t;
+void ad_bake_defaults(ad_bake_opts_t *o);
+
+/* The pilot grid's coarsening: cells of 2^shift voxels a side. */
+int ad_pilot_shift(const grid_dims_t *d, int pilot_cells);
+
+typedef struct ad_stats {
+  pm_stats_t pilot, march;   /* phase 1 and phase 2 photons */
+  int pilot_photons;         /* adaptive.pilot */
+  int coarse_shift;          /* pilot cells of 2^shift voxels */
+  ad_select_stats_t select;  /* thresholds used and selected cells */
+  float pdf_min, pdf_max;    /* over every light's cells */
+  int filtered;
+  float max_radius;          /* voxels, 0 when not filtered */
+  double ms_octree, ms_pilot, ms_distribution, ms_generate, ms_march, ms_filter;
+} ad_stats_t;
+
+/* The adaptive pipeline in place of pm_bake: scene (photons.count phase-2
+ * photons, adaptive.pilot, thresholds, alpha), the voxelized volume; cl NULL
+ * runs on the host. Out: radiance (3 floats per voxel), and when not NULL
+ * photon_count and photon_weight (1 float per voxel: photons that entered
+ * the voxel, their mean weight 1/pdf) and filter_radius (voxels; 0 where the
+ * filter is off). opt NULL: ad_bake_defaults. Adds the timing rows "octree",
+ * "pilot marching", "photon distribution", "photon generation", "photon
+ * marching", "filtering". */
+int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
+            const ad_bake_opts_t *opt, float *radiance, float *photon_count, float *photon_weight,
+            float *filter_radius, ad_stats_t *stats, bk_timings_t *timings, bk_error_t *err);
 
 #ifdef __cplusplus
 }

@@ -9,6 +9,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "adaptive.h"
 #include "clhost.h"
 #include "common.h"
 #include "frames.h"
@@ -35,6 +36,9 @@ static void bake_usage(FILE *out) {
           "  --force                  re-bake frames whose output already exists\n"
           "  --mode reference|adaptive   photon pipeline (scene photons.mode)\n"
           "  --photons N              photon count (scene photons.count)\n"
+          "  --no-filter              adaptive: skip the reconstruction filter (the raw,\n"
+          "                           unbiased estimate)\n"
+          "  --write-filter-radius    adaptive: also write the filter_radius grid (debug)\n"
           "  --integrator euler|rk4   ray-equation integrator (scene photons.integrator)\n"
           "  --step VOXELS            march step in refractive regions (scene photons.step)\n"
           "  --seed N                 sampling seed (scene photons.seed)\n"
@@ -127,7 +131,9 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   clh_context_t cl;
   pm_stats_t stats;
   float *extinction = NULL, *density = NULL, *ext_grey = NULL, *sca_grey = NULL;
-  float *radiance = NULL;
+  float *radiance = NULL, *photon_count = NULL, *photon_weight = NULL, *filter_radius = NULL;
+  ad_stats_t astats;
+  memset(&astats, 0, sizeof astats);
   memset(&vol, 0, sizeof vol);
   memset(&cl, 0, sizeof cl);
   memset(&stats, 0, sizeof stats);
@@ -160,14 +166,31 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
       if (rc) goto done;
       bk_timings_add(&timings, "OpenCL init", bk_now_ms() - t0, "%s", cl.device_name);
     }
-    rc = pm_bake(opt->host_only ? NULL : &cl, &scene, &vol, radiance, &stats, &timings, err);
+    if (scene.mode == MODE_ADAPTIVE) {
+      ad_bake_opts_t ao;
+      ad_bake_defaults(&ao);
+      ao.filter = !opt->no_filter;
+      photon_count = bk_calloc(n, sizeof(float), "photon_count grid", err);
+      photon_weight = bk_calloc(n, sizeof(float), "photon_weight grid", err);
+      if (opt->write_filter_radius)
+        filter_radius = bk_calloc(n, sizeof(float), "filter_radius grid", err);
+      if (!photon_count || !photon_weight || (opt->write_filter_radius && !filter_radius)) {
+        rc = err->code;
+        goto done;
+      }
+      rc = ad_bake(opt->host_only ? NULL : &cl, &scene, &vol, &ao, radiance, photon_count,
+                   photon_weight, filter_radius, &astats, &timings, err);
+      stats = astats.march;
+    } else {
+      rc = pm_bake(opt->host_only ? NULL : &cl, &scene, &vol, radiance, &stats, &timings, err);
+    }
     if (rc) goto done;
   }
 
   t0 = bk_now_ms();
   rc = derive_medium_grids(&vol, &extinction, &density, err);
   if (rc) goto done;
-  vdbio_grid_t grids[8];
+  vdbio_grid_t grids[11];
   int g = 0;
   grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, vol.ior, 0};
   if (vol.grey) {
@@ -185,6 +208,9 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   }
   grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, density, 0};
   grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, radiance, 1};
+  if (photon_count) grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, photon_count, 0};
+  if (photon_weight) grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, photon_weight, 0};
+  if (filter_radius) grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, filter_radius, 0};
 
   char hash[32], bounds[160];
   snprintf(hash, sizeof hash, "%016" PRIx64, scene.hash);
@@ -209,9 +235,22 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
       {"photons_step_limit", VDBIO_META_INT, NULL, (long long)stats.step_limit, 0},
       {"photon_steps", VDBIO_META_INT, NULL, (long long)stats.steps, 0},
       {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : cl.device_name, 0, 0},
+      /* adaptive only (the count below leaves them out otherwise) */
+      {"adaptive_pilot_photons", VDBIO_META_INT, NULL, (long long)astats.pilot.photons, 0},
+      {"adaptive_gradient_threshold", VDBIO_META_FLOAT, NULL, 0,
+       astats.select.gradient_threshold},
+      {"adaptive_gradient_threshold_rule", VDBIO_META_STRING,
+       scene.gradient_threshold < 0.0f ? "auto" : "given", 0, 0},
+      {"adaptive_luminance_threshold", VDBIO_META_FLOAT, NULL, 0,
+       astats.select.luminance_threshold},
+      {"adaptive_luminance_threshold_rule", VDBIO_META_STRING,
+       scene.luminance_threshold < 0.0f ? "auto" : "given", 0, 0},
+      {"adaptive_alpha", VDBIO_META_FLOAT, NULL, 0, scene.alpha},
+      {"adaptive_filter", VDBIO_META_STRING, astats.filtered ? "on" : "off", 0, 0},
   };
-  rc = vdbio_write(out_path, &vol.dims, grids, g, meta, (int)(sizeof meta / sizeof meta[0]),
-                   &opt->write, err);
+  int meta_count = (int)(sizeof meta / sizeof meta[0]);
+  if (scene.mode != MODE_ADAPTIVE) meta_count -= 7;
+  rc = vdbio_write(out_path, &vol.dims, grids, g, meta, meta_count, &opt->write, err);
   if (rc) goto done;
   bk_timings_add(&timings, "write", bk_now_ms() - t0, "%s", out_path);
 
@@ -233,6 +272,9 @@ done:
   free(ext_grey);
   free(sca_grey);
   free(radiance);
+  free(photon_count);
+  free(photon_weight);
+  free(filter_radius);
   clh_release(&cl);
   vox_free(&vol);
   scene_free(&scene);
@@ -379,6 +421,10 @@ int bake_main(int argc, char **argv) {
       else if (!strcmp(val, "blosc")) opt.write.compression = VDBIO_COMPRESS_BLOSC;
       else if (!strcmp(val, "none")) opt.write.compression = VDBIO_COMPRESS_NONE;
       else BAD_VALUE("zip, blosc or none");
+    } else if (!strcmp(a, "--no-filter")) {
+      opt.no_filter = 1;
+    } else if (!strcmp(a, "--write-filter-radius")) {
+      opt.write_filter_radius = 1;
     } else if (!strcmp(a, "--half")) {
       opt.write.half_float = 1;
     } else if (!strcmp(a, "--device")) {

@@ -26,6 +26,8 @@ typedef struct bake_options {
   int resolution;
   long long seed;
   vdbio_write_opts_t write;
+  int no_filter;            /* adaptive: skip the reconstruction filter */
+  int write_filter_radius;  /* adaptive: also write the filter_radius grid (debug) */
 } bake_options_t;
 
 int bake_main(int argc, char **argv);

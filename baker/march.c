@@ -1,9 +1,12 @@
 /* march.c: photon marching on OpenCL or on the host (see march.h). */
+#define _DEFAULT_SOURCE /* sysconf, and M_PI from math.h */
 #include "march.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "kernels/ior.h"
 
@@ -48,6 +51,28 @@ static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, 
   }
 }
 
+/* The fixed-point scale and the conversion to radiance for the setup's
+ * lights, when no photon carries more than w_max times its light's power per
+ * photon (the weighted march, march.h): the bound of march.h's scale rule
+ * grows by w_max. */
+static void set_scale(pm_setup_t *s, double w_max) {
+  pm_params *P = &s->params;
+  const grid_dims_t *d = &s->dims;
+  const double h = d->voxel_size;
+  double diag = sqrt((double)d->nx * d->nx + (double)d->ny * d->ny + (double)d->nz * d->nz);
+  double pmax = 0.0;
+  if (s->channels == 1) pmax = s->lights.power[0] + s->lights.power[1] + s->lights.power[2];
+  else
+    for (int c = 0; c < 3; c++) pmax = s->lights.power[c] > pmax ? s->lights.power[c] : pmax;
+  P->fixed_scale = (float)pm_fixed_scale(pmax * w_max, P->path_cap + diag);
+  P->photon_total = (bk_uint)s->lights.photons;
+  P->light_count = (bk_uint)s->lights.count;
+  /* quanta -> W·voxel -> W·m / (4π V) */
+  for (int c = 0; c < 3; c++)
+    s->to_radiance[c] = (s->channels == 1 ? s->lights.chroma[c] : 1.0) /
+                        ((double)P->fixed_scale * 4.0 * M_PI * h * h);
+}
+
 int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timings_t *timings,
                pm_stats_t *stats, bk_error_t *err) {
   memset(s, 0, sizeof *s);
@@ -74,6 +99,7 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   if (rc != BK_OK) return rc;
   s->channels = (s->grey && s->lights.one_colour) ? 1 : 3;
   if (s->channels == 1) ph_make_grey(&s->lights);
+  s->seed = scene->seed;
   /* what the march holds per voxel: n/∇n, the pyramid, σt, the counters */
   size_t per_voxel = (s->has_refraction ? 4 * sizeof(float) + 1 : 0) +
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
@@ -132,15 +158,7 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   double diag = sqrt((double)d->nx * d->nx + (double)d->ny * d->ny + (double)d->nz * d->nz);
   P->step = scene->step;
   P->path_cap = (float)(PM_MAX_PATH_DIAGONALS * diag);
-  double pmax = 0.0;
-  if (s->channels == 1) pmax = s->lights.power[0] + s->lights.power[1] + s->lights.power[2];
-  else
-    for (int c = 0; c < 3; c++) pmax = s->lights.power[c] > pmax ? s->lights.power[c] : pmax;
-  double S = pm_fixed_scale(pmax, P->path_cap + diag);
-  P->fixed_scale = (float)S;
   P->absorb_fraction = PM_ABSORB_FRACTION;
-  P->photon_total = (bk_uint)s->lights.photons;
-  P->light_count = (bk_uint)s->lights.count;
   P->channels = (bk_uint)s->channels;
   P->has_refraction = (bk_uint)s->has_refraction;
   P->homogeneous = (bk_uint)s->homogeneous;
@@ -148,10 +166,8 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   P->pyr_nx = s->pyramid.bx;
   P->pyr_ny = s->pyramid.by;
   P->pyr_nz = s->pyramid.bz;
-  /* quanta -> W·voxel -> W·m / (4π V) */
-  for (int c = 0; c < 3; c++)
-    s->to_radiance[c] = (s->channels == 1 ? s->lights.chroma[c] : 1.0) /
-                        ((double)P->fixed_scale * 4.0 * M_PI * h * h);
+  P->mode = PM_MODE_REFERENCE;
+  set_scale(s, 1.0);
   ms_generate += bk_now_ms() - t0;
 
   if (timings) {
@@ -196,6 +212,67 @@ void pm_disable_octree(pm_setup_t *s) {
   s->octree_enabled = 0;
 }
 
+int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm_setup_t *out,
+              bk_error_t *err) {
+  *out = *base;
+  out->masks = NULL;
+  out->tables = NULL;
+  out->params.mode = PM_MODE_REFERENCE;
+  int rc = ph_prepare(scene, &base->dims, photons, base->seed, &out->lights, err);
+  if (rc != BK_OK) return rc;
+  if (out->channels == 1) ph_make_grey(&out->lights);
+  set_scale(out, 1.0);
+  return BK_OK;
+}
+
+void pm_use_pilot(pm_setup_t *s, int coarse_shift, uint64_t *masks) {
+  pm_params *P = &s->params;
+  const int m = (1 << coarse_shift) - 1;
+  P->mode = PM_MODE_PILOT;
+  P->coarse_shift = coarse_shift;
+  P->cnx = (s->dims.nx + m) >> coarse_shift;
+  P->cny = (s->dims.ny + m) >> coarse_shift;
+  P->cnz = (s->dims.nz + m) >> coarse_shift;
+  s->masks = masks;
+}
+
+int pm_use_pdf(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err) {
+  pm_params *P = &s->params;
+  /* count bits: the photons, with room for 4 passages per photon on average
+   * (curved paths may re-enter a voxel); the weight sum takes the rest, with
+   * the same room, in quanta of 2^-24 to 2^-8 */
+  int count_bits = 2;
+  while (count_bits < 64 && (s->lights.photons >> (count_bits - 2)) != 0) count_bits++;
+  int shift = 64 - count_bits;
+  /* quanta per unit weight: a power of 2 with N w_max of them below 2^shift */
+  double room = ldexp(1.0, shift) / (4.0 * (double)(s->lights.photons ? s->lights.photons : 1) *
+                                     (w_max > 1.0 ? w_max : 1.0) * 1.001);
+  if (room < 256.0)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "adaptive: %llu photons are too many for the per-voxel photon count and "
+                   "weight sums (%d bits); use at most about 4e7 photons, or photons.mode "
+                   "\"reference\"",
+                   (unsigned long long)s->lights.photons, count_bits);
+  P->mode = PM_MODE_WEIGHTED;
+  P->count_shift = (bk_uint)shift;
+  P->weight_scale = (float)ldexp(1.0, (int)floor(log2(room)) > 24 ? 24 : (int)floor(log2(room)));
+  s->tables = tables;
+  set_scale(s, w_max);
+  return BK_OK;
+}
+
+size_t pm_acc_count(const pm_setup_t *s) {
+  const pm_params *P = &s->params;
+  if (P->mode == PM_MODE_PILOT) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
+  return s->voxels * (size_t)pm_acc_stride((int)P->mode, s->channels);
+}
+
+size_t pm_mask_count(const pm_setup_t *s) {
+  const pm_params *P = &s->params;
+  if (P->mode != PM_MODE_PILOT) return 0;
+  return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->lights.count;
+}
+
 int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err) {
   bk_progress_t prog;
   uint64_t n = s->lights.photons;
@@ -203,7 +280,7 @@ int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_
   for (uint64_t i = 0; i < n; i++) {
     pm_result r;
     pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma, acc,
-                    (bk_uint)i, &r, NULL);
+                    s->masks, s->tables, (bk_uint)i, &r, NULL);
     if (stats) add_result(stats, &r);
     if ((i & 4095) == 4095) bk_progress_update(&prog, i + 1);
   }
@@ -218,12 +295,14 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   cl_program prog = NULL;
   cl_kernel kern = NULL;
   cl_mem b_params = NULL, b_lights = NULL, b_ng = NULL, b_pyr = NULL, b_sigma = NULL, b_acc = NULL,
-         b_out = NULL, b_dummy = NULL;
+         b_out = NULL, b_dummy = NULL, b_masks = NULL, b_tables = NULL;
   pm_result *res = NULL;
   bk_progress_t progress;
   int progress_on = 0;
   char opts[512], b1[32], b2[32];
-  const size_t acc_bytes = s->voxels * (size_t)s->channels * sizeof(uint64_t);
+  const size_t acc_bytes = pm_acc_count(s) * sizeof(uint64_t);
+  const size_t mask_bytes = pm_mask_count(s) * sizeof(uint64_t);
+  const int mode = (int)s->params.mode;
 
   if (!cl->has_int64_atomics)
     return bk_fail(err, BK_ERR_RUNTIME,
@@ -243,12 +322,18 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   const ph_setup_t *L = &s->lights;
   snprintf(opts, sizeof opts,
            "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d "
-           "-DLIGHT_DIRECTIONAL=%d -DLIGHT_SPOT=%d -DLIGHT_POINT=%d",
+           "-DLIGHT_DIRECTIONAL=%d -DLIGHT_SPOT=%d -DLIGHT_POINT=%d -DPM_MODE=%d",
            s->has_refraction, s->homogeneous, s->params.integrator, s->channels,
-           L->has_type[PH_DIRECTIONAL], L->has_type[PH_SPOT], L->has_type[PH_POINT]);
+           L->has_type[PH_DIRECTIONAL], L->has_type[PH_SPOT], L->has_type[PH_POINT], mode);
   if (clh_build(cl, "march.cl", opts, &prog, err) != BK_OK) goto error;
   kern = clCreateKernel(prog, "pm_march", &cerr);
   CLH_CHECK(cerr, err, error);
+  /* PM_LOCAL_SIZE, or the largest power of 2 the kernel allows below it */
+  size_t local = PM_LOCAL_SIZE, kmax = 0;
+  if (clGetKernelWorkGroupInfo(kern, cl->device, CL_KERNEL_WORK_GROUP_SIZE, sizeof kmax, &kmax,
+                               NULL) == CL_SUCCESS &&
+      kmax > 0)
+    while (local > kmax) local /= 2;
   if (stats) stats->ms_build += bk_now_ms() - t0;
 
   /* inputs stay where they are on a CPU device (USE_HOST_PTR); a GPU copies */
@@ -283,6 +368,28 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   CLH_CHECK(cerr, err, error);
   b_out = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, &cerr);
   CLH_CHECK(cerr, err, error);
+  if (mode == PM_MODE_PILOT) {
+    if (!s->masks) {
+      bk_fail(err, BK_ERR_RUNTIME, "march: pilot march without origin masks");
+      goto error;
+    }
+    b_masks = clCreateBuffer(cl->context,
+                             CL_MEM_READ_WRITE |
+                                 (cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR),
+                             mask_bytes, s->masks, &cerr);
+    CLH_CHECK(cerr, err, error);
+  }
+  if (mode == PM_MODE_WEIGHTED) {
+    if (!s->tables) {
+      bk_fail(err, BK_ERR_RUNTIME, "march: weighted march without PDF tables");
+      goto error;
+    }
+    b_tables = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                              (size_t)nlights * AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y) *
+                                  sizeof(float),
+                              (void *)s->tables, &cerr);
+    CLH_CHECK(cerr, err, error);
+  }
   res = bk_calloc(PM_CHUNK, sizeof(pm_result), "march: photon results", err);
   if (!res) goto error;
 
@@ -291,6 +398,9 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   for (cl_uint a = 0; a < 6; a++)
     CLH_CHECK(clSetKernelArg(kern, a, sizeof(cl_mem), &args[a]), err, error);
   CLH_CHECK(clSetKernelArg(kern, 8, sizeof(cl_mem), &b_out), err, error);
+  cl_mem b9 = b_masks ? b_masks : b_dummy, b10 = b_tables ? b_tables : b_dummy;
+  CLH_CHECK(clSetKernelArg(kern, 9, sizeof(cl_mem), &b9), err, error);
+  CLH_CHECK(clSetKernelArg(kern, 10, sizeof(cl_mem), &b10), err, error);
 
   uint64_t total = L->photons;
   bk_progress_begin(&progress, "photon marching", total);
@@ -298,11 +408,15 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   for (uint64_t first = 0; first < total; first += PM_CHUNK) {
     cl_uint f = (cl_uint)first;
     cl_uint count = (cl_uint)(total - first < PM_CHUNK ? total - first : PM_CHUNK);
-    size_t global = count;
+    /* a fixed work-group size: the global size rounded up to it (the kernel
+     * skips the excess), so that every photon count runs the same compiled
+     * work-group function (PoCL compiles one per local size on first use,
+     * half a second) */
+    size_t global = (count + local - 1) / local * local;
     CLH_CHECK(clSetKernelArg(kern, 6, sizeof f, &f), err, error);
     CLH_CHECK(clSetKernelArg(kern, 7, sizeof count, &count), err, error);
-    CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, kern, 1, NULL, &global, NULL, 0, NULL, NULL), err,
-              error);
+    CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, kern, 1, NULL, &global, &local, 0, NULL, NULL),
+              err, error);
     CLH_CHECK(clEnqueueReadBuffer(cl->queue, b_out, CL_TRUE, 0, count * sizeof(pm_result), res, 0,
                                   NULL, NULL),
               err, error);
@@ -316,9 +430,19 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
                                  NULL, &cerr);
     CLH_CHECK(cerr, err, error);
     CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, b_acc, p, 0, NULL, NULL), err, error);
+    if (b_masks) {
+      p = clEnqueueMapBuffer(cl->queue, b_masks, CL_TRUE, CL_MAP_READ, 0, mask_bytes, 0, NULL,
+                             NULL, &cerr);
+      CLH_CHECK(cerr, err, error);
+      CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, b_masks, p, 0, NULL, NULL), err, error);
+    }
   } else {
     CLH_CHECK(clEnqueueReadBuffer(cl->queue, b_acc, CL_TRUE, 0, acc_bytes, acc, 0, NULL, NULL),
               err, error);
+    if (b_masks)
+      CLH_CHECK(clEnqueueReadBuffer(cl->queue, b_masks, CL_TRUE, 0, mask_bytes, s->masks, 0, NULL,
+                                    NULL),
+                err, error);
   }
   CLH_CHECK(clFinish(cl->queue), err, error);
   rc = BK_OK;
@@ -327,17 +451,92 @@ error:
   free(res);
   if (kern) clReleaseKernel(kern);
   if (prog) clReleaseProgram(prog);
-  cl_mem all[] = {b_params, b_lights, b_ng, b_pyr, b_sigma, b_acc, b_out, b_dummy};
+  cl_mem all[] = {b_params, b_lights, b_ng, b_pyr, b_sigma, b_acc, b_out, b_dummy, b_masks, b_tables};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
     if (all[i]) clReleaseMemObject(all[i]);
   return rc;
 }
 
-void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance) {
-  const int ch = s->channels;
-  for (size_t i = 0; i < s->voxels; i++)
+/* --- voxel loops on every core ------------------------------------------- */
+
+#define PM_MAX_THREADS 64
+
+typedef struct pm_range_job {
+  void (*fn)(void *ctx, size_t lo, size_t hi);
+  void *ctx;
+  size_t lo, hi;
+} pm_range_job_t;
+
+static void *pm_range_run(void *arg) {
+  pm_range_job_t *j = arg;
+  j->fn(j->ctx, j->lo, j->hi);
+  return NULL;
+}
+
+void pm_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi),
+                 void *ctx) {
+  long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+  int threads = cpus < 1 ? 1 : cpus > PM_MAX_THREADS ? PM_MAX_THREADS : (int)cpus;
+  if (grain < 1) grain = 1;
+  if ((size_t)threads > n / grain) threads = n / grain > 0 ? (int)(n / grain) : 1;
+  pm_range_job_t jobs[PM_MAX_THREADS];
+  pthread_t tid[PM_MAX_THREADS];
+  int started = 0;
+  for (int t = 0; t < threads; t++) {
+    jobs[t].fn = fn;
+    jobs[t].ctx = ctx;
+    jobs[t].lo = n * (size_t)t / (size_t)threads;
+    jobs[t].hi = n * (size_t)(t + 1) / (size_t)threads;
+  }
+  /* a thread that cannot start leaves its range to this one */
+  for (int t = 1; t < threads; t++) {
+    if (pthread_create(&tid[t], NULL, pm_range_run, &jobs[t]) != 0) break;
+    started = t;
+  }
+  pm_range_run(&jobs[0]);
+  for (int t = 1; t <= started; t++) pthread_join(tid[t], NULL);
+  for (int t = started + 1; t < threads; t++) pm_range_run(&jobs[t]);
+}
+
+typedef struct pm_unpack_ctx {
+  const pm_setup_t *s;
+  const uint64_t *acc;
+  float *radiance, *count, *mean_weight;
+} pm_unpack_ctx_t;
+
+static void to_radiance_range(void *arg, size_t lo, size_t hi) {
+  const pm_unpack_ctx_t *u = arg;
+  const int ch = u->s->channels, stride = pm_acc_stride((int)u->s->params.mode, ch);
+  const double *k = u->s->to_radiance;
+  for (size_t i = lo; i < hi; i++)
     for (int c = 0; c < 3; c++)
-      radiance[3 * i + c] = (float)((double)acc[ch * i + (ch == 1 ? 0 : c)] * s->to_radiance[c]);
+      u->radiance[3 * i + c] = (float)((double)u->acc[stride * i + (ch == 1 ? 0 : c)] * k[c]);
+}
+
+void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance) {
+  pm_unpack_ctx_t u = {s, acc, radiance, NULL, NULL};
+  pm_parallel(s->voxels, PM_GRAIN, to_radiance_range, &u);
+}
+
+static void unpack_weights_range(void *arg, size_t lo, size_t hi) {
+  const pm_unpack_ctx_t *u = arg;
+  const pm_setup_t *s = u->s;
+  const int ch = s->channels, stride = pm_acc_stride((int)s->params.mode, ch);
+  const unsigned shift = s->params.count_shift;
+  const uint64_t low = (1ull << shift) - 1ull;
+  const float inv_scale = 1.0f / s->params.weight_scale; /* a power of 2: exact */
+  for (size_t i = lo; i < hi; i++) {
+    uint64_t q = u->acc[stride * i + ch];
+    float n = (float)(q >> shift);
+    if (u->count) u->count[i] = n;
+    if (u->mean_weight) u->mean_weight[i] = n > 0.0f ? (float)(q & low) * inv_scale / n : 0.0f;
+  }
+}
+
+void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
+                       float *mean_weight) {
+  pm_unpack_ctx_t u = {s, acc, NULL, count, mean_weight};
+  pm_parallel(s->voxels, PM_GRAIN, unpack_weights_range, &u);
 }
 
 int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float *radiance,
@@ -389,7 +588,8 @@ static int trace(const pm_setup_t *s, const pm_params *P, const ph_light *lights
   if (!scratch) return BK_ERR_RUNTIME;
   pm_path_rec rec = {points, max_points, 0};
   pm_result r;
-  pm_march_photon(P, lights, s->ng, s->pyramid.level, s->sigma, scratch, index, &r, &rec);
+  pm_march_photon(P, lights, s->ng, s->pyramid.level, s->sigma, scratch, NULL, NULL, index, &r,
+                  &rec);
   free(scratch);
   const grid_dims_t *d = &s->dims;
   int stored = rec.count < max_points ? rec.count : max_points;

@@ -47,6 +47,8 @@ extern "C" {
 /* Photons per kernel launch: progress between launches, and PoCL never holds
  * the queue for long. */
 #define PM_CHUNK 65536u
+/* Work-items per work-group of the march (a divisor of PM_CHUNK). */
+#define PM_LOCAL_SIZE 256u
 
 typedef struct pm_stats {
   uint64_t photons, missed_grid, left_grid, absorbed, step_limit;
@@ -70,6 +72,10 @@ typedef struct pm_setup {
   float *sigma;          /* !homogeneous: channels floats per voxel, σt per voxel length */
   double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
   int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
+  unsigned seed;         /* photons.seed, for pm_derive */
+  /* The adaptive modes (params.mode, kernels/march.h), not owned: */
+  uint64_t *masks;       /* pilot: origin masks, pm_mask_count entries, zeroed by the caller */
+  const float *tables;   /* weighted: AD_TABLE_FLOATS(8, 8) floats per light */
 } pm_setup_t;
 
 /* The fixed-point scale for total photon power `power_max` (W, brightest
@@ -85,20 +91,50 @@ void pm_setup_free(pm_setup_t *s);
  * everywhere, as the paper's reference pipeline without its octree. */
 void pm_disable_octree(pm_setup_t *s);
 
-/* Marches every photon into acc (channels counters per voxel, zeroed by the
+/* The adaptive pipeline's marches share one prepared setup (the octree and
+ * the n/∇n field are built once). pm_derive makes a shallow copy of base (it
+ * owns nothing: free only base) whose lights carry `photons` photons, in
+ * reference mode. pm_use_pilot turns it into a pilot march that deposits
+ * into cells of 2^coarse_shift voxels a side and marks their origin masks
+ * (masks: pm_mask_count entries, zeroed). pm_use_pdf turns it into the
+ * weighted march over the PDF tables (one per light, in the order of
+ * lights.lights) whose largest weight 1/pdf is w_max; it refuses photon
+ * counts whose per-voxel count and weight sums could overflow their packed
+ * counter (about 4e7). */
+int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm_setup_t *out,
+              bk_error_t *err);
+void pm_use_pilot(pm_setup_t *s, int coarse_shift, uint64_t *masks);
+int pm_use_pdf(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err);
+/* Counters in the accumulator of the setup's mode (channels per voxel; the
+ * pilot's per coarse cell; the weighted march one more per voxel), and the
+ * origin masks of a pilot (0 in other modes). */
+size_t pm_acc_count(const pm_setup_t *s);
+size_t pm_mask_count(const pm_setup_t *s);
+
+/* Marches every photon into acc (pm_acc_count counters, zeroed by the
  * caller): in plain C on this thread, or with OpenCL on cl. */
 int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err);
 int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
               bk_error_t *err);
-/* acc -> radiance (3 floats per voxel, W m^-2 sr^-1). */
+/* acc -> radiance (3 floats per voxel, W m^-2 sr^-1); reference and
+ * weighted modes. */
 void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);
+/* Runs fn(ctx, lo, hi) over [0, n) split into one range per CPU core, each
+ * at least `grain` items (PM_GRAIN for voxels): for the loops around the
+ * march. */
+#define PM_GRAIN 65536
+void pm_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi), void *ctx);
+/* Weighted mode: per voxel the photon count and the mean weight (0 where no
+ * photon came); either may be NULL. */
+void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
+                       float *mean_weight);
 
 /* The whole stage: cl NULL marches on the host. Adds the "octree",
  * "photon generation" and "photon marching" timing rows. */
 int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float *radiance,
             pm_stats_t *stats, bk_timings_t *timings, bk_error_t *err);
 
-/* Host-only, for tests: the path of photon `index` of the setup as points in
+/* Host-only, for tests (reference mode): the path of photon `index` of the setup as points in
  * world coordinates (3 floats each: the light's origin, the grid entry, then
  * the end of every march iteration). *count is the number of points the path
  * had (only the first max_points are stored). res may be NULL. */

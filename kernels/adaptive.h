@@ -7,13 +7,14 @@
  * domain is split into AD_CELLS_X x AD_CELLS_Y = 64 cells; cell
  * c = cx + AD_CELLS_X * cy with cx = floor(a * AD_CELLS_X), cy = floor(b *
  * AD_CELLS_Y) (ad_cell_of). 64 cells so that the origin data fits one 64-bit
- * mask per voxel per light.
+ * mask per pilot cell per light.
  *
  * Origin data (phase 1, pilot photons). An array of bk_ulong masks, light
- * major: masks[ad_origin_index(voxel, light, voxels)], voxel = the grid's
- * x-fastest index. A pilot photon from cell c sets bit c of every voxel it
- * crosses (ad_origin_mark: atom_or on the device, an atomic fetch-or on the
- * host).
+ * major: masks[ad_origin_index(cell, light, cells)], cell = the x-fastest
+ * index of the pilot's coarse grid (blocks of 2^s voxels, baker/adaptive.h;
+ * s = 0 makes them voxels). A pilot photon from light-domain cell c sets
+ * bit c of every coarse cell it crosses (ad_origin_mark: atom_or on the
+ * device, an atomic fetch-or on the host; kernels/march.h, PM_MODE_PILOT).
  *
  * PDF (phase 2). A piecewise-constant density over nx x ny cells, stored as a
  * table of AD_TABLE_FLOATS(nx, ny) floats:
@@ -32,29 +33,45 @@
  * its power is the light's power/N times w = 1/pdf(x), and the estimate is
  * unbiased wherever pdf > 0 (baker/adaptive.c puts a floor under it).
  *
- * Reconstruction filter (ad_filter_voxel, kernels/filter.cl). Per voxel:
- *   r_w  = round(alpha * w_mean), w_mean the voxel's mean of w = 1/pdf over
- *          the photons that crossed it (1 for uniform sampling), the maximum
- *          radius where no photon came (count 0);
- *   r_cs = centre-surround radius: with m(r) the (Gaussian-weighted, below)
- *          mean luminance over the sphere |d| <= r (in voxels, clipped to
- *          the grid), start at r = 1
- *          and grow r while |m(r+1) - m(r)| < |m(r) - m(r-1)|; stop at the
- *          first increase (the sphere r+1 reached something the smaller ones
- *          did not: an edge);
- *   R    = min(r_w, r_cs, max radius); output = m(R) in colour.
- * R = 0 keeps the voxel's own value. The means are Gaussian-weighted over the
- * sphere, weight exp(-|d|^2 / (2 (AD_FILTER_SIGMA r)^2)), for two reasons a
- * box mean lacks (measured on tests/test_adaptive.c's caustic step, sparsely
- * sampled, 10% noise): at r = 1 a voxel next to an edge takes 11% of its
- * value from across the edge instead of 1/7, and the first comparison
- * |m(2) - m(1)| < |m(1) - m(0)| then tells an edge from noise (with box means
- * it is nearly a coin toss there: mean error 21% of the step against 11%),
- * for 10% less noise reduction in smooth regions. The offsets come from a
- * table ordered by shell (shell 0 the centre, shell r >= 1 the offsets with
- * (r-1)^2 < |d|^2 <= r^2), so the sphere of radius r is a prefix of it; the
- * weights are a table too, per radius and squared length (baker/adaptive.c
- * builds both), so host and device use the very same numbers. */
+ * Reconstruction filter (kernels/filter.cl; the host path of
+ * baker/adaptive.c runs the same functions). Radii come in half voxels,
+ * level q = 2 r: the mean at level q, M_q, is the Gaussian of standard
+ * deviation r = q/2 voxels (the filter's radius) truncated at 2r = q voxels
+ * along each axis (the cube |dx|, |dy|, |dz| <= q, clipped to the grid and
+ * renormalised), M_0 the voxel itself. Per voxel:
+ *   q_w  = round(2 alpha w_mean): the photon-weight radius alpha * w_mean
+ *          to the nearest half voxel, w_mean the voxel's mean of w = 1/pdf
+ *          over the photons that entered it (1 for uniform sampling); the
+ *          largest level where no photon came (count 0);
+ *   q_cs = the centre-surround level: with D(q) the mean over the
+ *          (2 AD_FILTER_BOX + 1)^3 voxels around of the squared difference
+ *          of luminance between levels q and q-1, grow q while
+ *          D(q+1) < D(q), stop at the first increase (the larger mean reached
+ *          something the smaller ones did not: an edge, a caustic). The
+ *          first step, from the voxel itself to level 1, is taken when D(1)
+ *          is within the voxel's noise, D(1) <= (noise_k lum(M_1) / count)^2:
+ *          a caustic's peak or a voxel at an edge differs from its
+ *          neighbourhood by more than its photons' noise and keeps its own
+ *          value (noise_k < 0: always, the slides' rule);
+ *   q    = min(q_w, q_cs, max level); output M_q in colour; radius q/2.
+ * Why these choices, measured on the sphere scene against a converged bake
+ * (scripts/bench_adaptive): the march's Hammersley photons leave a fine,
+ * track-shaped noise that the differences of single voxels cannot tell from
+ * structure (|M_2 - M_1| exceeded |M_1 - M_0| in 99% of smooth fog voxels,
+ * so the rule on single voxels stopped at level 1 everywhere); averaged
+ * over 5^3 voxels, the squared differences estimate what they should, noise
+ * plus bias, and the rule grows where the noise falls faster than the bias
+ * rises. Without the noise test of the first step the filter blurred the
+ * caustic (its voxels are a sharp peak: every larger mean differs less from
+ * the last one, so the rule alone keeps growing), 4x the error of the
+ * unfiltered estimate. The noise scale 1/count, not 1/sqrt(count), because
+ * Hammersley points converge about as 1/N. The truncation at 2 sigma cuts
+ * off only e^-2 of a tap and e^-6 at the cube's corners, so the cube is as
+ * good as a sphere and separable: M_q is computed one axis at a time for
+ * every level at once (ad_blur_row_yz, ad_blur_row_x) in loops over whole
+ * rows, 3 (2q+1) taps per level instead of (2q+1)^3, and the box means of
+ * the differences the same way (ad_select_slice). The 1D weights are a
+ * table (baker/adaptive.c) so host and device use the very same numbers. */
 #ifndef BAKER_AD_KERNEL_H
 #define BAKER_AD_KERNEL_H
 
@@ -67,13 +84,17 @@
 #define AD_TABLE_FLOATS(nx, ny) ((ny) + 1 + (ny) * ((nx) + 1))
 /* The largest float below 1: warped points stay in [0,1). */
 #define AD_ONE_BELOW 0.99999994f
-/* Largest filter radius, in voxels: a sphere of 2109 voxels. Beyond it one
- * voxel's filter costs more than the march spent on it; with the default PDF
- * floor (1/4) and alpha 1 the photon weights ask for 4 at most. */
-#define AD_FILTER_MAX_RADIUS 8
-/* Gaussian weights of the filter's means: standard deviation SIGMA * r over
- * the sphere of radius r (see the header comment). */
-#define AD_FILTER_SIGMA 0.7f
+/* Largest filter level (radius 4 voxels). With the default PDF floor (1/2)
+ * and alpha 1 the photon weights ask for radius 2 at most, the default
+ * maximum (AD_DEFAULT_MAX_RADIUS, baker/adaptive.h). */
+#define AD_FILTER_MAX_LEVEL 8
+/* Gaussian of level q: standard deviation SIGMA * q voxels, truncated at q. */
+#define AD_FILTER_SIGMA 0.5f
+/* Half-width of the box over which the centre-surround differences are
+ * averaged (5^3 voxels). */
+#define AD_FILTER_BOX 2
+/* Row length of the 1D weight table: weights[q * AD_WROW + |d|]. */
+#define AD_WROW (AD_FILTER_MAX_LEVEL + 1)
 
 /* Rec. 709 luminance: what the eye (and the centre-surround rule) sees. */
 BK_INLINE float ad_luminance(float r, float g, float b) {
@@ -108,6 +129,19 @@ BK_INLINE bk_long ad_origin_index(bk_long voxel, int light, bk_long voxels) {
 BK_INLINE void ad_origin_mark(volatile __global ulong *masks, bk_long index, int cell) {
   ulong bit = ad_cell_bit(cell);
   if ((masks[index] & bit) == 0) atom_or(&masks[index], bit);
+}
+#elif defined(cl_khr_int64_base_atomics)
+/* Without atom_or on ulong: a compare-and-swap loop (base atomics). */
+#pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
+#define AD_HAS_ORIGIN_MARK 1
+BK_INLINE void ad_origin_mark(volatile __global ulong *masks, bk_long index, int cell) {
+  ulong bit = ad_cell_bit(cell);
+  ulong old = masks[index];
+  while ((old & bit) == 0) {
+    ulong seen = atom_cmpxchg(&masks[index], old, old | bit);
+    if (seen == old) break;
+    old = seen;
+  }
 }
 #endif
 #else
@@ -188,110 +222,229 @@ BK_INLINE void ad_pdf_unwarp(const BK_GLOBAL float *table, int nx, int ny, float
 
 /* --- the reconstruction filter ---------------------------------------------- */
 
-/* Photon-weight radius: round(alpha * mean weight), the maximum where no
- * photon came; NaN or negative weights count as 0 (no filtering). */
-BK_INLINE int ad_weight_radius(float alpha, float mean_weight, bk_uint count, int rmax) {
-  if (count == 0) return rmax;
-  float r = alpha * mean_weight;
-  if (!(r >= 0.0f)) return 0;
-  if (r >= (float)rmax) return rmax;
-  return (int)(r + 0.5f);
+/* The filter's passes work on rows: the nx voxels (nx * C floats) of one
+ * (j, k), contiguous, so every loop below streams through memory and the
+ * innermost one runs over the row with no branch (vectorised on both
+ * sides). A pass computes every level r = 1..R: its input for level r is
+ * in + (r-1) * in_plane (in_plane 0: one input for all), its output
+ * out + (r-1) * out_plane (floats). Sums run over d in ascending order and
+ * end with a multiply by the reciprocal of the clipped weight sum, the same
+ * operations on host and device. */
+
+/* 1 / (sum of the weights of radius r over offsets lo..hi). */
+BK_INLINE float ad_inv_weight(const BK_GLOBAL float *weights, int r, int lo, int hi) {
+  float ws = 0.0f;
+  for (int d = lo; d <= hi; d++) ws += weights[r * AD_WROW + (d < 0 ? -d : d)];
+  return 1.0f / ws;
 }
 
-/* Per-voxel sums of the radiance by squared offset length q = |d|^2: the
- * Gaussian weight depends on q only, so the mean over any sphere r is a short
- * sum over q <= r^2 of these, and growing the sphere only adds its new shell.
- * The cost is then that of the largest sphere visited, not the sum of all. */
-#define AD_Q_MAX (AD_FILTER_MAX_RADIUS * AD_FILTER_MAX_RADIUS)
-typedef struct ad_qsums {
-  float s0[AD_Q_MAX + 1], s1[AD_Q_MAX + 1], s2[AD_Q_MAX + 1]; /* RGB sums */
-  float n[AD_Q_MAX + 1];                                      /* in-grid voxels */
-  int shells;                                                 /* shells added so far */
-} ad_qsums;
-
-/* Adds the in-grid voxels of shells q->shells + 1 .. r to the sums. */
-BK_INLINE void ad_qsums_grow(ad_qsums *q, const BK_GLOBAL float *rgb,
-                             const BK_GLOBAL int *shell_offsets, const BK_GLOBAL int *shell_start,
-                             const bk_grid g, int i, int j, int k, int r) {
-  if (r <= q->shells) return;
-  for (int s = shell_start[q->shells + 1]; s < shell_start[r + 1]; s++) {
-    int dx = shell_offsets[3 * s], dy = shell_offsets[3 * s + 1], dz = shell_offsets[3 * s + 2];
-    int x = i + dx, y = j + dy, z = k + dz;
-    if (x < 0 || y < 0 || z < 0 || x >= g.nx || y >= g.ny || z >= g.nz) continue;
-    bk_long v = (bk_long)x + (bk_long)g.nx * ((bk_long)y + (bk_long)g.ny * (bk_long)z);
-    int d2 = dx * dx + dy * dy + dz * dz;
-    q->s0[d2] += rgb[3 * v];
-    q->s1[d2] += rgb[3 * v + 1];
-    q->s2[d2] += rgb[3 * v + 2];
-    q->n[d2] += 1.0f;
+/* The x means of one row of n voxels. */
+BK_INLINE void ad_blur_row_x(const BK_GLOBAL float *in, bk_long in_plane, BK_GLOBAL float *out,
+                             bk_long out_plane, const BK_GLOBAL float *weights, int n, int R,
+                             int C) {
+  for (int r = 1; r <= R; r++) {
+    const BK_GLOBAL float *src = in + (bk_long)(r - 1) * in_plane;
+    BK_GLOBAL float *o = out + (bk_long)(r - 1) * out_plane;
+    /* the ends, clipped voxel by voxel */
+    int ends = r < n ? r : n;
+    for (int e = 0; e < 2 * ends; e++) {
+      int i = e < ends ? e : n - 2 * ends + e;
+      if (e >= ends && i < ends) continue; /* a row shorter than 2r: done by the first end */
+      int lo = i - r < 0 ? -i : -r, hi = i + r > n - 1 ? n - 1 - i : r;
+      float inv = ad_inv_weight(weights, r, lo, hi);
+      for (int c = 0; c < C; c++) {
+        float s = 0.0f;
+        for (int d = lo; d <= hi; d++)
+          s += weights[r * AD_WROW + (d < 0 ? -d : d)] * src[(i + d) * C + c];
+        o[i * C + c] = s * inv;
+      }
+    }
+    /* the interior: every offset -r..r */
+    int q0 = r * C, q1 = (n - r) * C;
+    if (q1 <= q0) continue;
+    float inv = ad_inv_weight(weights, r, -r, r);
+    for (int q = q0; q < q1; q++) o[q] = 0.0f;
+    for (int d = -r; d <= r; d++) {
+      float w = weights[r * AD_WROW + (d < 0 ? -d : d)];
+      const BK_GLOBAL float *sv = src + d * C;
+      for (int q = q0; q < q1; q++) o[q] += w * sv[q];
+    }
+    for (int q = q0; q < q1; q++) o[q] *= inv;
   }
-  q->shells = r;
 }
 
-/* Gaussian-weighted mean colour over the sphere of radius r (its shells must
- * be in the sums) into out[0..2]; returns its luminance. weights[r * (AD_Q_MAX
- * + 1) + q] is the weight of squared length q in the sphere of radius r. */
-BK_INLINE float ad_qsums_mean(const ad_qsums *q, const BK_GLOBAL float *weights, int r,
-                              float *out) {
-  const BK_GLOBAL float *w = weights + r * (AD_Q_MAX + 1);
-  float s0 = 0.0f, s1 = 0.0f, s2 = 0.0f, sw = 0.0f;
-  for (int d2 = 0; d2 <= r * r; d2++) {
-    float wq = w[d2];
-    s0 += wq * q->s0[d2];
-    s1 += wq * q->s1[d2];
-    s2 += wq * q->s2[d2];
-    sw += wq * q->n[d2];
+/* The means along y or z of one row at coordinate pos (of n along that
+ * axis), whose neighbours lie `stride` floats apart; rowlen = nx * C. */
+BK_INLINE void ad_blur_row_yz(const BK_GLOBAL float *in, bk_long in_plane, BK_GLOBAL float *out,
+                              bk_long out_plane, const BK_GLOBAL float *weights, int pos, int n,
+                              bk_long stride, int rowlen, int R) {
+  for (int r = 1; r <= R; r++) {
+    const BK_GLOBAL float *src = in + (bk_long)(r - 1) * in_plane;
+    BK_GLOBAL float *o = out + (bk_long)(r - 1) * out_plane;
+    int lo = pos - r < 0 ? -pos : -r, hi = pos + r > n - 1 ? n - 1 - pos : r;
+    float inv = ad_inv_weight(weights, r, lo, hi);
+    for (int q = 0; q < rowlen; q++) o[q] = 0.0f;
+    for (int d = lo; d <= hi; d++) {
+      float w = weights[r * AD_WROW + (d < 0 ? -d : d)];
+      const BK_GLOBAL float *sv = src + (bk_long)d * stride;
+      for (int q = 0; q < rowlen; q++) o[q] += w * sv[q];
+    }
+    for (int q = 0; q < rowlen; q++) o[q] *= inv;
   }
-  float inv = 1.0f / sw; /* the centre is always in the grid, with weight 1 */
-  out[0] = s0 * inv;
-  out[1] = s1 * inv;
-  out[2] = s2 * inv;
-  return ad_luminance(out[0], out[1], out[2]);
 }
 
-/* Filters voxel (i,j,k): writes the filtered RGB into out[0..2] and returns
- * the radius R used. rgb: 3 floats per voxel; count, mean_weight: one per
- * voxel; the shell and weight tables (baker/adaptive.c) must cover rmax
- * (<= AD_FILTER_MAX_RADIUS). m(r+1) is only computed while r < r_w, so the
- * cost is that of the sphere of radius min(r_w, r_cs + 1). */
-BK_INLINE int ad_filter_voxel(const BK_GLOBAL float *rgb, const BK_GLOBAL bk_uint *count,
-                              const BK_GLOBAL float *mean_weight,
-                              const BK_GLOBAL int *shell_offsets,
-                              const BK_GLOBAL int *shell_start, const BK_GLOBAL float *weights,
-                              const bk_grid g, float alpha, int rmax, int i, int j, int k,
-                              float *out) {
-  bk_long v = (bk_long)i + (bk_long)g.nx * ((bk_long)j + (bk_long)g.ny * (bk_long)k);
-  int r_w = ad_weight_radius(alpha, mean_weight[v], count[v], rmax);
-  out[0] = rgb[3 * v];
-  out[1] = rgb[3 * v + 1];
-  out[2] = rgb[3 * v + 2];
-  if (r_w < 1) return 0;
-  ad_qsums q;
-  for (int d2 = 0; d2 <= r_w * r_w; d2++) q.s0[d2] = q.s1[d2] = q.s2[d2] = q.n[d2] = 0.0f;
-  q.s0[0] = out[0];
-  q.s1[0] = out[1];
-  q.s2[0] = out[2];
-  q.n[0] = 1.0f;
-  q.shells = 0;
-  float m_prev = ad_luminance(out[0], out[1], out[2]); /* m(0) */
-  float next[3];
-  ad_qsums_grow(&q, rgb, shell_offsets, shell_start, g, i, j, k, 1);
-  float m_cur = ad_qsums_mean(&q, weights, 1, out);
-  float d_prev = fabs(m_cur - m_prev);
-  int r = 1;
-  while (r < r_w) {
-    ad_qsums_grow(&q, rgb, shell_offsets, shell_start, g, i, j, k, r + 1);
-    float m_next = ad_qsums_mean(&q, weights, r + 1, next);
-    float d = fabs(m_next - m_cur);
-    if (!(d < d_prev)) break; /* the first increase: stop at r */
-    r++;
-    out[0] = next[0];
-    out[1] = next[1];
-    out[2] = next[2];
-    m_cur = m_next;
-    d_prev = d;
+/* Photon-weight level: alpha * mean weight in half voxels, rounded
+ * (round(2 alpha w_mean)), the largest level where no photon came; NaN or
+ * negative weights count as 0 (no filtering). */
+BK_INLINE int ad_weight_level(float alpha, float mean_weight, float count, int qmax) {
+  if (!(count > 0.0f)) return qmax;
+  float q = 2.0f * alpha * mean_weight;
+  if (!(q >= 0.0f)) return 0;
+  if (q >= (float)qmax) return qmax;
+  return (int)(q + 0.5f);
+}
+
+/* The luminance of the C floats at p (C = 1: the value itself, a grey march). */
+BK_INLINE float ad_lum_at(const BK_GLOBAL float *p, int C) {
+  return C == 3 ? ad_luminance(p[0], p[1], p[2]) : p[0];
+}
+
+/* Floats per voxel of scratch a filter work-item needs for its slice: the
+ * larger of the means' (two sets of Q planes of C floats) and the
+ * differences' (two sets of Q planes of 1 float). */
+#define AD_SLICE_SCRATCH(nx, ny, C, Q) ((bk_long)(nx) * (bk_long)(ny) * 2 * (C) * (Q))
+/* Floats of pass 1's output per voxel: M (Q levels of C floats) then DQ (Q
+ * floats). */
+#define AD_MEANS_FLOATS(C, Q) ((C) * (Q) + (Q))
+
+/* Pass 1 of the filter, z-slice k: the Gaussian means of levels 1..Q of f
+ * into M (Q planes of the whole grid, C floats per voxel, plane q-1 for level
+ * q): z means of f (slices k-Q..k+Q) into scratch A, their y means into
+ * scratch B (one slice each, so they stay in the cache), then the x means of
+ * each row into M, and the squared luminance differences between levels,
+ * (lum M_q - lum M_{q-1})^2 (M_0 = f), into DQ (Q planes of 1 float per
+ * voxel) for pass 2's box means. */
+BK_INLINE void ad_means_slice(const BK_GLOBAL float *f, const BK_GLOBAL float *weights,
+                              BK_GLOBAL float *scratch, BK_GLOBAL float *M, BK_GLOBAL float *DQ,
+                              const bk_grid g, int k, int Q, int C) {
+  const int rowlen = g.nx * C;
+  const bk_long S = (bk_long)g.ny * rowlen; /* floats per slice */
+  const bk_long plane = S * g.nz;
+  const bk_long base = (bk_long)k * S;
+  BK_GLOBAL float *A = scratch, *B = scratch + (bk_long)Q * S;
+  for (int j = 0; j < g.ny; j++)
+    ad_blur_row_yz(f + base + (bk_long)j * rowlen, 0, A + (bk_long)j * rowlen, S, weights, k,
+                   g.nz, S, rowlen, Q);
+  for (int j = 0; j < g.ny; j++)
+    ad_blur_row_yz(A + (bk_long)j * rowlen, S, B + (bk_long)j * rowlen, S, weights, j, g.ny,
+                   rowlen, rowlen, Q);
+  const bk_long nxyz = (bk_long)g.nx * g.ny * g.nz;
+  for (int j = 0; j < g.ny; j++) {
+    const bk_long row = base + (bk_long)j * rowlen, v0 = row / C;
+    ad_blur_row_x(B + (bk_long)j * rowlen, S, M + row, plane, weights, g.nx, Q, C);
+    for (int q = 1; q <= Q; q++) {
+      const BK_GLOBAL float *hi = M + (bk_long)(q - 1) * plane + row;
+      const BK_GLOBAL float *lo = q == 1 ? f + row : M + (bk_long)(q - 2) * plane + row;
+      BK_GLOBAL float *o = DQ + (bk_long)(q - 1) * nxyz + v0;
+      if (C == 1) {
+        for (int i = 0; i < g.nx; i++) {
+          float d = hi[i] - lo[i];
+          o[i] = d * d;
+        }
+      } else {
+        for (int i = 0; i < g.nx; i++) {
+          float d = ad_lum_at(hi + 3 * i, 3) - ad_lum_at(lo + 3 * i, 3);
+          o[i] = d * d;
+        }
+      }
+    }
   }
-  return r;
+}
+
+/* Pass 2 of the filter, z-slice k (every slice of M and DQ complete): for
+ * each level q the box mean over (2 AD_FILTER_BOX + 1)^3 voxels (clipped to
+ * the grid) of the squared luminance difference between levels q and q-1
+ * (level 0: f itself, DQ from pass 1),
+ *   D(q) = box[(lum M_q - lum M_{q-1})^2],
+ * then per voxel the level (kernels/adaptive.h's header comment):
+ *   q = 0; if q_w >= 1 and D(1) count^2 <= noise_k^2 lum(M_1)^2: q = 1,
+ *   then while q < q_w and D(q+1) < D(q): q++
+ * and out = M_q (f for q = 0), radius = q / 2 voxels. */
+BK_INLINE void ad_select_slice(const BK_GLOBAL float *f, const BK_GLOBAL float *M,
+                               const BK_GLOBAL float *DQ, const BK_GLOBAL float *count,
+                               const BK_GLOBAL float *mean_weight,
+                               BK_GLOBAL float *scratch, const bk_grid g, int k, float alpha,
+                               float noise_k, int Q, int C, BK_GLOBAL float *out,
+                               BK_GLOBAL float *radius) {
+  const int h = AD_FILTER_BOX, nx = g.nx;
+  const bk_long nxy = (bk_long)nx * g.ny; /* voxels per slice */
+  const bk_long plane = nxy * g.nz * C;  /* floats per level of M */
+  BK_GLOBAL float *Sa = scratch, *Sb = scratch + (bk_long)Q * nxy;
+  /* z: the squared differences of slices k-h..k+h, summed */
+  const int z0 = k - h < 0 ? 0 : k - h, z1 = k + h > g.nz - 1 ? g.nz - 1 : k + h;
+  const float inv_z = 1.0f / (float)(z1 - z0 + 1);
+  const bk_long nxyz = nxy * g.nz;
+  for (int q = 1; q <= Q; q++) {
+    BK_GLOBAL float *o = Sa + (bk_long)(q - 1) * nxy;
+    const BK_GLOBAL float *dq = DQ + (bk_long)(q - 1) * nxyz;
+    for (int v = 0; v < (int)nxy; v++) o[v] = 0.0f;
+    for (int z = z0; z <= z1; z++) {
+      const BK_GLOBAL float *pz = dq + (bk_long)z * nxy;
+      for (int v = 0; v < (int)nxy; v++) o[v] += pz[v];
+    }
+    for (int v = 0; v < (int)nxy; v++) o[v] *= inv_z;
+  }
+  /* y */
+  for (int q = 1; q <= Q; q++)
+    for (int j = 0; j < g.ny; j++) {
+      const int y0 = j - h < 0 ? 0 : j - h, y1 = j + h > g.ny - 1 ? g.ny - 1 : j + h;
+      const float inv_y = 1.0f / (float)(y1 - y0 + 1);
+      BK_GLOBAL float *o = Sb + (bk_long)(q - 1) * nxy + (bk_long)j * nx;
+      const BK_GLOBAL float *src = Sa + (bk_long)(q - 1) * nxy;
+      for (int i = 0; i < nx; i++) o[i] = 0.0f;
+      for (int y = y0; y <= y1; y++)
+        for (int i = 0; i < nx; i++) o[i] += src[(bk_long)y * nx + i];
+      for (int i = 0; i < nx; i++) o[i] *= inv_y;
+    }
+  /* x, row by row (into the start of Sa, free by now), and the choice */
+  for (int j = 0; j < g.ny; j++) {
+    const bk_long v0 = (bk_long)k * nxy + (bk_long)j * nx; /* the row's first voxel */
+    for (int q = 1; q <= Q; q++) {
+      const BK_GLOBAL float *src = Sb + (bk_long)(q - 1) * nxy + (bk_long)j * nx;
+      BK_GLOBAL float *o = Sa + (bk_long)(q - 1) * nx;
+      /* the ends clipped, the interior as one branch-free loop */
+      for (int e = 0; e < 2 * h && e < nx; e++) {
+        const int i = e < h ? e : nx - 2 * h + e;
+        if (e >= h && i < h) continue; /* a row shorter than 2h */
+        const int x0 = i - h < 0 ? 0 : i - h, x1 = i + h > nx - 1 ? nx - 1 : i + h;
+        float sum = 0.0f;
+        for (int x = x0; x <= x1; x++) sum += src[x];
+        o[i] = sum * (1.0f / (float)(x1 - x0 + 1));
+      }
+      const float inv_x = 1.0f / (float)(2 * h + 1);
+      for (int i = h; i < nx - h; i++) {
+        float sum = 0.0f;
+        for (int d = -h; d <= h; d++) sum += src[i + d];
+        o[i] = sum * inv_x;
+      }
+    }
+    for (int i = 0; i < nx; i++) {
+      const bk_long v = v0 + i;
+      const int q_w = ad_weight_level(alpha, mean_weight[v], count[v], Q);
+      int q = 0;
+      if (q_w >= 1) {
+        const float m1 = ad_lum_at(M + v * C, C), d1 = Sa[i], n = count[v];
+        /* the first step against the voxel's noise, compared squared */
+        if (noise_k < 0.0f || d1 * n * n <= noise_k * noise_k * m1 * m1) {
+          q = 1;
+          while (q < q_w && Sa[(bk_long)q * nx + i] < Sa[(bk_long)(q - 1) * nx + i]) q++;
+        }
+      }
+      const BK_GLOBAL float *src = q == 0 ? f + v * C : M + (bk_long)(q - 1) * plane + v * C;
+      for (int c = 0; c < C; c++) out[v * C + c] = src[c];
+      if (radius) radius[v] = 0.5f * (float)q;
+    }
+  }
 }
 
 #endif

@@ -11,14 +11,17 @@
 
 #include "march.h"
 
+/* masks and tables serve the adaptive modes (PM_MODE, march.h); the
+ * reference march never reads them. */
 __kernel void pm_march(__constant pm_params *P, __constant ph_light *lights,
                        __global const float *ng, __global const uchar *pyr,
                        __global const float *sigma, __global ulong *acc, uint first, uint count,
-                       __global pm_result *out) {
+                       __global pm_result *out, __global ulong *masks,
+                       __global const float *tables) {
   uint i = (uint)get_global_id(0);
   if (i >= count) return;
   pm_result r;
-  pm_march_photon(P, lights, ng, pyr, sigma, acc, first + i, &r);
+  pm_march_photon(P, lights, ng, pyr, sigma, acc, masks, tables, first + i, &r);
   out[i] = r;
 }
 

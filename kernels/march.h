@@ -30,10 +30,30 @@
  * HAS_REFRACTION, HOMOGENEOUS (σt as parameters, no grid lookups),
  * INTEGRATOR (0 Euler, 1 RK4), PM_CHANNELS (1 when every light has the same
  * colour and the medium is grey: one atomic per voxel instead of three),
- * LIGHT_DIRECTIONAL / LIGHT_SPOT / LIGHT_POINT (photons.h). */
+ * LIGHT_DIRECTIONAL / LIGHT_SPOT / LIGHT_POINT (photons.h), and PM_MODE:
+ *
+ * Modes (the adaptive pipeline, baker/adaptive.h, runs the same march):
+ *  PM_MODE_REFERENCE  what is described above.
+ *  PM_MODE_PILOT      phase 1: the deposits go to the coarse cell of the voxel
+ *                     (blocks of 2^coarse_shift voxels a side, its own
+ *                     accumulator), and each coarse cell a photon passes gets
+ *                     the bit of the photon's light-domain cell in its origin
+ *                     mask (kernels/adaptive.h, ad_origin_mark).
+ *  PM_MODE_WEIGHTED   phase 2: the photon's light-domain point is warped
+ *                     through its light's PDF table (ad_pdf_warp) and its
+ *                     power multiplied by w = 1/pdf. Per voxel the
+ *                     accumulator holds one more counter after the radiance
+ *                     channels: the photon count and the sum of w, packed
+ *                     (count << count_shift) + round(w * weight_scale), added
+ *                     with one atomic each time a photon enters the voxel
+ *                     (consecutive deposits in the same voxel, the small
+ *                     steps of a refractive region, count once). One packed
+ *                     atomic per passage and none per extra deposit: the
+ *                     slides lost time to atomics for exactly these data. */
 #ifndef BAKER_MARCH_KERNEL_H
 #define BAKER_MARCH_KERNEL_H
 
+#include "adaptive.h"
 #include "photons.h"
 #include "shared.h"
 
@@ -72,6 +92,10 @@
 #define PM_FATE_ABSORBED 2   /* power below PM_ABSORB_FRACTION */
 #define PM_FATE_STEP_LIMIT 3 /* PM_MAX_STEPS or PM_MAX_PATH_DIAGONALS */
 
+#define PM_MODE_REFERENCE 0
+#define PM_MODE_PILOT 1
+#define PM_MODE_WEIGHTED 2
+
 #if PH_DEVICE
 #ifndef HAS_REFRACTION
 #define HAS_REFRACTION 1
@@ -85,11 +109,15 @@
 #ifndef PM_CHANNELS
 #define PM_CHANNELS 3
 #endif
+#ifndef PM_MODE
+#define PM_MODE PM_MODE_REFERENCE
+#endif
 typedef uchar pm_uchar;
 #define PM_HAS_REFRACTION(P) (HAS_REFRACTION)
 #define PM_HOMOGENEOUS(P) (HOMOGENEOUS)
 #define PM_INTEGRATOR(P) (INTEGRATOR)
 #define PM_NCH(P) (PM_CHANNELS)
+#define PM_MODE_OF(P) (PM_MODE)
 #define PM_ATOMIC_ADD(p, q) atom_add((p), (q))
 #define PM_EXP(x) exp(x)
 #define PM_SQRT(x) sqrt(x)
@@ -103,6 +131,7 @@ typedef unsigned char pm_uchar;
 #define PM_HOMOGENEOUS(P) ((P)->homogeneous)
 #define PM_INTEGRATOR(P) ((P)->integrator)
 #define PM_NCH(P) ((int)(P)->channels)
+#define PM_MODE_OF(P) ((int)(P)->mode)
 /* The host path marches one photon at a time on one thread. */
 #define PM_ATOMIC_ADD(p, q) (*(p) += (q))
 #define PM_EXP(x) expf(x)
@@ -133,7 +162,7 @@ static inline void pm_record(pm_path_rec *rec, bk_v3 x) {
 #define PM_RECORD(x) pm_record(rec, (x))
 #endif
 
-/* Parameters of one march, shared by every photon. Pinned at 96 bytes. */
+/* Parameters of one march, shared by every photon. Pinned at 128 bytes. */
 typedef struct pm_params {
   bk_grid grid;
   float sigma_t[3];      /* HOMOGENEOUS: extinction per voxel length (σt h) */
@@ -148,8 +177,14 @@ typedef struct pm_params {
   bk_uint homogeneous;
   bk_uint integrator;
   int pyr_nx, pyr_ny, pyr_nz; /* finest pyramid blocks along each axis */
+  bk_uint mode;               /* PM_MODE_*: host path only (the device uses -D PM_MODE) */
+  int coarse_shift;           /* pilot: deposits and marks at voxel >> coarse_shift */
+  int cnx, cny, cnz;          /* pilot: the coarse grid */
+  float weight_scale;         /* weighted: quanta of the packed weight sum per unit w */
+  bk_uint count_shift;        /* weighted: the count's lowest bit in the packed counter */
+  bk_uint pad0;
 } pm_params;
-BK_STATIC_ASSERT(sizeof(pm_params) == 96, "pm_params layout is shared with kernels");
+BK_STATIC_ASSERT(sizeof(pm_params) == 128, "pm_params layout is shared with kernels");
 
 /* One photon's outcome. */
 typedef struct pm_result {
@@ -168,6 +203,9 @@ typedef struct pm_photon {
   float threshold;
   float path;
   bk_uint voxels;
+  int light, cell;  /* pilot: the photon's light and light-domain cell */
+  bk_ulong packed;  /* weighted: (1 << count_shift) + round(w weight_scale) */
+  bk_long last;     /* the last voxel (pilot: coarse cell) counted or marked */
 } pm_photon;
 
 /* Crossing a voxel at optical depth t = σℓ: returns r = (1 - e^{-t})/t, the
@@ -236,19 +274,46 @@ BK_INLINE bk_v3 pm_normalize(bk_v3 a) {
   return l > 0.0f ? v3_scale(a, 1.0f / l) : a;
 }
 
-/* The photon crosses length seg (voxels) of voxel idx: deposits the exact
- * integral of its attenuated power and attenuates it. Returns 1 when it is
- * absorbed (every channel below its threshold). */
+/* Counters per voxel in the accumulator of a mode (the pilot's are per
+ * coarse cell). */
+BK_INLINE int pm_acc_stride(int mode, int channels) {
+  return mode == PM_MODE_WEIGHTED ? channels + 1 : channels;
+}
+
+/* The photon crosses length seg (voxels) of voxel idx (at c): deposits the
+ * exact integral of its attenuated power and attenuates it. Returns 1 when
+ * it is absorbed (every channel below its threshold). */
 BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
-                             BK_GLOBAL bk_ulong *acc, pm_photon *ph, bk_long idx, float seg) {
+                             BK_GLOBAL bk_ulong *acc, BK_GLOBAL bk_ulong *masks, pm_photon *ph,
+                             bk_long idx, const int *c, float seg) {
   const int nch = PM_NCH(P);
+  const int stride = pm_acc_stride(PM_MODE_OF(P), nch);
+  bk_long didx = idx; /* where the deposit goes */
+#if !PH_DEVICE || PM_MODE == PM_MODE_PILOT
+  if (PM_MODE_OF(P) == PM_MODE_PILOT) {
+    const int s = P->coarse_shift;
+    didx = (bk_long)(c[0] >> s) +
+           (bk_long)P->cnx * ((bk_long)(c[1] >> s) + (bk_long)P->cny * (bk_long)(c[2] >> s));
+    if (didx != ph->last) {
+      ph->last = didx;
+      ad_origin_mark(masks, ad_origin_index(didx, ph->light, (bk_long)P->cnx * P->cny * P->cnz),
+                     ph->cell);
+    }
+  }
+#endif
+#if !PH_DEVICE || PM_MODE == PM_MODE_WEIGHTED
+  if (PM_MODE_OF(P) == PM_MODE_WEIGHTED && idx != ph->last) {
+    ph->last = idx;
+    PM_ATOMIC_ADD(acc + stride * idx + nch, ph->packed);
+  }
+#endif
   float pmax = 0.0f;
   for (int ch = 0; ch < nch; ch++) {
     float sg, trans;
     if (PM_HOMOGENEOUS(P)) sg = P->sigma_t[ch];
     else sg = sigma[nch * idx + ch];
     float r = pm_atten(sg * seg, &trans);
-    pm_deposit(acc + nch * idx + ch, ph->power[ch] * seg * r * P->fixed_scale);
+    pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
     ph->power[ch] *= trans;
     pmax = ph->power[ch] > pmax ? ph->power[ch] : pmax;
   }
@@ -268,8 +333,8 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
  * next voxel is outside the block [lo, hi) (voxel indices, within the grid) or
  * outside the grid, or when the photon is absorbed. Updates x, c, power, path. */
 BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
-                     BK_GLOBAL bk_ulong *acc, pm_photon *ph, bk_v3 d, float len, const int *lo,
-                     const int *hi) {
+                     BK_GLOBAL bk_ulong *acc, BK_GLOBAL bk_ulong *masks, pm_photon *ph, bk_v3 d,
+                     float len, const int *lo, const int *hi) {
   const int n[3] = {P->grid.nx, P->grid.ny, P->grid.nz};
   const float dv[3] = {d.x, d.y, d.z}, x0[3] = {ph->x.x, ph->x.y, ph->x.z};
   int c[3] = {ph->c[0], ph->c[1], ph->c[2]}, stp[3];
@@ -303,7 +368,7 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
     float tn = tmax[a];
     int last = tn >= len;
     float seg = (last ? len : tn) - t;
-    if (seg > 0.0f && pm_cross_voxel(P, sigma, acc, ph, idx, seg)) {
+    if (seg > 0.0f && pm_cross_voxel(P, sigma, acc, masks, ph, idx, c, seg)) {
       status = PM_DDA_ABSORBED;
       t = last ? len : tn;
       break;
@@ -368,10 +433,14 @@ BK_INLINE void pm_integrate(const pm_params *P, BK_GLOBAL const float *ng, bk_v3
 }
 #endif
 
-/* Marches photon `index` (0 <= index < photon_total) to its end. */
+/* Marches photon `index` (0 <= index < photon_total) to its end. masks: the
+ * pilot's origin masks (PM_MODE_PILOT); tables: one PDF table of
+ * AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y) floats per light (PM_MODE_WEIGHTED);
+ * unused otherwise. */
 BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT const ph_light *lights,
                                BK_GLOBAL const float *ng, BK_GLOBAL const pm_uchar *pyr,
                                BK_GLOBAL const float *sigma, BK_GLOBAL bk_ulong *acc,
+                               BK_GLOBAL bk_ulong *masks, BK_GLOBAL const float *tables,
                                bk_uint index, pm_result *res PM_REC_DECL) {
   /* a private copy: the compiler cannot know the deposits leave P alone and
    * would reload it after every atomic */
@@ -388,19 +457,33 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
   res->path = 0.0f;
 
   bk_v3 o, d;
-  float t0;
-  ph_sample(L, index - L->first, &o, &d);
+  float t0, a, b, w = 1.0f;
+  ph_point(L, index - L->first, &a, &b);
+#if !PH_DEVICE || PM_MODE == PM_MODE_WEIGHTED
+  if (PM_MODE_OF(P) == PM_MODE_WEIGHTED) {
+    ad_sample s = ad_pdf_warp(tables + l * AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y), AD_CELLS_X,
+                              AD_CELLS_Y, a, b);
+    a = s.x;
+    b = s.y;
+    w = 1.0f / s.pdf;
+  }
+#endif
+  ph_map(L, a, b, &o, &d);
   PM_RECORD(o);
   if (!ph_enter_grid(g, o, d, &t0)) return;
   pm_photon ph;
+  ph.light = (int)l;
+  ph.cell = ad_cell_of(a, b);
+  ph.last = -1;
+  ph.packed = ((bk_ulong)1 << P->count_shift) + (bk_ulong)(w * P->weight_scale + 0.5f);
   ph.x = v3_madd(o, d, t0);
   ph.c[0] = bk_clampi((int)PM_FLOOR(ph.x.x), 0, g.nx - 1);
   ph.c[1] = bk_clampi((int)PM_FLOOR(ph.x.y), 0, g.ny - 1);
   ph.c[2] = bk_clampi((int)PM_FLOOR(ph.x.z), 0, g.nz - 1);
   ph.v = d;
-  ph.power[0] = L->power[0];
-  ph.power[1] = L->power[1];
-  ph.power[2] = L->power[2];
+  ph.power[0] = L->power[0] * w;
+  ph.power[1] = L->power[1] * w;
+  ph.power[2] = L->power[2] * w;
   float pmax = ph.power[0];
   for (int ch = 1; ch < PM_NCH(P); ch++) pmax = ph.power[ch] > pmax ? ph.power[ch] : pmax;
   ph.threshold = P->absorb_fraction * pmax;
@@ -435,7 +518,7 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
           lo[a] = (ph.c[a] >> shift) << shift;
           hi[a] = lo[a] + (1 << shift) < gh[a] ? lo[a] + (1 << shift) : gh[a];
         }
-        r = pm_dda(P, sigma, acc, &ph, pm_normalize(ph.v), PM_FAR, lo, hi);
+        r = pm_dda(P, sigma, acc, masks, &ph, pm_normalize(ph.v), PM_FAR, lo, hi);
       } else {
         bk_v3 x1, v1;
         pm_integrate(P, ng, ph.x, ph.v, &x1, &v1);
@@ -445,10 +528,11 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
         if ((int)PM_FLOOR(x1.x) == ph.c[0] && (int)PM_FLOOR(x1.y) == ph.c[1] &&
             (int)PM_FLOOR(x1.z) == ph.c[2]) {
           /* most steps of half a voxel stay in their voxel: no DDA set-up */
-          if (len > 0.0f && pm_cross_voxel(P, sigma, acc, &ph, pm_index(g, ph.c[0], ph.c[1], ph.c[2]), len))
+          if (len > 0.0f && pm_cross_voxel(P, sigma, acc, masks, &ph,
+                                           pm_index(g, ph.c[0], ph.c[1], ph.c[2]), ph.c, len))
             r = PM_DDA_ABSORBED;
         } else if (len > 0.0f) {
-          r = pm_dda(P, sigma, acc, &ph, v3_scale(seg, 1.0f / len), len, gl, gh);
+          r = pm_dda(P, sigma, acc, masks, &ph, v3_scale(seg, 1.0f / len), len, gl, gh);
         }
         if (r == PM_DDA_REACHED) ph.x = x1;
         ph.v = v1;
@@ -456,7 +540,7 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
     } else
 #endif
     {
-      r = pm_dda(P, sigma, acc, &ph, ph.v, PM_FAR, gl, gh);
+      r = pm_dda(P, sigma, acc, masks, &ph, ph.v, PM_FAR, gl, gh);
     }
     PM_RECORD(ph.x);
     if (r == PM_DDA_LEFT_GRID) {

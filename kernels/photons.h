@@ -83,12 +83,17 @@ BK_INLINE void ph_hammersley(bk_uint k, bk_uint n, float rot_u, float rot_v, flo
   *b = ph_rotate(ph_radical_inverse2(k), rot_v);
 }
 
-/* Origin and unit direction of photon k (0 <= k < count) of light L, voxel
- * coordinates. The LIGHT_* flags of a specialised kernel drop the generators
- * of light types the scene does not have. */
-BK_INLINE void ph_sample(BK_CONSTANT const ph_light *L, bk_uint k, bk_v3 *origin, bk_v3 *dir) {
-  float a, b;
-  ph_hammersley(k, L->count, L->rot_u, L->rot_v, &a, &b);
+/* The light-domain point of photon k (0 <= k < count) of light L: the
+ * rotated Hammersley point the generator maps (ph_map). The adaptive pipeline
+ * warps it through its sampling PDF first (kernels/adaptive.h). */
+BK_INLINE void ph_point(BK_CONSTANT const ph_light *L, bk_uint k, float *a, float *b) {
+  ph_hammersley(k, L->count, L->rot_u, L->rot_v, a, b);
+}
+
+/* Origin and unit direction, voxel coordinates, of the photon from the
+ * light-domain point (a, b) in [0,1)^2. The LIGHT_* flags of a specialised
+ * kernel drop the generators of light types the scene does not have. */
+BK_INLINE void ph_map(BK_CONSTANT const ph_light *L, float a, float b, bk_v3 *origin, bk_v3 *dir) {
   bk_v3 d = v3(L->dx, L->dy, L->dz);
   bk_v3 u = v3(L->ux, L->uy, L->uz), w = v3(L->vx, L->vy, L->vz);
 #if !PH_DEVICE || LIGHT_DIRECTIONAL
@@ -107,6 +112,14 @@ BK_INLINE void ph_sample(BK_CONSTANT const ph_light *L, bk_uint k, bk_v3 *origin
   *origin = v3(L->px, L->py, L->pz);
   *dir = v3_normalize(v3_madd(v3_madd(v3_scale(d, ct), u, st * cp), w, st * sp));
 #endif
+}
+
+/* Origin and unit direction of photon k (0 <= k < count) of light L, voxel
+ * coordinates: ph_map of ph_point. */
+BK_INLINE void ph_sample(BK_CONSTANT const ph_light *L, bk_uint k, bk_v3 *origin, bk_v3 *dir) {
+  float a, b;
+  ph_point(L, k, &a, &b);
+  ph_map(L, a, b, origin, dir);
 }
 
 /* Where the ray o + t d (unit d) first meets the box [0, n] of the grid, for

@@ -6,8 +6,9 @@
  *  thresholds automatic thresholds select edges and shadows, not the smooth part
  *  chain      pilot origins -> selection -> PDF -> weighted phase 2 on a toy
  *             light: unbiased, photons where the PDF points
- *  filter     the reconstruction filter on a noisy fog with a caustic step
- *  filter_cl  kernels/filter.cl against the host path
+ *  filter     the reconstruction filter on a noisy fog with a caustic step,
+ *             against a brute-force evaluation of its definition
+ *  filter_cl  kernels/filter.cl against the host path and the brute force
  *  device     the warp and origin marking of kernels/adaptive.h on OpenCL */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -596,7 +597,9 @@ static int test_chain(void) {
 /* --- filter ------------------------------------------------------------------ */
 
 /* Fog with a smooth variation along y and z, and a caustic step at x = 16:
- * four times brighter beyond. Colour (1, 0.9, 0.8). */
+ * four times brighter beyond. Colour (1, 0.9, 0.8). The noise is relative,
+ * like a photon estimate's, and the count says how much: 1/count is the
+ * filter's noise scale (kernels/adaptive.h), so 10 photons for 10%. */
 enum { FN = 32, STEP_X = 16 };
 static double fog_truth(int i, int j, int k) {
   double y = 1.0 + 0.2 * sin(6.283185307179586 * (j + 0.5) / FN) * cos(3.14159 * (k + 0.5) / FN);
@@ -604,7 +607,7 @@ static double fog_truth(int i, int j, int k) {
 }
 static const float fog_colour[3] = {1.0f, 0.9f, 0.8f};
 
-static void make_fog(float *truth, float *noisy, uint32_t *count, float *wmean, double sigma,
+static void make_fog(float *truth, float *noisy, float *count, float *wmean, double sigma,
                      float w) {
   for (int k = 0; k < FN; k++)
     for (int j = 0; j < FN; j++)
@@ -613,45 +616,102 @@ static void make_fog(float *truth, float *noisy, uint32_t *count, float *wmean, 
         double t = fog_truth(i, j, k);
         for (int c = 0; c < 3; c++) {
           truth[3 * v + c] = (float)(t * fog_colour[c]);
-          noisy[3 * v + c] = (float)(t * fog_colour[c] + sigma * rng_gauss());
         }
-        count[v] = 20;
+        double n = 1.0 + sigma * rng_gauss();
+        for (int c = 0; c < 3; c++) noisy[3 * v + c] = (float)(t * n * fog_colour[c]);
+        count[v] = (float)(1.0 / sigma);
         wmean[v] = w;
       }
 }
 
-/* Independent reference for one voxel: brute-force Gaussian sphere means
- * (standard deviation 0.7 r, kernels/adaptive.h) in double. */
-static int reference_voxel(const float *rgb, const uint32_t *count, const float *wmean,
-                           float alpha, int rmax, int i, int j, int k, float out[3]) {
-  size_t v0 = (size_t)i + FN * ((size_t)j + FN * (size_t)k);
-  int rw = count[v0] == 0 ? rmax : (int)floor(alpha * wmean[v0] + 0.5);
-  if (rw > rmax) rw = rmax;
-  double m[AD_FILTER_MAX_RADIUS + 1], s[AD_FILTER_MAX_RADIUS + 1][3];
-  for (int r = 0; r <= rmax; r++) {
-    double acc[3] = {0, 0, 0}, wsum = 0.0, sig = 0.7 * r;
-    for (int z = -r; z <= r; z++)
-      for (int y = -r; y <= r; y++)
-        for (int x = -r; x <= r; x++) {
-          int d2 = x * x + y * y + z * z;
-          if (d2 > r * r) continue;
-          int a = i + x, b = j + y, c = k + z;
-          if (a < 0 || b < 0 || c < 0 || a >= FN || b >= FN || c >= FN) continue;
-          size_t v = (size_t)a + FN * ((size_t)b + FN * (size_t)c);
-          double w = r == 0 ? 1.0 : exp(-d2 / (2.0 * sig * sig));
-          for (int q = 0; q < 3; q++) acc[q] += w * rgb[3 * v + q];
-          wsum += w;
+/* Independent reference: the filter of kernels/adaptive.h's header comment
+ * by brute force in double, on a grid of FN x ny x nz with C floats per
+ * voxel: 3D Gaussian means M_q over the cube |d| <= q (standard deviation
+ * q/2), the box means D(q) of the squared luminance differences over 5^3,
+ * the choice of level. Writes the output and the radius (q/2) of every
+ * voxel. */
+static double ref_lum(const double *p, int C) {
+  return C == 3 ? 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2] : p[0];
+}
+static void reference_filter(const float *in, int ny, int nz, int C, const float *count,
+                             const float *wmean, float alpha, float noise_k, int Q, float *out,
+                             float *radius) {
+  const size_t V = (size_t)FN * ny * nz;
+  double *M = calloc((size_t)(Q + 1) * V * C, sizeof(double));
+  double *L = calloc((size_t)(Q + 1) * V, sizeof(double)), *D = calloc((size_t)(Q + 1) * V, sizeof(double));
+  for (int q = 0; q <= Q; q++)
+    for (int k = 0; k < nz; k++)
+      for (int j = 0; j < ny; j++)
+        for (int i = 0; i < FN; i++) {
+          size_t v0 = (size_t)i + FN * ((size_t)j + ny * (size_t)k);
+          double acc[3] = {0, 0, 0}, wsum = 0.0, sig = 0.5 * q;
+          for (int z = -q; z <= q; z++)
+            for (int y = -q; y <= q; y++)
+              for (int x = -q; x <= q; x++) {
+                int a = i + x, b = j + y, c = k + z;
+                if (a < 0 || b < 0 || c < 0 || a >= FN || b >= ny || c >= nz) continue;
+                size_t v = (size_t)a + FN * ((size_t)b + ny * (size_t)c);
+                double w = q == 0 ? 1.0 : exp(-(x * x + y * y + z * z) / (2.0 * sig * sig));
+                for (int ch = 0; ch < C; ch++) acc[ch] += w * in[C * v + ch];
+                wsum += w;
+              }
+          for (int ch = 0; ch < C; ch++) M[((size_t)q * V + v0) * C + ch] = acc[ch] / wsum;
+          L[(size_t)q * V + v0] = ref_lum(&M[((size_t)q * V + v0) * C], C);
         }
-    for (int q = 0; q < 3; q++) s[r][q] = acc[q] / wsum;
-    m[r] = 0.2126 * s[r][0] + 0.7152 * s[r][1] + 0.0722 * s[r][2];
+  for (int q = 1; q <= Q; q++)
+    for (int k = 0; k < nz; k++)
+      for (int j = 0; j < ny; j++)
+        for (int i = 0; i < FN; i++) {
+          double sum = 0.0;
+          int n = 0;
+          for (int z = -2; z <= 2; z++)
+            for (int y = -2; y <= 2; y++)
+              for (int x = -2; x <= 2; x++) {
+                int a = i + x, b = j + y, c = k + z;
+                if (a < 0 || b < 0 || c < 0 || a >= FN || b >= ny || c >= nz) continue;
+                size_t v = (size_t)a + FN * ((size_t)b + ny * (size_t)c);
+                double dd = L[(size_t)q * V + v] - L[(size_t)(q - 1) * V + v];
+                sum += dd * dd;
+                n++;
+              }
+          D[(size_t)q * V + (size_t)i + FN * ((size_t)j + ny * (size_t)k)] = sum / n;
+        }
+  for (size_t v = 0; v < V; v++) {
+    int qw = count[v] > 0.0f ? (int)floor(2.0 * alpha * wmean[v] + 0.5) : Q;
+    if (qw > Q) qw = Q;
+    int q = 0;
+    double m1 = L[V + v], n = count[v];
+    if (qw >= 1 && (noise_k < 0.0f || D[V + v] * n * n <= (double)noise_k * noise_k * m1 * m1)) {
+      q = 1;
+      while (q < qw && D[(size_t)(q + 1) * V + v] < D[(size_t)q * V + v]) q++;
+    }
+    for (int ch = 0; ch < C; ch++) out[C * v + ch] = (float)M[((size_t)q * V + v) * C + ch];
+    radius[v] = 0.5f * q;
   }
-  int R = 0;
-  if (rw >= 1) {
-    R = 1;
-    while (R < rw && fabs(m[R + 1] - m[R]) < fabs(m[R] - m[R - 1])) R++;
+  free(M);
+  free(L);
+  free(D);
+}
+
+/* Voxels where two filter results differ: radius, or colour beyond a
+ * relative 1e-4 (float sums against double). A radius may flip where two
+ * box means tie to float precision: at most `ties` such. */
+static size_t compare_filters(const float *a, const float *ra, const float *b, const float *rb,
+                              size_t V, int C, size_t *radius_diff) {
+  size_t bad = 0;
+  *radius_diff = 0;
+  for (size_t v = 0; v < V; v++) {
+    if (ra[v] != rb[v]) {
+      (*radius_diff)++;
+      continue;
+    }
+    for (int c = 0; c < C; c++)
+      if (fabs(a[C * v + c] - b[C * v + c]) > 1e-4 * fmax(1.0, fabs(b[C * v + c]))) {
+        bad++;
+        break;
+      }
   }
-  for (int q = 0; q < 3; q++) out[q] = (float)s[R][q];
-  return R;
+  return bad;
 }
 
 static int test_filter(void) {
@@ -660,34 +720,31 @@ static int test_filter(void) {
   size_t V = grid_count(&d);
   float *truth = calloc(3 * V, sizeof(float)), *noisy = calloc(3 * V, sizeof(float));
   float *out = calloc(3 * V, sizeof(float)), *rad = calloc(V, sizeof(float));
+  float *ref = calloc(3 * V, sizeof(float)), *rref = calloc(V, sizeof(float));
   float *wmean = calloc(V, sizeof(float));
-  uint32_t *count = calloc(V, sizeof(uint32_t));
+  float *count = calloc(V, sizeof(float));
+  const int Q = 4; /* radius up to 2 voxels */
 
-  /* sphere sizes: lattice points in a ball (OEIS A000605) */
-  static const int sphere[9] = {1, 7, 33, 123, 257, 515, 925, 1419, 2109};
-  for (int r = 0; r <= 8; r++)
-    CHECK(ad_sphere_size(r) == sphere[r], "sphere %d has %d voxels, expected %d", r,
-          ad_sphere_size(r), sphere[r]);
-
-  /* a sparsely sampled region: mean weight 3.6 -> photon-weight radius 4 */
+  /* a sparsely sampled region: mean weight 2 -> photon-weight radius 2 */
   rng_state = 777;
-  const double sigma = 0.1;
-  make_fog(truth, noisy, count, wmean, sigma, 3.6f);
-  CHECK(ad_filter_host(&d, noisy, count, wmean, 1.0f, AD_FILTER_MAX_RADIUS, out, rad, &err) ==
+  make_fog(truth, noisy, count, wmean, 0.1, 2.0f);
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Q, out, rad, &err) ==
             BK_OK, "%s", err.msg);
-  double se_in = 0, se_out = 0, r_smooth = 0, r_step = 0;
-  size_t n_smooth = 0, n_step = 0, step_small = 0, above = 0, ref_bad = 0, ref_n = 0;
-  double step_bias = 0.0;
+  reference_filter(noisy, FN, FN, 3, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Q, ref, rref);
+  size_t rdiff, ref_bad = compare_filters(out, rad, ref, rref, V, 3, &rdiff);
+  double se_in = 0, se_out = 0, r_smooth = 0, r_step = 0, step_bias = 0.0;
+  size_t n_smooth = 0, n_step = 0, step_small = 0, above = 0;
   for (int k = 0; k < FN; k++)
     for (int j = 0; j < FN; j++)
       for (int i = 0; i < FN; i++) {
         size_t v = (size_t)i + FN * ((size_t)j + FN * (size_t)k);
-        above += rad[v] > 4.0f;
+        above += rad[v] > 2.0f;
         int interior = j >= 4 && j < FN - 4 && k >= 4 && k < FN - 4;
         if (interior && (i <= STEP_X - 6 || i >= STEP_X + 5)) {
           for (int c = 0; c < 3; c++) {
-            se_in += pow(noisy[3 * v + c] - truth[3 * v + c], 2);
-            se_out += pow(out[3 * v + c] - truth[3 * v + c], 2);
+            double rel = truth[3 * v + c];
+            se_in += pow((noisy[3 * v + c] - truth[3 * v + c]) / rel, 2);
+            se_out += pow((out[3 * v + c] - truth[3 * v + c]) / rel, 2);
           }
           r_smooth += rad[v];
           n_smooth++;
@@ -695,63 +752,64 @@ static int test_filter(void) {
         if (interior && (i == STEP_X - 1 || i == STEP_X)) {
           r_step += rad[v];
           n_step++;
-          step_small += rad[v] <= 1.0f;
-          step_bias += fabs(out[3 * v + 1] - truth[3 * v + 1]) / (3.0 * 0.9);
-        }
-        /* the header's filter against the brute-force one, on a slab */
-        if (k == 9 || i == STEP_X) {
-          float ref[3];
-          int R = reference_voxel(noisy, count, wmean, 1.0f, AD_FILTER_MAX_RADIUS, i, j, k, ref);
-          ref_n++;
-          if (R != (int)rad[v] || fabs(ref[0] - out[3 * v]) > 1e-5f ||
-              fabs(ref[2] - out[3 * v + 2]) > 1e-5f)
-            ref_bad++;
+          step_small += rad[v] <= 0.5f;
+          step_bias += fabs(out[3 * v + 1] - truth[3 * v + 1]) /
+                       (3.0 * 0.9 * fog_truth(STEP_X - 1, j, k));
         }
       }
   double rms_in = sqrt(se_in / (3.0 * n_smooth)), rms_out = sqrt(se_out / (3.0 * n_smooth));
   r_smooth /= n_smooth;
   r_step /= n_step;
   step_bias /= n_step;
-  printf("filter: smooth part mean radius %.2f, RMS noise %.4f -> %.4f (x%.2f); step voxels mean "
-         "radius %.2f, %.1f%% with radius <= 1, mean error %.1f%% of the step; %zu/%zu voxels "
-         "differ from the brute-force reference\n",
+  printf("filter: smooth part mean radius %.2f, relative RMS noise %.4f -> %.4f (x%.2f); step "
+         "voxels mean radius %.2f, %.1f%% with radius <= 0.5, mean error %.1f%% of the step; "
+         "%zu/%zu voxels differ from the brute-force reference (%zu radii)\n",
          r_smooth, rms_in, rms_out, rms_in / rms_out, r_step, 100.0 * step_small / n_step,
-         100.0 * step_bias, ref_bad, ref_n);
-  CHECK(above == 0, "%zu voxels exceed the photon-weight radius 4", above);
-  CHECK(ref_bad == 0, "%zu of %zu voxels differ from the brute-force filter", ref_bad, ref_n);
-  CHECK(r_smooth >= 2.5, "smooth part: mean radius %.2f, expected large (>= 2.5)", r_smooth);
-  CHECK(rms_out <= 0.5 * rms_in, "smooth part: RMS noise %.4f -> %.4f, expected at least halved",
+         100.0 * step_bias, ref_bad + rdiff, V, rdiff);
+  CHECK(above == 0, "%zu voxels exceed the photon-weight radius 2", above);
+  CHECK(ref_bad == 0 && rdiff <= V / 1000, "%zu voxels (%zu radii) differ from the brute-force filter",
+        ref_bad + rdiff, rdiff);
+  CHECK(r_smooth >= 1.2, "smooth part: mean radius %.2f, expected large (>= 1.2 of 2)", r_smooth);
+  CHECK(rms_out <= 0.4 * rms_in, "smooth part: RMS noise %.4f -> %.4f, expected below 40%%",
         rms_in, rms_out);
-  CHECK(step_small >= 0.9 * n_step, "only %zu of %zu step voxels have radius <= 1", step_small,
+  CHECK(step_small >= 0.9 * n_step, "only %zu of %zu step voxels have radius <= 0.5", step_small,
         n_step);
-  /* radius 1 takes 11% from across the step (0.36 / (1 + 6 * 0.36) of one
-   * neighbour); radius 2 would take 27% */
+  /* radius 1/2 takes 11% from across the step (e^-2 / (1 + 2 e^-2) of one
+   * neighbour); radius 1 would take 28% */
   CHECK(step_bias <= 0.13, "step voxels blurred by %.1f%% of the step", 100.0 * step_bias);
 
-  /* densely sampled (w = 0.3 -> radius 0) or alpha = 0: no filtering at all */
-  for (size_t v = 0; v < V; v++) wmean[v] = 0.3f;
-  CHECK(ad_filter_host(&d, noisy, count, wmean, 1.0f, AD_FILTER_MAX_RADIUS, out, rad, &err) ==
+  /* the slides' rule (no noise test for the first step) blurs the step */
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, -1.0f, Q, out, rad, &err) == BK_OK, "%s",
+        err.msg);
+  reference_filter(noisy, FN, FN, 3, count, wmean, 1.0f, -1.0f, Q, ref, rref);
+  ref_bad = compare_filters(out, rad, ref, rref, V, 3, &rdiff);
+  CHECK(ref_bad == 0 && rdiff <= V / 1000, "noise_k < 0: %zu voxels differ from the brute-force "
+        "filter", ref_bad + rdiff);
+
+  /* densely sampled (w = 0.2 -> radius 0) or alpha = 0: no filtering at all */
+  for (size_t v = 0; v < V; v++) wmean[v] = 0.2f;
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Q, out, rad, &err) ==
             BK_OK, "%s", err.msg);
   CHECK(memcmp(out, noisy, 3 * V * sizeof(float)) == 0, "radius 0 must keep the input");
   for (size_t v = 0; v < V; v++) wmean[v] = 3.0f;
-  CHECK(ad_filter_host(&d, noisy, count, wmean, 0.0f, AD_FILTER_MAX_RADIUS, out, NULL, &err) ==
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 0.0f, AD_DEFAULT_NOISE_K, Q, out, NULL, &err) ==
             BK_OK, "%s", err.msg);
   CHECK(memcmp(out, noisy, 3 * V * sizeof(float)) == 0, "alpha 0 must keep the input");
-  /* voxels no photon reached take the maximum photon-weight radius (6
-   * here), the others round(1 * 1.0) = 1; on pure noise the centre-surround
-   * lets the unreached ones grow past 1 */
+  /* voxels no photon reached may take the largest level (3 voxels here), the
+   * others at most round(2 * 1 * 0.5) / 2 = 1/2 */
   for (size_t v = 0; v < V; v++) {
-    count[v] = v % 3 == 0 ? 0 : 5;
-    wmean[v] = 1.0f;
+    count[v] = v % 3 == 0 ? 0.0f : 5.0f;
+    wmean[v] = 0.5f;
     for (int c = 0; c < 3; c++) noisy[3 * v + c] = (float)(0.5 + 0.05 * rng_gauss());
   }
-  CHECK(ad_filter_host(&d, noisy, count, wmean, 1.0f, 6, out, rad, &err) == BK_OK, "%s", err.msg);
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, 6, out, rad, &err) ==
+            BK_OK, "%s", err.msg);
   size_t reached_big = 0, n0 = 0;
   double r0 = 0.0;
   float r0max = 0.0f;
   for (size_t v = 0; v < V; v++) {
-    if (count[v]) {
-      reached_big += rad[v] > 1.0f;
+    if (count[v] > 0.0f) {
+      reached_big += rad[v] > 0.5f;
     } else {
       r0 += rad[v];
       r0max = fmaxf(r0max, rad[v]);
@@ -759,27 +817,32 @@ static int test_filter(void) {
     }
   }
   r0 /= n0;
-  CHECK(reached_big == 0, "%zu voxels with photons exceed the photon-weight radius 1",
+  CHECK(reached_big == 0, "%zu voxels with photons exceed the photon-weight radius 1/2",
         reached_big);
-  CHECK(r0 > 1.5 && r0max == 6.0f, "unreached voxels: mean radius %.2f, largest %g", r0,
+  CHECK(r0 > 1.0 && r0max == 3.0f, "unreached voxels: mean radius %.2f, largest %g", r0,
         (double)r0max);
   /* a constant field stays as it is (up to the rounding of the weighted sums) */
   for (size_t v = 0; v < 3 * V; v++) noisy[v] = 0.5f;
-  CHECK(ad_filter_host(&d, noisy, count, wmean, 1.0f, 6, out, rad, &err) == BK_OK, "%s", err.msg);
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, 6, out, rad, &err) ==
+            BK_OK, "%s", err.msg);
   double cdev = 0.0;
   for (size_t v = 0; v < 3 * V; v++) cdev = fmax(cdev, fabs(out[v] - 0.5));
   CHECK(cdev < 1e-6, "constant field changed by %.2e", cdev);
   /* bad arguments */
-  CHECK(ad_filter_host(&d, noisy, count, wmean, -1.0f, 8, out, NULL, &err) == BK_ERR_INPUT &&
-            strstr(err.msg, "alpha"), "alpha -1: %s", err.msg);
-  CHECK(ad_filter_host(&d, noisy, count, wmean, 1.0f, 9, out, NULL, &err) == BK_ERR_INPUT,
-        "radius 9 accepted");
-  CHECK(ad_filter_host(&d, noisy, count, wmean, 1.0f, 8, noisy, NULL, &err) == BK_ERR_RUNTIME,
-        "aliasing accepted");
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, -1.0f, 1.0f, 8, out, NULL, &err) ==
+                BK_ERR_INPUT && strstr(err.msg, "alpha"), "alpha -1: %s", err.msg);
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, 1.0f, AD_FILTER_MAX_LEVEL + 1, out, NULL,
+                       &err) == BK_ERR_INPUT, "level %d accepted", AD_FILTER_MAX_LEVEL + 1);
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, 1.0f, 8, noisy, NULL, &err) ==
+            BK_ERR_RUNTIME, "aliasing accepted");
+  CHECK(ad_filter_host(&d, 2, noisy, count, wmean, 1.0f, 1.0f, 8, out, NULL, &err) ==
+            BK_ERR_RUNTIME, "2 channels accepted");
   free(truth);
   free(noisy);
   free(out);
   free(rad);
+  free(ref);
+  free(rref);
   free(wmean);
   free(count);
   return failures;
@@ -806,41 +869,73 @@ static int test_filter_cl(void) {
   size_t V = grid_count(&d), full = (size_t)FN * FN * FN;
   float *truth = calloc(3 * full, sizeof(float)), *noisy = calloc(3 * full, sizeof(float));
   float *wmean = calloc(full, sizeof(float));
-  uint32_t *count = calloc(full, sizeof(uint32_t));
+  float *count = calloc(full, sizeof(float));
   float *oh = calloc(3 * V, sizeof(float)), *oc = calloc(3 * V, sizeof(float));
   float *rh = calloc(V, sizeof(float)), *rc = calloc(V, sizeof(float));
   rng_state = 4242;
   make_fog(truth, noisy, count, wmean, 0.1, 2.0f);
   for (size_t v = 0; v < V; v++) {
     wmean[v] = (float)(0.2 + 5.0 * rng_uniform());
-    if (v % 17 == 0) count[v] = 0;
+    if (v % 17 == 0) count[v] = 0.0f;
   }
-  CHECK(ad_filter_host(&d, noisy, count, wmean, 1.3f, AD_FILTER_MAX_RADIUS, oh, rh, &err) ==
-            BK_OK, "%s", err.msg);
-  int rcode = ad_filter_cl(&cl, &d, noisy, count, wmean, 1.3f, AD_FILTER_MAX_RADIUS, oc, rc, &err);
+  const int Q = AD_FILTER_MAX_LEVEL;
+  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 0.7f, 1.0f, Q, oh, rh, &err) == BK_OK, "%s",
+        err.msg);
+  int rcode = ad_filter_cl(&cl, &d, 3, noisy, count, wmean, 0.7f, 1.0f, Q, oc, rc, &err);
   CHECK(rcode == BK_OK, "%s", err.msg);
   double worst = 0.0;
-  size_t rdiff = 0, hist[AD_FILTER_MAX_RADIUS + 1] = {0};
+  size_t rdiff = 0, hist[AD_FILTER_MAX_LEVEL + 1] = {0};
   for (size_t v = 0; v < V; v++) {
     for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(oh[3 * v + c] - oc[3 * v + c]));
     rdiff += rh[v] != rc[v];
-    hist[(int)rh[v]]++;
+    hist[(int)(2.0f * rh[v])]++;
   }
   printf("filter_cl on %s: %dx%dx%d, max |host - OpenCL| = %.3g, %zu radii differ; radii",
          cl.device_name, d.nx, d.ny, d.nz, worst, rdiff);
-  for (int r = 0; r <= AD_FILTER_MAX_RADIUS; r++) printf(" %d:%zu", r, hist[r]);
+  for (int q = 0; q <= Q; q++) printf(" %g:%zu", 0.5 * q, hist[q]);
   printf("\n");
   CHECK(worst <= 1e-5, "host and OpenCL differ by %.3g", worst);
   CHECK(rdiff == 0, "%zu radii differ", rdiff);
+  CHECK(hist[0] > 0 && hist[1] > 0 && hist[2] > 0 && hist[Q] > 0, "a level is never used");
   /* without the radius grid */
   memset(oc, 0, 3 * V * sizeof(float));
-  CHECK(ad_filter_cl(&cl, &d, noisy, count, wmean, 1.3f, AD_FILTER_MAX_RADIUS, oc, NULL, &err) ==
-            BK_OK, "%s", err.msg);
+  CHECK(ad_filter_cl(&cl, &d, 3, noisy, count, wmean, 0.7f, 1.0f, Q, oc, NULL, &err) == BK_OK,
+        "%s", err.msg);
   worst = 0.0;
   for (size_t v = 0; v < 3 * V; v++) worst = fmax(worst, fabs(oh[v] - oc[v]));
   CHECK(worst <= 1e-5, "without the radius grid: differ by %.3g", worst);
-  CHECK(ad_filter_cl(&cl, &d, noisy, count, wmean, NAN, 8, oc, NULL, &err) == BK_ERR_INPUT,
-        "NaN alpha accepted");
+  CHECK(ad_filter_cl(&cl, &d, 3, noisy, count, wmean, NAN, 1.0f, 8, oc, NULL, &err) ==
+            BK_ERR_INPUT, "NaN alpha accepted");
+  /* one channel (a grey march), at the default largest radius: host, OpenCL
+   * and the brute-force reference */
+  const int Qd = 2 * (int)AD_DEFAULT_MAX_RADIUS;
+  float *grey = calloc(V, sizeof(float)), *gh = calloc(V, sizeof(float)),
+        *gc = calloc(V, sizeof(float)), *gr = calloc(V, sizeof(float)), *rr = calloc(V, sizeof(float));
+  for (size_t v = 0; v < V; v++)
+    grey[v] = ad_luminance(noisy[3 * v], noisy[3 * v + 1], noisy[3 * v + 2]);
+  CHECK(ad_filter_host(&d, 1, grey, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Qd, gh, rh, &err) ==
+            BK_OK, "%s", err.msg);
+  CHECK(ad_filter_cl(&cl, &d, 1, grey, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Qd, gc, rc, &err) ==
+            BK_OK, "%s", err.msg);
+  reference_filter(grey, d.ny, d.nz, 1, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Qd, gr, rr);
+  double gworst = 0.0;
+  size_t grdiff = 0, gref_rdiff;
+  for (size_t v = 0; v < V; v++) {
+    gworst = fmax(gworst, fabs(gh[v] - gc[v]));
+    grdiff += rh[v] != rc[v];
+  }
+  size_t gref_bad = compare_filters(gh, rh, gr, rr, V, 1, &gref_rdiff);
+  printf("filter_cl grey: max |host - OpenCL| = %.3g, %zu radii differ, %zu/%zu voxels differ "
+         "from the brute-force reference (%zu radii)\n",
+         gworst, grdiff, gref_bad + gref_rdiff, V, gref_rdiff);
+  CHECK(gworst <= 1e-5 && grdiff == 0, "grey: host and OpenCL differ");
+  CHECK(gref_bad == 0 && gref_rdiff <= V / 1000, "grey: %zu voxels differ from the brute-force "
+        "filter", gref_bad + gref_rdiff);
+  free(grey);
+  free(gh);
+  free(gc);
+  free(gr);
+  free(rr);
   clh_release(&cl);
   free(truth);
   free(noisy);

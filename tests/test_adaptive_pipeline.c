@@ -1,0 +1,461 @@
+/* test_adaptive_pipeline.c: the adaptive pipeline end to end (ad_bake on
+ * OpenCL, PoCL), against the reference march. The sphere scene
+ * (scenes/sphere.json: an n = 1.5 ball in fog under a spot light) at 64^3
+ * instead of its 128^3, so that each test takes seconds on 2 cores; at 64^3
+ * the photons per voxel column of N/4 photons match those of N at 128^3, so
+ * photon counts are quoted both ways.
+ *
+ * Error metric everywhere: the relative L2 error over the radiance grid,
+ *   e(X, T) = sqrt(sum_v,c (X - T)^2 / sum_v,c T^2),
+ * over all voxels and the three channels.
+ *
+ * Usage: test_adaptive_pipeline SCENE_DIR OUT_DIR TEST, TEST one of
+ *  unbiased        filter off, 300 000 photons each: adaptive within 1% of
+ *                  the reference, with a PDF far from uniform
+ *  lights          a faint light the pilot gives no photon, listed first:
+ *                  each light keeps its own PDF, the estimate its bias-free
+ *                  agreement
+ *  quality         adaptive with half the photons (pilot included) against a
+ *                  converged bake (40x, reference mode): error no worse than
+ *                  the reference pipeline's with all of them
+ *  filter_radius   the radius grid: small across the caustic's sharp edges,
+ *                  large in the smooth lit fog (voxels told apart by the
+ *                  gradient of a converged bake)
+ *  host_vs_device  the adaptive bake on the host C path and on OpenCL
+ *  cli             baker bake --mode adaptive: the grids photon_count,
+ *                  photon_weight, filter_radius and the metadata */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adaptive.h"
+#include "bake.h"
+#include "vdbio.h"
+#include "voxelize.h"
+
+#define CHECK(cond, ...)                                                 \
+  do {                                                                   \
+    if (!(cond)) {                                                       \
+      fprintf(stderr, "FAIL %s:%d: %s: ", __FILE__, __LINE__, #cond);    \
+      fprintf(stderr, __VA_ARGS__);                                      \
+      fputc('\n', stderr);                                               \
+      exit(1);                                                           \
+    }                                                                    \
+  } while (0)
+
+#define TEST_RES 64
+/* 122 000 photons at 128^3 (the slides' reference count) have the photons
+ * per voxel column of 30 500 at 64^3 */
+#define TEST_N 30500
+
+static const char *scene_dir, *out_dir;
+static clh_context_t cl;
+static scene_t scene;
+static volume_t vol;
+static size_t V;
+
+static void setup(int with_cl, int resolution) {
+  bk_error_t err;
+  char path[1024];
+  memset(&err, 0, sizeof err);
+  snprintf(path, sizeof path, "%s/sphere.json", scene_dir);
+  CHECK(scene_load(path, &scene, &err) == BK_OK, "%s", err.msg);
+  scene.resolution = resolution;
+  CHECK(vox_build(&scene, &vol, NULL, &err) == BK_OK, "%s", err.msg);
+  V = grid_count(&vol.dims);
+  if (with_cl) CHECK(clh_init(&cl, NULL, &err) == BK_OK, "clh_init: %s", err.msg);
+}
+
+static float *grid3(void) {
+  float *g = calloc(3 * V, sizeof(float));
+  CHECK(g, "out of memory");
+  return g;
+}
+static float *grid1(void) {
+  float *g = calloc(V, sizeof(float));
+  CHECK(g, "out of memory");
+  return g;
+}
+
+static double rel_l2(const float *x, const float *t, size_t n) {
+  double num = 0.0, den = 0.0;
+  for (size_t i = 0; i < n; i++) {
+    double d = (double)x[i] - t[i];
+    num += d * d;
+    den += (double)t[i] * t[i];
+  }
+  return sqrt(num / den);
+}
+
+static float *reference(clh_context_t *c, long long photons, double *ms) {
+  bk_error_t err;
+  pm_stats_t st;
+  memset(&err, 0, sizeof err);
+  float *r = grid3();
+  scene.photon_count = photons;
+  double t0 = bk_now_ms();
+  CHECK(pm_bake(c, &scene, &vol, r, &st, NULL, &err) == BK_OK, "pm_bake: %s", err.msg);
+  if (ms) *ms = bk_now_ms() - t0;
+  return r;
+}
+
+static float *adaptive(clh_context_t *c, long long photons, int filter, float *count,
+                       float *weight, float *radius, ad_stats_t *st) {
+  bk_error_t err;
+  ad_bake_opts_t o;
+  memset(&err, 0, sizeof err);
+  ad_bake_defaults(&o);
+  o.filter = filter;
+  float *r = grid3();
+  scene.photon_count = photons;
+  CHECK(ad_bake(c, &scene, &vol, &o, r, count, weight, radius, st, NULL, &err) == BK_OK,
+        "ad_bake: %s", err.msg);
+  CHECK(st->march.photons == (uint64_t)photons, "%llu photons marched, %lld asked",
+        (unsigned long long)st->march.photons, photons);
+  return r;
+}
+
+/* --- unbiased -------------------------------------------------------------- */
+
+static int test_unbiased(void) {
+  setup(1, TEST_RES);
+  const long long N = 300000;
+  ad_stats_t st;
+  float *count = grid1(), *weight = grid1();
+  float *ref = reference(&cl, N, NULL);
+  float *ad = adaptive(&cl, N, 0, count, weight, NULL, &st);
+  double e = rel_l2(ad, ref, 3 * V), sum_r = 0.0, sum_a = 0.0, wmin = 1e30, wmax = 0.0;
+  size_t reached = 0;
+  for (size_t v = 0; v < V; v++) {
+    sum_r += ref[3 * v];
+    sum_a += ad[3 * v];
+    if (count[v] > 0.0f) {
+      reached++;
+      wmin = fmin(wmin, weight[v]);
+      wmax = fmax(wmax, weight[v]);
+    }
+  }
+  printf("unbiased: %dx%dx%d, %lld photons each (pilot %d): relative L2 adaptive (no filter) vs "
+         "reference %.4f; total radiance ratio %.5f; pdf %.2f..%.2f over the light's cells, mean "
+         "photon weight %.2f..%.2f over %zu reached voxels\n",
+         vol.dims.nx, vol.dims.ny, vol.dims.nz, N, st.pilot_photons, e, sum_a / sum_r,
+         (double)st.pdf_min, (double)st.pdf_max, wmin, wmax, reached);
+  /* the estimate is unbiased only if the photons really were redistributed:
+   * a uniform PDF would pass trivially */
+  CHECK(st.pdf_max > 1.3f && st.pdf_min < 0.9f, "the PDF is nearly uniform (%.2f..%.2f)",
+        (double)st.pdf_min, (double)st.pdf_max);
+  CHECK(wmax / wmin > 1.5, "photon weights %.2f..%.2f: nearly uniform", wmin, wmax);
+  CHECK(e < 0.01, "adaptive (no filter) differs from the reference by %.4f (limit 0.01)", e);
+  CHECK(fabs(sum_a / sum_r - 1.0) < 0.003, "total radiance off by %.4f", sum_a / sum_r - 1.0);
+  free(count);
+  free(weight);
+  free(ref);
+  free(ad);
+  return 0;
+}
+
+/* --- lights ---------------------------------------------------------------- */
+
+/* A faint point light listed before the spot: the pilot gives it no photon
+ * (its share of 4000 rounds to 0) while the main march does, so the two
+ * marches number their lights differently; each light must still get its
+ * own PDF, and the estimate stay unbiased. */
+static int test_lights(void) {
+  setup(1, TEST_RES);
+  scene_light_t lights[2];
+  memset(&lights[0], 0, sizeof lights[0]);
+  lights[0].type = LIGHT_POINT;
+  lights[0].position[0] = 0.5f, lights[0].position[1] = -0.5f, lights[0].position[2] = 0.3f;
+  /* the spot emits 10 W/sr into 0.38 sr: 3.8 W; this one 1e-3 of the
+   * pilot's 1/4000 */
+  for (int c = 0; c < 3; c++) lights[0].intensity[c] = 3.8e-7f / (4.0f * 3.14159265f);
+  lights[1] = scene.lights[0];
+  scene.lights = lights;
+  scene.light_count = 2;
+  const long long N = 300000;
+  ad_stats_t st;
+  float *count = grid1(), *weight = grid1();
+  float *ref = reference(&cl, N, NULL);
+  float *ad = adaptive(&cl, N, 0, count, weight, NULL, &st);
+  double e = rel_l2(ad, ref, 3 * V), wmin = 1e30, wmax = 0.0;
+  /* voxels the spot's photons cross by the dozen: their mean weight shows
+   * whether the spot's photons followed a PDF (a uniform one gives 1) */
+  for (size_t v = 0; v < V; v++)
+    if (count[v] >= 50.0f) {
+      wmin = fmin(wmin, weight[v]);
+      wmax = fmax(wmax, weight[v]);
+    }
+  printf("lights: a faint point light before the spot, %lld photons: pilot %llu photons, pdf "
+         "%.2f..%.2f, mean weights %.2f..%.2f where 50+ photons passed, relative L2 adaptive "
+         "(no filter) vs reference %.4f\n",
+         N, (unsigned long long)st.pilot.photons, (double)st.pdf_min, (double)st.pdf_max, wmin,
+         wmax, e);
+  CHECK(wmin < 0.8 && wmax > 1.5, "the spot's photons did not follow its PDF");
+  CHECK(e < 0.01, "adaptive differs from the reference by %.4f", e);
+  free(count);
+  free(weight);
+  free(ref);
+  free(ad);
+  return 0;
+}
+
+/* --- quality --------------------------------------------------------------- */
+
+static int test_quality(void) {
+  setup(1, TEST_RES);
+  const long long N = TEST_N;
+  ad_stats_t st;
+  double ms_conv;
+  float *conv = reference(&cl, 40 * N, &ms_conv);
+  float *ref = reference(&cl, N, NULL);
+  /* half the photons, the pilot's included; the pilot scaled with the grid
+   * like N (4000 at 128^3, 1000 here: the same photons per pilot cell) */
+  scene.pilot /= 4;
+  long long half = N / 2 - scene.pilot;
+  float *ad = adaptive(&cl, half, 1, NULL, NULL, NULL, &st);
+  float *raw = adaptive(&cl, half, 0, NULL, NULL, NULL, &st);
+  double e_ref = rel_l2(ref, conv, 3 * V), e_ad = rel_l2(ad, conv, 3 * V);
+  double e_raw = rel_l2(raw, conv, 3 * V);
+  printf("quality: %dx%dx%d (the sphere scene's 128^3 reduced; %lld photons here are %lld at "
+         "128^3), converged bake %lld photons (%.0f ms): relative L2 error, reference with %lld "
+         "photons %.4f; adaptive with %lld + %d pilot = %lld photons %.4f (%.2f of the "
+         "reference's), unfiltered %.4f\n",
+         vol.dims.nx, vol.dims.ny, vol.dims.nz, N, 4 * N, 40 * N, ms_conv, N, e_ref, half,
+         scene.pilot, half + scene.pilot, e_ad, e_ad / e_ref, e_raw);
+  CHECK(e_ad <= e_ref, "adaptive with half the photons: error %.4f, reference with all %.4f",
+        e_ad, e_ref);
+  free(conv);
+  free(ref);
+  free(ad);
+  free(raw);
+  return 0;
+}
+
+/* --- filter_radius --------------------------------------------------------- */
+
+static int cmp_float(const void *a, const void *b) {
+  float x = *(const float *)a, y = *(const float *)b;
+  return (x > y) - (x < y);
+}
+
+static int test_filter_radius(void) {
+  setup(1, TEST_RES);
+  const grid_dims_t *d = &vol.dims;
+  ad_stats_t st;
+  float *conv = reference(&cl, 20 * TEST_N, NULL);
+  float *radius = grid1();
+  float *ad = adaptive(&cl, TEST_N, 1, NULL, NULL, radius, &st);
+  /* luminance and its gradient (per voxel, central differences) of the
+   * converged bake */
+  float *lum = grid1(), *grad = grid1(), *tmp = grid1();
+  for (size_t v = 0; v < V; v++) lum[v] = ad_luminance(conv[3 * v], conv[3 * v + 1], conv[3 * v + 2]);
+  size_t lit = 0;
+  for (int k = 1; k < d->nz - 1; k++)
+    for (int j = 1; j < d->ny - 1; j++)
+      for (int i = 1; i < d->nx - 1; i++) {
+        size_t v = grid_index(d, i, j, k);
+        float gx = 0.5f * (lum[v + 1] - lum[v - 1]);
+        float gy = 0.5f * (lum[v + d->nx] - lum[v - d->nx]);
+        float gz = 0.5f * (lum[v + (size_t)d->nx * d->ny] - lum[v - (size_t)d->nx * d->ny]);
+        grad[v] = sqrtf(gx * gx + gy * gy + gz * gz);
+        if (lum[v] > 0.0f) tmp[lit++] = grad[v] / lum[v];
+      }
+  /* sharp: the 1% of lit voxels with the largest relative gradient (the
+   * caustic's and the shadow's edges, the rim of the light's cone); smooth:
+   * lit voxels at least the median luminance whose relative gradient is in
+   * the lowest half, interior voxels only */
+  qsort(tmp, lit, sizeof(float), cmp_float);
+  float sharp_thr = tmp[(size_t)(0.99 * (lit - 1))], smooth_thr = tmp[(lit - 1) / 2];
+  size_t nl = 0;
+  for (size_t v = 0; v < V; v++)
+    if (lum[v] > 0.0f) tmp[nl++] = lum[v];
+  qsort(tmp, nl, sizeof(float), cmp_float);
+  float lum_med = tmp[(nl - 1) / 2];
+  double r_sharp = 0.0, r_smooth = 0.0;
+  size_t n_sharp = 0, n_smooth = 0, sharp_small = 0;
+  for (int k = 1; k < d->nz - 1; k++)
+    for (int j = 1; j < d->ny - 1; j++)
+      for (int i = 1; i < d->nx - 1; i++) {
+        size_t v = grid_index(d, i, j, k);
+        if (!(lum[v] > 0.0f)) continue;
+        float rel = grad[v] / lum[v];
+        if (rel >= sharp_thr) {
+          r_sharp += radius[v];
+          sharp_small += radius[v] <= 0.5f;
+          n_sharp++;
+        } else if (rel <= smooth_thr && lum[v] >= lum_med) {
+          r_smooth += radius[v];
+          n_smooth++;
+        }
+      }
+  r_sharp /= n_sharp;
+  r_smooth /= n_smooth;
+  printf("filter_radius: %dx%dx%d, %d photons, largest radius %g voxels: mean radius %.3f over "
+         "%zu sharp voxels (%.1f%% at most 1/2 voxel), %.3f over %zu smooth lit voxels\n",
+         d->nx, d->ny, d->nz, TEST_N, (double)st.max_radius, r_sharp, n_sharp,
+         100.0 * sharp_small / n_sharp, r_smooth, n_smooth);
+  /* the default largest radius is 1 voxel (levels 0, 1/2, 1): sharp voxels
+   * keep their own value or the narrowest Gaussian, smooth ones mostly the
+   * widest */
+  CHECK(n_sharp > 100 && n_smooth > 1000, "too few voxels classified");
+  CHECK(sharp_small >= 0.9 * n_sharp, "sharp voxels: mean radius %.3f of at most %g, %zu of %zu "
+        "at most 1/2", r_sharp, (double)st.max_radius, sharp_small, n_sharp);
+  CHECK(r_smooth >= 0.75 * st.max_radius, "smooth voxels: mean radius %.3f of at most %g",
+        r_smooth, (double)st.max_radius);
+  CHECK(r_smooth >= 1.6 * r_sharp, "smooth %.3f vs sharp %.3f: not told apart", r_smooth, r_sharp);
+  free(conv);
+  free(radius);
+  free(ad);
+  free(lum);
+  free(grad);
+  free(tmp);
+  return 0;
+}
+
+/* --- host_vs_device -------------------------------------------------------- */
+
+static int test_host_vs_device(void) {
+  setup(1, 40);
+  ad_stats_t sh, sd;
+  const long long N = 20000;
+  float *ch = grid1(), *wh = grid1(), *rh = grid1(), *cd = grid1(), *wd = grid1(), *rd = grid1();
+  float *h = adaptive(NULL, N, 1, ch, wh, rh, &sh);
+  float *dv = adaptive(&cl, N, 1, cd, wd, rd, &sd);
+  size_t count_diff = 0, radius_diff = 0;
+  double wdiff = 0.0;
+  for (size_t v = 0; v < V; v++) {
+    count_diff += ch[v] != cd[v];
+    radius_diff += rh[v] != rd[v];
+    wdiff = fmax(wdiff, fabs(wh[v] - wd[v]));
+  }
+  double e = rel_l2(dv, h, 3 * V);
+  printf("host_vs_device: %dx%dx%d, %lld photons: relative L2 host vs OpenCL %.2e; %zu photon "
+         "counts and %zu radii differ, mean weights by %.2e at most; pdf %.3f..%.3f vs "
+         "%.3f..%.3f; selected cells %zu vs %zu\n",
+         vol.dims.nx, vol.dims.ny, vol.dims.nz, N, e, count_diff, radius_diff, wdiff,
+         (double)sh.pdf_min, (double)sh.pdf_max, (double)sd.pdf_min, (double)sd.pdf_max,
+         sh.select.selected, sd.select.selected);
+  CHECK(sh.select.selected == sd.select.selected && sh.pdf_max == sd.pdf_max,
+        "the pilots differ");
+  /* the fixed-point sums are exact; only float rounding of the march may
+   * move a photon by an ulp */
+  CHECK(e < 1e-4, "host and OpenCL differ by %.2e", e);
+  CHECK(count_diff <= V / 1000 && radius_diff <= V / 1000, "counts or radii differ");
+  free(ch);
+  free(wh);
+  free(rh);
+  free(cd);
+  free(wd);
+  free(rd);
+  free(h);
+  free(dv);
+  return 0;
+}
+
+/* --- cli ------------------------------------------------------------------- */
+
+static void expect_meta(const char *path, const char *key, const char *want) {
+  char got[256];
+  bk_error_t err;
+  memset(&err, 0, sizeof err);
+  CHECK(vdbio_read_meta(path, key, got, sizeof got, &err) == BK_OK, "%s", err.msg);
+  CHECK(got[0], "%s: no metadata %s", path, key);
+  if (want) CHECK(strcmp(got, want) == 0, "%s: %s = %s, expected %s", path, key, got, want);
+}
+
+static int has_grid(const char *path, const char *name) {
+  char **names, **types;
+  int n, found = 0;
+  bk_error_t err;
+  memset(&err, 0, sizeof err);
+  CHECK(vdbio_list_grids(path, &names, &types, &n, &err) == BK_OK, "%s", err.msg);
+  for (int i = 0; i < n; i++) found |= strcmp(names[i], name) == 0;
+  vdbio_free_names(names, types, n);
+  return found;
+}
+
+static int test_cli(void) {
+  char scene_path[1024], out[1024], out2[1024];
+  snprintf(scene_path, sizeof scene_path, "%s/sphere.json", scene_dir);
+  snprintf(out, sizeof out, "%s/adaptive_cli.vdb", out_dir);
+  snprintf(out2, sizeof out2, "%s/adaptive_cli_nofilter.vdb", out_dir);
+  char *a1[] = {"bake", scene_path, "-o", out, "--mode", "adaptive", "--resolution", "32",
+                "--photons", "6000", "--write-filter-radius", "--force", "-q"};
+  CHECK(bake_main((int)(sizeof a1 / sizeof a1[0]), a1) == 0, "bake --mode adaptive failed");
+  const char *grids[] = {"radiance", "ior", "density", "photon_count", "photon_weight",
+                         "filter_radius"};
+  for (size_t i = 0; i < sizeof grids / sizeof grids[0]; i++)
+    CHECK(has_grid(out, grids[i]), "%s has no grid %s", out, grids[i]);
+  expect_meta(out, "mode", "adaptive");
+  expect_meta(out, "photon_count", "6000");
+  expect_meta(out, "adaptive_pilot_photons", "4000");
+  expect_meta(out, "adaptive_gradient_threshold", NULL);
+  expect_meta(out, "adaptive_gradient_threshold_rule", "auto");
+  expect_meta(out, "adaptive_luminance_threshold", NULL);
+  expect_meta(out, "adaptive_luminance_threshold_rule", "auto");
+  expect_meta(out, "adaptive_filter", "on");
+  /* the grids hold what the bake computed: counts are whole numbers, the
+   * mean weights within the PDF's bounds, radii multiples of 1/2 */
+  bk_error_t err;
+  vdbio_dense_t cnt, w, r;
+  int found;
+  memset(&err, 0, sizeof err);
+  CHECK(vdbio_read_dense(out, "photon_count", 0, &cnt, &err) == BK_OK, "%s", err.msg);
+  CHECK(vdbio_read_dense_like(out, "photon_weight", &cnt, &w, &found, &err) == BK_OK && found,
+        "%s", err.msg);
+  CHECK(vdbio_read_dense_like(out, "filter_radius", &cnt, &r, &found, &err) == BK_OK && found,
+        "%s", err.msg);
+  size_t n = (size_t)cnt.nx * cnt.ny * cnt.nz, counted = 0, bad = 0;
+  /* w = 1/pdf with floor <= pdf <= floor + (1 - floor) * cells */
+  const float wlo = 0.999f / (AD_DEFAULT_FLOOR + (1.0f - AD_DEFAULT_FLOOR) * AD_CELLS);
+  const float whi = 1.001f / AD_DEFAULT_FLOOR;
+  float wmin = 1e30f, wmax = 0.0f;
+  for (size_t v = 0; v < n; v++) {
+    if (cnt.data[v] > 0.0f) {
+      counted++;
+      bad += cnt.data[v] != floorf(cnt.data[v]) || !(w.data[v] >= wlo && w.data[v] <= whi);
+      wmin = fminf(wmin, w.data[v]);
+      wmax = fmaxf(wmax, w.data[v]);
+    }
+    bad += 2.0f * r.data[v] != floorf(2.0f * r.data[v]) || r.data[v] < 0.0f ||
+           r.data[v] > AD_DEFAULT_MAX_RADIUS;
+  }
+  printf("cli: %s: %zu voxels with photons, mean weights %.3f..%.3f, %zu impossible values\n",
+         out, counted, (double)wmin, (double)wmax, bad);
+  CHECK(counted > 1000 && bad == 0, "%zu of %zu voxels hold impossible values", bad, counted);
+  CHECK(wmin < 0.9f && wmax > 1.5f, "mean weights %.3f..%.3f: the PDF did nothing", (double)wmin,
+        (double)wmax);
+  vdbio_dense_free(&cnt);
+  vdbio_dense_free(&w);
+  vdbio_dense_free(&r);
+  char *a2[] = {"bake", scene_path, "-o", out2, "--mode", "adaptive", "--resolution", "32",
+                "--photons", "6000", "--no-filter", "--force", "-q"};
+  CHECK(bake_main((int)(sizeof a2 / sizeof a2[0]), a2) == 0, "bake --no-filter failed");
+  expect_meta(out2, "adaptive_filter", "off");
+  CHECK(!has_grid(out2, "filter_radius"), "filter_radius written without being asked");
+  CHECK(has_grid(out2, "photon_count") && has_grid(out2, "photon_weight"), "grids missing");
+  return 0;
+}
+
+int main(int argc, char **argv) {
+  if (argc < 4) {
+    fprintf(stderr,
+            "usage: %s SCENE_DIR OUT_DIR unbiased|lights|quality|filter_radius|host_vs_device|cli\n",
+            argv[0]);
+    return 2;
+  }
+  scene_dir = argv[1];
+  out_dir = argv[2];
+  bk_verbosity = 0;
+  const char *t = argv[3];
+  if (!strcmp(t, "unbiased")) return test_unbiased();
+  if (!strcmp(t, "lights")) return test_lights();
+  if (!strcmp(t, "quality")) return test_quality();
+  if (!strcmp(t, "filter_radius")) return test_filter_radius();
+  if (!strcmp(t, "host_vs_device")) return test_host_vs_device();
+  if (!strcmp(t, "cli")) return test_cli();
+  fprintf(stderr, "unknown test '%s'\n", t);
+  return 2;
+}
