@@ -39,7 +39,7 @@ typedef struct vdbio_meta {
 
 typedef enum { VDBIO_COMPRESS_NONE = 0, VDBIO_COMPRESS_ZIP = 1, VDBIO_COMPRESS_BLOSC = 2 } vdbio_compression_t;
 typedef struct vdbio_write_opts {
-  vdbio_compression_t compression; /* default zip */
+  vdbio_compression_t compression; /* `baker bake` defaults to blosc */
   int half_float;                  /* save floats as 16-bit */
 } vdbio_write_opts_t;
 
