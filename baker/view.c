@@ -1344,8 +1344,9 @@ int view_main(int argc, char **argv) {
       goto done;
     tot.write_ms += bk_now_ms() - t0;
     tot.frames++;
-    bk_log(1, "view: %s -> %s%s%s (%dx%d)", in, out, o.png ? ", " : "", o.png ? png : "",
-           cam.width, cam.height);
+    if (bk_verbosity >= 1)
+      printf("view: %s -> %s%s%s (%dx%d)\n", in, out, o.png ? ", " : "", o.png ? png : "",
+             cam.width, cam.height);
     volume_free(&vol);
   }
 
@@ -1369,7 +1370,8 @@ int view_main(int argc, char **argv) {
                    (unsigned long long)tot.ray_steps, msteps, (unsigned long long)tot.pixels,
                    tot.march_cpu_ms);
     bk_timings_add(&t, "write", tot.write_ms, o.png ? "EXR + PNG" : "EXR");
-    bk_timings_print(&t, stderr);
+    bk_timings_print(&t, stdout); /* as `baker bake` does: the report, not a diagnostic */
+    fflush(stdout);
   }
   rc = BK_OK;
 
