@@ -10,6 +10,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "iorgrad.h"
+
 /* Host filter threads: the CPU cores, at most this many. */
 #define AD_MAX_THREADS 64
 
@@ -29,19 +31,6 @@ static int grid_size(const grid_dims_t *d, size_t per_voxel, const char *what, s
     return bk_fail(err, BK_ERR_INPUT, "%s: grid %dx%dx%d overflows the address space", what,
                    d->nx, d->ny, d->nz);
   return BK_OK;
-}
-
-static bk_grid kernel_grid(const grid_dims_t *d) {
-  bk_grid g;
-  g.nx = d->nx;
-  g.ny = d->ny;
-  g.nz = d->nz;
-  g.pad0 = 0;
-  g.origin_x = d->origin[0];
-  g.origin_y = d->origin[1];
-  g.origin_z = d->origin[2];
-  g.voxel_size = d->voxel_size;
-  return g;
 }
 
 /* --- pilot fields -------------------------------------------------------------- */
@@ -395,10 +384,10 @@ static void filter_weights(float *w) {
   }
 }
 
-static int check_filter_args(const grid_dims_t *d, int channels, const float *radiance,
-                             const float *count, const float *mean_weight, float alpha,
-                             int levels, const float *out_radiance, size_t *voxels,
-                             bk_error_t *err) {
+/* The checks both filter entry points make: the grid, the channel count,
+ * alpha, and levels in min_levels..AD_FILTER_MAX_LEVEL (half voxels). */
+static int check_filter_params(const grid_dims_t *d, int channels, float alpha, int levels,
+                               int min_levels, size_t *voxels, bk_error_t *err) {
   int rc = grid_size(d, 3 * sizeof(float), "adaptive filter", voxels, err);
   if (rc != BK_OK) return rc;
   if (channels != 1 && channels != 3)
@@ -406,10 +395,19 @@ static int check_filter_args(const grid_dims_t *d, int channels, const float *ra
   if (!(alpha >= 0.0f) || isinf(alpha))
     return bk_fail(err, BK_ERR_INPUT, "adaptive.alpha: expected a finite number >= 0, got %g",
                    (double)alpha);
-  if (levels < 0 || levels > AD_FILTER_MAX_LEVEL)
+  if (levels < min_levels || levels > AD_FILTER_MAX_LEVEL)
     return bk_fail(err, BK_ERR_INPUT,
-                   "adaptive filter: largest radius %g voxels: expected 0..%g in half voxels",
-                   0.5 * levels, 0.5 * AD_FILTER_MAX_LEVEL);
+                   "adaptive filter: largest radius %g voxels: expected %g..%g in half voxels",
+                   0.5 * levels, 0.5 * min_levels, 0.5 * AD_FILTER_MAX_LEVEL);
+  return BK_OK;
+}
+
+static int check_filter_args(const grid_dims_t *d, int channels, const float *radiance,
+                             const float *count, const float *mean_weight, float alpha,
+                             int levels, const float *out_radiance, size_t *voxels,
+                             bk_error_t *err) {
+  int rc = check_filter_params(d, channels, alpha, levels, 0, voxels, err);
+  if (rc != BK_OK) return rc;
   if (!radiance || !count || !mean_weight || !out_radiance)
     return bk_fail(err, BK_ERR_RUNTIME, "adaptive filter: missing input or output array");
   if (out_radiance == radiance)
@@ -488,7 +486,7 @@ int ad_filter_host(const grid_dims_t *d, int channels, const float *radiance, co
       job->weights = weights;
       job->M = M;
       job->scratch = scratch + (size_t)t * per;
-      job->g = kernel_grid(d);
+      job->g = ig_kernel_grid(d);
       job->C = channels;
       job->Q = levels;
       job->alpha = alpha;
@@ -527,17 +525,8 @@ int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_
   float weights[AD_WEIGHT_COUNT];
   char opts[64], b1[32], b2[32];
   size_t voxels;
-  int rc = grid_size(d, 3 * sizeof(float), "adaptive filter", &voxels, err);
+  int rc = check_filter_params(d, channels, alpha, levels, 1, &voxels, err);
   if (rc != BK_OK) return rc;
-  if (channels != 1 && channels != 3)
-    return bk_fail(err, BK_ERR_RUNTIME, "adaptive filter: %d channels: expected 1 or 3", channels);
-  if (!(alpha >= 0.0f) || isinf(alpha))
-    return bk_fail(err, BK_ERR_INPUT, "adaptive.alpha: expected a finite number >= 0, got %g",
-                   (double)alpha);
-  if (levels < 1 || levels > AD_FILTER_MAX_LEVEL)
-    return bk_fail(err, BK_ERR_INPUT,
-                   "adaptive filter: largest radius %g voxels: expected 0.5..%g in half voxels",
-                   0.5 * levels, 0.5 * AD_FILTER_MAX_LEVEL);
   rc = BK_ERR_RUNTIME;
   /* work-items, each with a slice of scratch: a few per core on a CPU, one
    * per slice elsewhere */
@@ -573,7 +562,7 @@ int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_
   CLH_CHECK(cerr, err, error);
   ks = clCreateKernel(program, "ad_select", &cerr);
   CLH_CHECK(cerr, err, error);
-  bk_grid g = kernel_grid(d);
+  bk_grid g = ig_kernel_grid(d);
   cl_int want = out_radius != NULL;
   CLH_CHECK(clSetKernelArg(km, 0, sizeof(cl_mem), &rgb), err, error);
   CLH_CHECK(clSetKernelArg(km, 1, sizeof(cl_mem), &w_buf), err, error);

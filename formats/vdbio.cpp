@@ -302,6 +302,19 @@ static int vdbio_read_grid(vdb::io::File &file, const char *path, const char *wh
   return BK_OK;
 }
 
+/* vdbio_open, then vdbio_read_grid, then closes the file: the start of every
+ * reader of one grid. Exceptions are the caller's to catch. */
+static int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
+                           vdb::GridBase::Ptr &grid, int *found, bk_error_t *err) {
+  vdb::io::File file(path);
+  int rc = vdbio_open(file, path, where, err);
+  if (rc)
+    return rc;
+  rc = vdbio_read_grid(file, path, where, grid_name, grid, found, err);
+  file.close();
+  return rc;
+}
+
 /* The catch block every reader ends with. */
 #define VDBIO_CATCH_READ(path, where)                                                              \
   catch (const std::bad_alloc &) {                                                                 \
@@ -343,13 +356,8 @@ int vdbio_resample_float(const char *path, const char *grid_name, const grid_dim
   vdbio_init();
   int rc = BK_OK;
   try {
-    vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, where, err)))
-      return rc;
     vdb::GridBase::Ptr base;
-    rc = vdbio_read_grid(file, path, where, grid_name, base, NULL, err);
-    file.close();
-    if (rc)
+    if ((rc = vdbio_load_grid(path, where, grid_name, base, NULL, err)))
       return rc;
     /* double grids (some simulators write them) are narrowed as sampled */
     if (base->isType<vdb::FloatGrid>())
@@ -467,13 +475,8 @@ int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_den
   vdbio_init();
   int rc = BK_OK;
   try {
-    vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, NULL, err)))
-      return rc;
     vdb::GridBase::Ptr g;
-    rc = vdbio_read_grid(file, path, NULL, grid_name, g, NULL, err);
-    file.close();
-    if (rc)
+    if ((rc = vdbio_load_grid(path, NULL, grid_name, g, NULL, err)))
       return rc;
     const int ch = vdbio_channels(g, path, grid_name, err);
     if (!ch)
@@ -551,12 +554,8 @@ int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_d
   vdbio_init();
   int rc = BK_OK;
   try {
-    vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, NULL, err)))
-      return rc;
     vdb::GridBase::Ptr g;
-    rc = vdbio_read_grid(file, path, NULL, grid_name, g, found, err);
-    file.close();
+    rc = vdbio_load_grid(path, NULL, grid_name, g, found, err);
     if (rc || !*found)
       return rc;
     const int ch = vdbio_channels(g, path, grid_name, err);

@@ -18,17 +18,9 @@
 #include "adaptive.h"
 #include "clhost.h"
 #include "scene.h"
+#include "test_util.h"
 
-static int failures = 0;
-#define CHECK(cond, ...)                                                     \
-  do {                                                                       \
-    if (!(cond)) {                                                           \
-      fprintf(stderr, "FAIL %s:%d: %s: ", __FILE__, __LINE__, #cond);        \
-      fprintf(stderr, __VA_ARGS__);                                          \
-      fputc('\n', stderr);                                                   \
-      failures++;                                                            \
-    }                                                                        \
-  } while (0)
+#define CHECK TU_EXPECT
 
 /* Hammersley point i of n: (i/n, radical inverse base 2 of i). */
 static float radical_inverse2(uint32_t k) {
@@ -90,7 +82,7 @@ static int test_cells(void) {
   for (int i = 0; i < 20; i++) other += i != 3 && i != 13 && masks[i] != 0;
   CHECK(other == 0, "stray bits in %d masks", other);
   printf("cells: ok\n");
-  return failures;
+  return tu_failures;
 }
 
 /* --- warp -------------------------------------------------------------------- */
@@ -228,7 +220,7 @@ static int test_warp(void) {
   w[3] = -1.0;
   CHECK(ad_pdf_from_weights(w, 8, 8, 0.5f, table, NULL, &err) == BK_ERR_RUNTIME &&
             strstr(err.msg, "cell 3"), "negative weight: %s", err.msg);
-  return failures;
+  return tu_failures;
 }
 
 /* --- pdf from origin masks --------------------------------------------------- */
@@ -310,7 +302,7 @@ static int test_pdf(void) {
   CHECK(ad_build_pdf(masks, sel, V, 1.5f, &pdf, &err) == BK_ERR_INPUT, "floor 1.5 accepted");
   free(masks);
   free(sel);
-  return failures;
+  return tu_failures;
 }
 
 /* --- automatic thresholds ---------------------------------------------------- */
@@ -474,7 +466,7 @@ static int test_thresholds(void) {
   free(sel);
   free(sel2);
   free(sig);
-  return failures;
+  return tu_failures;
 }
 
 /* --- phase 1 -> phase 2 on a toy light ---------------------------------------- */
@@ -591,7 +583,7 @@ static int test_chain(void) {
   free(masks);
   free(count);
   free(sel);
-  return failures;
+  return tu_failures;
 }
 
 /* --- filter ------------------------------------------------------------------ */
@@ -845,7 +837,7 @@ static int test_filter(void) {
   free(rref);
   free(wmean);
   free(count);
-  return failures;
+  return tu_failures;
 }
 
 static int init_cl(clh_context_t *cl) {
@@ -945,7 +937,7 @@ static int test_filter_cl(void) {
   free(oc);
   free(rh);
   free(rc);
-  return failures;
+  return tu_failures;
 }
 
 /* --- device math --------------------------------------------------------------- */
@@ -992,7 +984,7 @@ static int test_device(void) {
   }
   if (clh_build_source(&cl, "tests/adaptive_device.cl", device_src, "", &prog, &err) != BK_OK) {
     fprintf(stderr, "FAIL build: %s\n", err.msg);
-    failures++;
+    tu_failures++;
     goto error;
   }
   kw = clCreateKernel(prog, "warp", &cerr);
@@ -1056,7 +1048,7 @@ static int test_device(void) {
 error:
   if (err.msg[0] && err.code) {
     fprintf(stderr, "FAIL %s\n", err.msg);
-    failures++;
+    tu_failures++;
   }
   if (kw) clReleaseKernel(kw);
   if (km) clReleaseKernel(km);
@@ -1070,7 +1062,7 @@ error:
   free(o);
   free(masks);
   free(host);
-  return failures;
+  return tu_failures;
 }
 
 int main(int argc, char **argv) {
@@ -1092,6 +1084,6 @@ int main(int argc, char **argv) {
     fprintf(stderr, "unknown test '%s'\n", t);
     return 2;
   }
-  if (rc) fprintf(stderr, "%d failure(s)\n", failures);
+  if (rc) fprintf(stderr, "%d failure(s)\n", tu_failures);
   return rc ? 1 : 0;
 }

@@ -33,6 +33,7 @@
 
 #include "adaptive.h"
 #include "voxelize.h"
+#include "test_util.h"
 
 #define MAX_POINTS 16
 
@@ -47,16 +48,6 @@ static double cpu_seconds(void) {
   getrusage(RUSAGE_SELF, &ru);
   return ru.ru_utime.tv_sec + ru.ru_utime.tv_usec * 1e-6 + ru.ru_stime.tv_sec +
          ru.ru_stime.tv_usec * 1e-6;
-}
-
-static double rel_l2(const float *x, const float *t, size_t n) {
-  double num = 0.0, den = 0.0;
-  for (size_t i = 0; i < n; i++) {
-    double d = (double)x[i] - t[i];
-    num += d * d;
-    den += (double)t[i] * t[i];
-  }
-  return sqrt(num / den);
 }
 
 static int parse_fractions(const char *s, double *out) {
@@ -113,7 +104,7 @@ static int run_point(clh_context_t *cl, scene_t *sc, const volume_t *vol, int ad
     if (total < p->ms_total) p->ms_total = total;
     if (cpu < p->cpu_s) p->cpu_s = cpu;
   }
-  p->err = rel_l2(buf, conv, 3 * V);
+  p->err = tu_rel_l2(buf, conv, 3 * V);
   return BK_OK;
 }
 

@@ -34,16 +34,9 @@
 #include "bake.h"
 #include "vdbio.h"
 #include "voxelize.h"
+#include "test_util.h"
 
-#define CHECK(cond, ...)                                                 \
-  do {                                                                   \
-    if (!(cond)) {                                                       \
-      fprintf(stderr, "FAIL %s:%d: %s: ", __FILE__, __LINE__, #cond);    \
-      fprintf(stderr, __VA_ARGS__);                                      \
-      fputc('\n', stderr);                                               \
-      exit(1);                                                           \
-    }                                                                    \
-  } while (0)
+#define CHECK TU_REQUIRE
 
 #define TEST_RES 64
 /* 122 000 photons at 128^3 (the slides' reference count) have the photons
@@ -77,16 +70,6 @@ static float *grid1(void) {
   float *g = calloc(V, sizeof(float));
   CHECK(g, "out of memory");
   return g;
-}
-
-static double rel_l2(const float *x, const float *t, size_t n) {
-  double num = 0.0, den = 0.0;
-  for (size_t i = 0; i < n; i++) {
-    double d = (double)x[i] - t[i];
-    num += d * d;
-    den += (double)t[i] * t[i];
-  }
-  return sqrt(num / den);
 }
 
 static float *reference(clh_context_t *c, long long photons, double *ms) {
@@ -126,7 +109,7 @@ static int test_unbiased(void) {
   float *count = grid1(), *weight = grid1();
   float *ref = reference(&cl, N, NULL);
   float *ad = adaptive(&cl, N, 0, count, weight, NULL, &st);
-  double e = rel_l2(ad, ref, 3 * V), sum_r = 0.0, sum_a = 0.0, wmin = 1e30, wmax = 0.0;
+  double e = tu_rel_l2(ad, ref, 3 * V), sum_r = 0.0, sum_a = 0.0, wmin = 1e30, wmax = 0.0;
   size_t reached = 0;
   for (size_t v = 0; v < V; v++) {
     sum_r += ref[3 * v];
@@ -179,7 +162,7 @@ static int test_lights(void) {
   float *count = grid1(), *weight = grid1();
   float *ref = reference(&cl, N, NULL);
   float *ad = adaptive(&cl, N, 0, count, weight, NULL, &st);
-  double e = rel_l2(ad, ref, 3 * V), wmin = 1e30, wmax = 0.0;
+  double e = tu_rel_l2(ad, ref, 3 * V), wmin = 1e30, wmax = 0.0;
   /* voxels the spot's photons cross by the dozen: their mean weight shows
    * whether the spot's photons followed a PDF (a uniform one gives 1) */
   for (size_t v = 0; v < V; v++)
@@ -216,8 +199,8 @@ static int test_quality(void) {
   long long half = N / 2 - scene.pilot;
   float *ad = adaptive(&cl, half, 1, NULL, NULL, NULL, &st);
   float *raw = adaptive(&cl, half, 0, NULL, NULL, NULL, &st);
-  double e_ref = rel_l2(ref, conv, 3 * V), e_ad = rel_l2(ad, conv, 3 * V);
-  double e_raw = rel_l2(raw, conv, 3 * V);
+  double e_ref = tu_rel_l2(ref, conv, 3 * V), e_ad = tu_rel_l2(ad, conv, 3 * V);
+  double e_raw = tu_rel_l2(raw, conv, 3 * V);
   printf("quality: %dx%dx%d (the sphere scene's 128^3 reduced; %lld photons here are %lld at "
          "128^3), converged bake %lld photons (%.0f ms): relative L2 error, reference with %lld "
          "photons %.4f; adaptive with %lld + %d pilot = %lld photons %.4f (%.2f of the "
@@ -330,7 +313,7 @@ static int test_host_vs_device(void) {
     radius_diff += rh[v] != rd[v];
     wdiff = fmax(wdiff, fabs(wh[v] - wd[v]));
   }
-  double e = rel_l2(dv, h, 3 * V);
+  double e = tu_rel_l2(dv, h, 3 * V);
   printf("host_vs_device: %dx%dx%d, %lld photons: relative L2 host vs OpenCL %.2e; %zu photon "
          "counts and %zu radii differ, mean weights by %.2e at most; pdf %.3f..%.3f vs "
          "%.3f..%.3f; selected cells %zu vs %zu\n",

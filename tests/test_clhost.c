@@ -10,17 +10,9 @@
 #include "clhost.h"
 #include "ior.h"
 #include "iorgrad.h"
+#include "test_util.h"
 
-static int failures = 0;
-#define CHECK(cond, ...)                                                     \
-  do {                                                                       \
-    if (!(cond)) {                                                           \
-      fprintf(stderr, "FAIL %s:%d: %s: ", __FILE__, __LINE__, #cond);        \
-      fprintf(stderr, __VA_ARGS__);                                          \
-      fputc('\n', stderr);                                                   \
-      failures++;                                                            \
-    }                                                                        \
-  } while (0)
+#define CHECK TU_EXPECT
 
 static int init_or_die(clh_context_t *cl, const char *spec) {
   bk_error_t err = {0};
@@ -95,7 +87,7 @@ static int test_errors(void) {
   CHECK(s == NULL && err.code == BK_ERR_RUNTIME && strstr(err.msg, "kernels/nosuch.cl"), "%s",
         err.msg);
   free(s);
-  return failures;
+  return tu_failures;
 }
 
 /* --- gradient: PoCL vs host vs analytic --------------------------------------- */
@@ -257,7 +249,7 @@ static int test_gradient(void) {
     CHECK(ig_compute_host(&empty, n, gr, &err) == BK_ERR_INPUT, "empty grid accepted");
   }
   clh_release(&cl);
-  return failures;
+  return tu_failures;
 }
 
 /* --- cache -------------------------------------------------------------------- */
@@ -359,7 +351,7 @@ static int test_cache(const char *base) {
   clean_dir(dir);
   rmdir(parent);
   clh_release(&cl);
-  return failures;
+  return tu_failures;
 }
 
 /* --- build errors, device specs, no platform ---------------------------------- */
@@ -385,7 +377,7 @@ static int test_build_error(void) {
   rc = clh_build(&cl, "nosuch.cl", "", &p, &err);
   CHECK(rc == BK_ERR_RUNTIME && strstr(err.msg, "kernels/nosuch.cl"), "%s", err.msg);
   clh_release(&cl);
-  return failures;
+  return tu_failures;
 }
 
 static int test_device_spec(void) {
@@ -413,7 +405,7 @@ static int test_device_spec(void) {
   }
   clh_release(NULL);
   clh_list_devices(stdout);
-  return failures;
+  return tu_failures;
 }
 
 static int test_no_platform(void) {
@@ -425,7 +417,7 @@ static int test_no_platform(void) {
             strstr(err.msg, "clinfo"), "message: %s", err.msg);
   printf("%s\n", err.msg);
   clh_release(&cl);
-  return failures;
+  return tu_failures;
 }
 
 int main(int argc, char **argv) {

@@ -8,16 +8,9 @@
 #include <string.h>
 
 #include "march.h"
+#include "test_util.h"
 
-#define CHECK(cond, ...)                                       \
-  do {                                                         \
-    if (!(cond)) {                                             \
-      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);     \
-      fprintf(stderr, __VA_ARGS__);                            \
-      fputc('\n', stderr);                                     \
-      exit(1);                                                 \
-    }                                                          \
-  } while (0)
+#define CHECK TU_REQUIRE_MSG
 
 /* A volume of nx*ny*nz cubes of side h with its corner at origin, filled
  * with n and the given coefficients (per metre). */

@@ -11,38 +11,10 @@
 
 #include "mesh.h"
 #include "mesh_io.h"
+#include "test_util.h"
 
-static const char *g_dir;
-static int g_failures;
-
-#define CHECK(cond)                                                            \
-  do {                                                                         \
-    if (!(cond)) {                                                             \
-      fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-      g_failures++;                                                            \
-    }                                                                          \
-  } while (0)
-#define CHECK_NEAR(a, b, tol)                                                           \
-  do {                                                                                  \
-    double a_ = (a), b_ = (b);                                                          \
-    if (!(fabs(a_ - b_) <= (tol))) {                                                    \
-      fprintf(stderr, "%s:%d: %s = %.9g, expected %.9g (tol %g)\n", __FILE__, __LINE__, \
-              #a, a_, b_, (double)(tol));                                               \
-      g_failures++;                                                                     \
-    }                                                                                   \
-  } while (0)
-
-static void write_text(const char *name, const char *text, char *path, size_t len) {
-  snprintf(path, len, "%s/%s", g_dir, name);
-  FILE *f = fopen(path, "wb");
-  if (!f) {
-    perror(path);
-    g_failures++;
-    return;
-  }
-  fputs(text, f);
-  fclose(f);
-}
+#define CHECK TU_CHECK_PLAIN
+#define CHECK_NEAR TU_CHECK_NEAR
 
 /* Reads `path`; checks the counts and that every vertex of `expect` (n of
  * them) is present. */
@@ -52,7 +24,7 @@ static void expect_mesh(const char *path, int vertices, int triangles, const flo
   int rc = mesh_io_read(path, &m, &err);
   if (rc != BK_OK) {
     fprintf(stderr, "%s\n", err.msg);
-    g_failures++;
+    tu_failures++;
     return;
   }
   printf("%s: %d vertices, %d triangles\n", strrchr(path, '/') + 1, m.vertex_count,
@@ -80,7 +52,7 @@ static void case_io(void) {
   float pos[12] = {0.1f, -0.3f, 1e-7f, 1.0f / 3.0f, 0, 0, 0, 12345.678f, 0, 0, 0, -2.5e-3f};
   mesh_tris_t m = {pos, 4, (int *)TETRA_F, 4};
   bk_error_t err;
-  snprintf(p, sizeof p, "%s/roundtrip.obj", g_dir);
+  snprintf(p, sizeof p, "%s/roundtrip.obj", tu_dir);
   CHECK(mesh_io_write_obj(p, &m, &err) == BK_OK);
   mesh_tris_t back;
   if (mesh_io_read(p, &back, &err) == BK_OK) {
@@ -90,19 +62,19 @@ static void case_io(void) {
     mesh_io_free(&back);
   } else {
     fprintf(stderr, "%s\n", err.msg);
-    g_failures++;
+    tu_failures++;
   }
   /* polygons are fan-triangulated */
-  write_text("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", p, sizeof p);
+  tu_write_text("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", p, sizeof p);
   float quad[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
   expect_mesh(p, 4, 2, quad, 4);
-  write_text("UPPER.OBJ", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+  tu_write_text("UPPER.OBJ", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
              p, sizeof p);
   expect_mesh(p, 4, 4, TETRA, 4);
-  write_text("tetra.off", "OFF\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+  tu_write_text("tetra.off", "OFF\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
              "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n", p, sizeof p);
   expect_mesh(p, 4, 4, TETRA, 4);
-  write_text("tetra.ply",
+  tu_write_text("tetra.ply",
              "ply\nformat ascii 1.0\ncomment inf is a word here\nelement vertex 4\n"
              "property float x\nproperty float y\nproperty float z\nproperty uchar red\n"
              "element face 4\nproperty list uchar int vertex_indices\nend_header\n"
@@ -121,10 +93,10 @@ static void case_io(void) {
     n += snprintf(stl + n, sizeof stl - (size_t)n, "endloop\nendfacet\n");
   }
   snprintf(stl + n, sizeof stl - (size_t)n, "endsolid tetra\n");
-  write_text("tetra.stl", stl, p, sizeof p);
+  tu_write_text("tetra.stl", stl, p, sizeof p);
   expect_mesh(p, 4, 4, TETRA, 4);
   /* binary STL, header starting with "solid" as some exporters write it */
-  snprintf(p, sizeof p, "%s/tetra_binary.stl", g_dir);
+  snprintf(p, sizeof p, "%s/tetra_binary.stl", tu_dir);
   FILE *f = fopen(p, "wb");
   if (f) {
     char header[80] = "solid but binary";
@@ -198,7 +170,7 @@ static void case_check(void) {
   /* OpenMesh duplicates the vertices of a face it cannot attach (a third face
    * on an edge); the weld must still see one non-manifold edge */
   char p[4096];
-  write_text("fins.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 0 -1 0\n"
+  tu_write_text("fins.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 0 -1 0\n"
              "f 1 2 3\nf 1 2 4\nf 1 2 5\n", p, sizeof p);
   mesh_tris_t om;
   bk_error_t err;
@@ -208,7 +180,7 @@ static void case_check(void) {
     mesh_io_free(&om);
   } else {
     fprintf(stderr, "%s\n", err.msg);
-    g_failures++;
+    tu_failures++;
   }
 }
 
@@ -263,8 +235,8 @@ int main(int argc, char **argv) {
     fprintf(stderr, "usage: test_mesh CASE DIR\n");
     return 2;
   }
-  g_dir = argv[2];
-  mkdir(g_dir, 0777);
+  tu_dir = argv[2];
+  mkdir(tu_dir, 0777);
   if (!strcmp(argv[1], "io")) case_io();
   else if (!strcmp(argv[1], "check")) case_check();
   else if (!strcmp(argv[1], "transform")) case_transform();
@@ -272,6 +244,6 @@ int main(int argc, char **argv) {
     fprintf(stderr, "unknown case %s\n", argv[1]);
     return 2;
   }
-  if (g_failures) fprintf(stderr, "%d check(s) failed\n", g_failures);
-  return g_failures ? 1 : 0;
+  if (tu_failures) fprintf(stderr, "%d check(s) failed\n", tu_failures);
+  return tu_failures ? 1 : 0;
 }

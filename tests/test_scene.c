@@ -17,31 +17,15 @@
 
 #include "json.h"
 #include "scene.h"
+#include "test_util.h"
 
-static const char *g_dir;
-static int g_failures;
-
-#define CHECK(cond)                                                                  \
-  do {                                                                               \
-    if (!(cond)) {                                                                   \
-      fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond);       \
-      g_failures++;                                                                  \
-    }                                                                                \
-  } while (0)
-#define CHECK_NEAR(a, b, tol)                                                          \
-  do {                                                                                 \
-    double a_ = (a), b_ = (b);                                                         \
-    if (!(fabs(a_ - b_) <= (tol))) {                                                   \
-      fprintf(stderr, "%s:%d: %s = %.9g, expected %.9g (tol %g)\n", __FILE__, __LINE__, \
-              #a, a_, b_, (double)(tol));                                              \
-      g_failures++;                                                                    \
-    }                                                                                  \
-  } while (0)
+#define CHECK TU_CHECK_PLAIN
+#define CHECK_NEAR TU_CHECK_NEAR
 
 /* Writes DIR/NAME and returns its path (static buffer). */
 static const char *write_scene(const char *name, const char *text) {
   static char path[1024];
-  snprintf(path, sizeof path, "%s/%s", g_dir, name);
+  snprintf(path, sizeof path, "%s/%s", tu_dir, name);
   FILE *f = fopen(path, "wb");
   if (!f || fwrite(text, 1, strlen(text), f) != strlen(text) || fclose(f) != 0) {
     fprintf(stderr, "cannot write %s: %s\n", path, strerror(errno));
@@ -53,7 +37,7 @@ static const char *write_scene(const char *name, const char *text) {
 static void check_has(const char *msg, const char *want) {
   if (!strstr(msg, want)) {
     fprintf(stderr, "message \"%s\"\n  lacks \"%s\"\n", msg, want);
-    g_failures++;
+    tu_failures++;
   }
 }
 
@@ -80,7 +64,7 @@ static int load_ok(const char *name, const char *text, scene_t *s, char **warnin
   char log[1024];
   bk_error_t err = {0};
   const char *path = write_scene(name, text);
-  snprintf(log, sizeof log, "%s/%s.stderr", g_dir, name);
+  snprintf(log, sizeof log, "%s/%s.stderr", tu_dir, name);
   fflush(stderr);
   int saved = dup(2), fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
   if (saved < 0 || fd < 0) exit(1);
@@ -124,24 +108,24 @@ static void case_full(void) {
   scene_t s;
   char *warn = NULL, want[1200];
   if (load_ok("full.json", k_design_example, &s, &warn)) {
-    g_failures++;
+    tu_failures++;
     free(warn);
     return;
   }
   CHECK(warn[0] == 0); /* every key of the contract is known */
   CHECK(s.bounds_min[0] == -1 && s.bounds_max[2] == 1 && s.resolution == 128);
   CHECK_NEAR(s.ior_smoothing, 2.0, 0);
-  snprintf(want, sizeof want, "%s/full.json:2:62: grid.resolution", g_dir);
+  snprintf(want, sizeof want, "%s/full.json:2:62: grid.resolution", tu_dir);
   CHECK(strcmp(s.where_resolution, want) == 0);
   CHECK_NEAR(s.medium_sigma_s[1], 0.5, 0);
   CHECK_NEAR(s.medium_sigma_a[2], 0.02, 1e-9);
   CHECK(s.density_vdb.present && s.ior_vdb.present);
-  snprintf(want, sizeof want, "%s/smoke.vdb", g_dir);
+  snprintf(want, sizeof want, "%s/smoke.vdb", tu_dir);
   CHECK(strcmp(s.density_vdb.file, want) == 0);
   CHECK(strcmp(s.density_vdb.grid, "density") == 0 && strcmp(s.ior_vdb.grid, "ior") == 0);
   check_has(s.ior_vdb.where, "full.json:5:41: medium.ior_vdb.file");
   CHECK(s.object_count == 1);
-  snprintf(want, sizeof want, "%s/meshes/armadillo.obj", g_dir);
+  snprintf(want, sizeof want, "%s/meshes/armadillo.obj", tu_dir);
   CHECK(strcmp(s.objects[0].mesh, want) == 0);
   check_has(s.objects[0].where, "full.json:6:26: objects[0].mesh");
   CHECK_NEAR(s.objects[0].ior, 1.5, 0);
@@ -186,7 +170,7 @@ static void case_defaults(void) {
                      "  \"photons\": { \"mode\": \"adaptive\", \"integrator\": \"rk4\", \"count\": 1e6 }\n"
                      "}\n";
   if (load_ok("defaults.json", text, &s, &warn)) {
-    g_failures++;
+    tu_failures++;
     free(warn);
     return;
   }
@@ -533,9 +517,9 @@ int main(int argc, char **argv) {
     fprintf(stderr, "usage: %s CASE|all DIR\n", argv[0]);
     return 2;
   }
-  g_dir = argv[2];
-  if (mkdir(g_dir, 0755) != 0 && errno != EEXIST) {
-    fprintf(stderr, "%s: %s\n", g_dir, strerror(errno));
+  tu_dir = argv[2];
+  if (mkdir(tu_dir, 0755) != 0 && errno != EEXIST) {
+    fprintf(stderr, "%s: %s\n", tu_dir, strerror(errno));
     return 1;
   }
   int ran = 0;
@@ -548,6 +532,6 @@ int main(int argc, char **argv) {
     fprintf(stderr, "no test case named %s\n", argv[1]);
     return 2;
   }
-  printf("%d failure(s)\n", g_failures);
-  return g_failures ? 1 : 0;
+  printf("%d failure(s)\n", tu_failures);
+  return tu_failures ? 1 : 0;
 }

@@ -26,16 +26,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-static int failures = 0;
-#define CHECK(cond, ...)                                                                           \
-  do {                                                                                             \
-    if (!(cond)) {                                                                                 \
-      failures++;                                                                                  \
-      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);                                         \
-      fprintf(stderr, __VA_ARGS__);                                                                \
-      fputc('\n', stderr);                                                                         \
-    }                                                                                              \
-  } while (0)
+#include "test_util.h"
+
+#define CHECK TU_EXPECT_MSG
 
 static const grid_dims_t KNOWN = {12, 10, 8, 0.25f, {-1.5f, 0.75f, 2.0f}};
 
@@ -381,7 +374,7 @@ static int roundtrip(const char *dir) {
   if (rc == BK_OK)
     vdbio_dense_free(&ed);
   free(zero);
-  return failures != 0;
+  return tu_failures != 0;
 }
 
 /* Expects rc == BK_ERR_INPUT and the message to name `name`. */
@@ -500,7 +493,7 @@ static int errors(const char *dir) {
   rmdir(bad);
 
   free(out);
-  return failures != 0;
+  return tu_failures != 0;
 }
 
 /* tests/data/vdbio_foreign.vdb (made by tests/data/vdbio_foreign.cpp): grids
@@ -640,7 +633,7 @@ static int foreign(const char *path) {
   expect_input_error(rc, &err, path, "frustum grid, read_dense", "unsupported");
   rc = vdbio_read_dense_like(path, "count_i", &like, &r, &found, &err);
   expect_input_error(rc, &err, path, "int32 grid, read_dense_like", "int32");
-  return failures != 0;
+  return tu_failures != 0;
 }
 
 static int bench(const char *dir) {
@@ -702,7 +695,7 @@ int main(int argc, char **argv) {
   int rc;
   if (!strcmp(argv[1], "foreign")) {
     rc = foreign(argv[2]);
-    printf("foreign: %d failure(s)\n", failures);
+    printf("foreign: %d failure(s)\n", tu_failures);
     return rc;
   }
   mkdir_p(argv[2]);
@@ -724,6 +717,6 @@ int main(int argc, char **argv) {
     rc = bench(argv[2]);
   else
     rc = 2;
-  printf("%s: %d failure(s)\n", argv[1], failures);
+  printf("%s: %d failure(s)\n", argv[1], tu_failures);
   return rc;
 }

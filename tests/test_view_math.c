@@ -19,17 +19,9 @@
 #include "kernels/view.h"
 #include "png_io.h"
 #include "view.h"
+#include "test_util.h"
 
-static int failures = 0;
-#define CHECK(cond, ...)                                   \
-  do {                                                     \
-    if (!(cond)) {                                         \
-      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__); \
-      fprintf(stderr, __VA_ARGS__);                        \
-      fputc('\n', stderr);                                 \
-      failures++;                                          \
-    }                                                      \
-  } while (0)
+#define CHECK TU_EXPECT_MSG
 
 static void expect_expand(const char *pat, int frame, const char *want) {
   char out[256];
@@ -320,6 +312,6 @@ int main(int argc, char **argv) {
   if (all || !strcmp(what, "march")) test_march();
   if (all || !strcmp(what, "rays")) test_rays();
   if (all || !strcmp(what, "flat")) test_flat();
-  if (failures) fprintf(stderr, "%d check(s) failed\n", failures);
-  return failures ? 1 : 0;
+  if (tu_failures) fprintf(stderr, "%d check(s) failed\n", tu_failures);
+  return tu_failures ? 1 : 0;
 }

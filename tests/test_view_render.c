@@ -42,17 +42,9 @@
 #include "png_io.h"
 #include "vdbio.h"
 #include "view.h"
+#include "test_util.h"
 
-static int failures = 0;
-#define CHECK(cond, ...)                                   \
-  do {                                                     \
-    if (!(cond)) {                                         \
-      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__); \
-      fprintf(stderr, __VA_ARGS__);                        \
-      fputc('\n', stderr);                                 \
-      failures++;                                          \
-    }                                                      \
-  } while (0)
+#define CHECK TU_EXPECT_MSG
 
 static char log_path[4096];
 
@@ -653,6 +645,6 @@ int main(int argc, char **argv) {
     test_bad(argv[2], dir, argc > 4 ? argv[4] : NULL);
   else
     CHECK(0, "unknown test %s", what);
-  if (failures) fprintf(stderr, "%d check(s) failed\n", failures);
-  return failures ? 1 : 0;
+  if (tu_failures) fprintf(stderr, "%d check(s) failed\n", tu_failures);
+  return tu_failures ? 1 : 0;
 }

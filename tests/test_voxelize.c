@@ -25,32 +25,12 @@
 #include "mesh_io.h"
 #include "vdbio.h"
 #include "voxelize.h"
+#include "test_util.h"
 
-static const char *g_dir;
-static int g_failures;
-
-#define CHECK(cond)                                                            \
-  do {                                                                         \
-    if (!(cond)) {                                                             \
-      fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-      g_failures++;                                                            \
-    }                                                                          \
-  } while (0)
-#define CHECK_NEAR(a, b, tol)                                                           \
-  do {                                                                                  \
-    double a_ = (a), b_ = (b);                                                          \
-    if (!(fabs(a_ - b_) <= (tol))) {                                                    \
-      fprintf(stderr, "%s:%d: %s = %.9g, expected %.9g (tol %g)\n", __FILE__, __LINE__, \
-              #a, a_, b_, (double)(tol));                                               \
-      g_failures++;                                                                     \
-    }                                                                                   \
-  } while (0)
+#define CHECK TU_CHECK_PLAIN
+#define CHECK_NEAR TU_CHECK_NEAR
 
 static const double PI = 3.14159265358979323846;
-
-static void path_in_dir(char *out, size_t len, const char *name) {
-  snprintf(out, len, "%s/%s", g_dir, name);
-}
 
 /* --- meshes -------------------------------------------------------------------- */
 
@@ -188,7 +168,7 @@ static double winding_number(const mesh_tris_t *m, const double p[3]) {
 
 static void scene_init(scene_t *s, float lo, float hi, int resolution, float smoothing) {
   memset(s, 0, sizeof *s);
-  snprintf(s->path, sizeof s->path, "%s/hand-made-scene", g_dir);
+  snprintf(s->path, sizeof s->path, "%s/hand-made-scene", tu_dir);
   for (int a = 0; a < 3; a++) {
     s->bounds_min[a] = lo;
     s->bounds_max[a] = hi;
@@ -209,10 +189,10 @@ static void object_init(scene_object_t *o, const char *mesh, float ior) {
 
 static int write_mesh(const char *name, const mesh_tris_t *m, char *path, size_t len) {
   bk_error_t err;
-  path_in_dir(path, len, name);
+  tu_path(path, len, name);
   if (mesh_io_write_obj(path, m, &err) != BK_OK) {
     fprintf(stderr, "cannot write %s: %s\n", path, err.msg);
-    g_failures++;
+    tu_failures++;
     return 0;
   }
   return 1;
@@ -224,7 +204,7 @@ static int build(const scene_t *s, volume_t *v) {
   int rc = vox_build(s, v, &timings, &err);
   if (rc != BK_OK) {
     fprintf(stderr, "vox_build failed (%d): %s\n", rc, err.msg);
-    g_failures++;
+    tu_failures++;
   }
   return rc == BK_OK;
 }
@@ -441,7 +421,7 @@ static void case_bunny(const char *mesh_path) {
   bk_error_t err;
   if (mesh_io_read(mesh_path, &m, &err) != BK_OK) {
     fprintf(stderr, "%s\n", err.msg);
-    g_failures++;
+    tu_failures++;
     return;
   }
   mesh_report_t rep;
@@ -766,8 +746,8 @@ static void case_medium(void) {
       }
   vdbio_grid_t g_ior = {"ior", VDBIO_FLOAT, ior, 0}, g_rho = {"density", VDBIO_FLOAT, rho, 0};
   char p_ior[4096], p_rho[4096];
-  path_in_dir(p_ior, sizeof p_ior, "field_ior.vdb");
-  path_in_dir(p_rho, sizeof p_rho, "field_density.vdb");
+  tu_path(p_ior, sizeof p_ior, "field_ior.vdb");
+  tu_path(p_rho, sizeof p_rho, "field_density.vdb");
   vdbio_write_opts_t opts = {VDBIO_COMPRESS_NONE, 0};
   CHECK(vdbio_write(p_ior, &d, &g_ior, 1, NULL, 0, &opts, &err) == BK_OK);
   CHECK(vdbio_write(p_rho, &d, &g_rho, 1, NULL, 0, &opts, &err) == BK_OK);
@@ -811,18 +791,6 @@ static void case_medium(void) {
   free(rho);
 }
 
-static void write_text(const char *name, const char *text, char *path, size_t len) {
-  path_in_dir(path, len, name);
-  FILE *f = fopen(path, "wb");
-  if (!f) {
-    perror(path);
-    g_failures++;
-    return;
-  }
-  fputs(text, f);
-  fclose(f);
-}
-
 /* mesh_io_read and vox_build must both refuse with BK_ERR_INPUT, naming the
  * file and the problem (and, through vox_build, the scene key). */
 static void expect_refusal(const char *path, const char *problem) {
@@ -838,7 +806,7 @@ static void expect_refusal(const char *path, const char *problem) {
   CHECK(strstr(err.msg, path) != NULL);
   if (!strstr(err.msg, problem)) {
     fprintf(stderr, "  expected \"%s\" in the message\n", problem);
-    g_failures++;
+    tu_failures++;
   }
   scene_t s;
   scene_object_t o;
@@ -859,43 +827,43 @@ static void case_bad_input(void) {
   const char *tail = "v 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n";
   char text[1024];
   snprintf(text, sizeof text, "v 0 0 0\nv 1 0 0\nv nan 1 0\n%s", tail);
-  write_text("nan.obj", text, p, sizeof p);
+  tu_write_text("nan.obj", text, p, sizeof p);
   expect_refusal(p, "vertex 3 has a non-finite coordinate (nan, 1, 0)");
   snprintf(text, sizeof text, "v 0 0 0\nv 1 0 0\nv 0 -inf 0\n%s", tail);
-  write_text("inf.obj", text, p, sizeof p);
+  tu_write_text("inf.obj", text, p, sizeof p);
   expect_refusal(p, "vertex 3 has a non-finite coordinate (0, -inf, 0)");
   snprintf(text, sizeof text, "v 0 0 0\nv 1e39 0 0\nv 0 1 0\n%s", tail);
-  write_text("overflow.obj", text, p, sizeof p);
+  tu_write_text("overflow.obj", text, p, sizeof p);
   expect_refusal(p, "overflows a 32-bit float");
   snprintf(text, sizeof text, "v 0 0 0\nv 1 x 0\nv 0 1 0\n%s", tail);
-  write_text("garbled.obj", text, p, sizeof p);
+  tu_write_text("garbled.obj", text, p, sizeof p);
   expect_refusal(p, "vertex 2: expected three numbers");
-  write_text("empty.obj", "", p, sizeof p);
+  tu_write_text("empty.obj", "", p, sizeof p);
   expect_refusal(p, "contains no triangles");
-  write_text("no_faces.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", p, sizeof p);
+  tu_write_text("no_faces.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", p, sizeof p);
   expect_refusal(p, "contains no triangles");
-  path_in_dir(p, sizeof p, "missing.obj");
+  tu_path(p, sizeof p, "missing.obj");
   remove(p);
   expect_refusal(p, "cannot open");
-  write_text("mesh.xyz", "0 0 0\n", p, sizeof p);
+  tu_write_text("mesh.xyz", "0 0 0\n", p, sizeof p);
   expect_refusal(p, "unknown mesh format '.xyz'");
-  write_text("nan.off", "OFF\n4 4 0\n0 0 0\n1 0 0\nNaN 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n",
+  tu_write_text("nan.off", "OFF\n4 4 0\n0 0 0\n1 0 0\nNaN 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n",
              p, sizeof p);
   expect_refusal(p, "vertex 2 has a non-finite coordinate (nan, 1, 0)");
-  write_text("nan.ply",
+  tu_write_text("nan.ply",
              "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
              "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
              "0 0 0\n1 0 0\n0 1 0\n0 inf 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n",
              p, sizeof p);
   expect_refusal(p, "vertex 3 has a non-finite coordinate (0, inf, 1)");
-  write_text("nan.stl",
+  tu_write_text("nan.stl",
              "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 nan 0\n"
              "endloop\nendfacet\nendsolid t\n",
              p, sizeof p);
   expect_refusal(p, "facet 0 vertex 2 has a non-finite coordinate (0, nan, 0)");
   /* binary STL: NaN passes through OpenMesh and is caught on its vertices */
   {
-    path_in_dir(p, sizeof p, "nan_binary.stl");
+    tu_path(p, sizeof p, "nan_binary.stl");
     FILE *f = fopen(p, "wb");
     char header[80] = "binary stl with a nan";
     unsigned n = 1;
@@ -908,12 +876,12 @@ static void case_bad_input(void) {
     fclose(f);
     expect_refusal(p, "facet 0 vertex 2 has a non-finite coordinate (nan, 1, 0)");
   }
-  write_text("comment.off", "OFF\n4 4 0\n# vertices\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n",
+  tu_write_text("comment.off", "OFF\n4 4 0\n# vertices\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n",
              p, sizeof p);
   expect_refusal(p, ":3: '#' comments are not supported by OpenMesh's OFF reader");
   /* binary PLY: the NaN reaches OpenMesh's vertices and is caught there */
   {
-    path_in_dir(p, sizeof p, "nan_binary.ply");
+    tu_path(p, sizeof p, "nan_binary.ply");
     FILE *f = fopen(p, "wb");
     fputs("ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
           "property float y\nproperty float z\nelement face 4\n"
@@ -944,8 +912,8 @@ int main(int argc, char **argv) {
     fprintf(stderr, "usage: test_voxelize CASE DIR [MESH]\n");
     return 2;
   }
-  g_dir = argv[2];
-  mkdir(g_dir, 0777); /* the parent is the build directory */
+  tu_dir = argv[2];
+  mkdir(tu_dir, 0777); /* the parent is the build directory */
   bk_verbosity = 1;
   const char *c = argv[1];
   if (!strcmp(c, "sphere")) case_sphere();
@@ -961,6 +929,6 @@ int main(int argc, char **argv) {
     fprintf(stderr, "unknown case %s\n", c);
     return 2;
   }
-  if (g_failures) fprintf(stderr, "%d check(s) failed\n", g_failures);
-  return g_failures ? 1 : 0;
+  if (tu_failures) fprintf(stderr, "%d check(s) failed\n", tu_failures);
+  return tu_failures ? 1 : 0;
 }
