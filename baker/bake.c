@@ -434,12 +434,7 @@ int bake_main(int argc, char **argv) {
       opt.device = val;
     } else if (!strcmp(a, "--host")) {
       opt.host_only = 1;
-    } else if (!strcmp(a, "--progress")) {
-      bk_progress_forced = 1;
-    } else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) {
-      bk_verbosity = 0;
-    } else if (!strcmp(a, "-v") || !strcmp(a, "--verbose")) {
-      bk_verbosity = 2;
+    } else if (bk_common_option(a)) {
     } else if (a[0] == '-' && a[1]) {
       fprintf(stderr, "baker bake: unknown option '%s' (see baker bake --help)\n", a);
       return BK_ERR_INPUT;

@@ -43,6 +43,14 @@ void bk_warn(const char *fmt, ...) {
   fputc('\n', stderr);
 }
 
+int bk_common_option(const char *arg) {
+  if (!strcmp(arg, "--progress")) bk_progress_forced = 1;
+  else if (!strcmp(arg, "-q") || !strcmp(arg, "--quiet")) bk_verbosity = 0;
+  else if (!strcmp(arg, "-v") || !strcmp(arg, "--verbose")) bk_verbosity = 2;
+  else return 0;
+  return 1;
+}
+
 double bk_now_ms(void) {
   struct timespec ts;
   clock_gettime(CLOCK_MONOTONIC, &ts);

@@ -34,6 +34,10 @@ extern int bk_verbosity;
 void bk_log(int level, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 void bk_warn(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 
+/* The verbosity flags every command takes (--progress, -q/--quiet,
+ * -v/--verbose): applies `arg` and returns 1 when it is one of them. */
+int bk_common_option(const char *arg);
+
 double bk_now_ms(void); /* monotonic clock */
 
 /* a*b (and a*b*c) without overflow; return 0 when it would overflow. */

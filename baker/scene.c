@@ -169,7 +169,7 @@ static int sc_number(const sc_ctx_t *c, const json_value_t *v, const char *path,
 
 static int sc_float(const sc_ctx_t *c, const json_value_t *v, const char *path,
                     const sc_range_t *r, float *out) {
-  double x;
+  double x = 0.0; /* set whenever sc_number succeeds; gcc cannot see it */
   int rc = sc_number(c, v, path, r, &x);
   if (rc == BK_OK) *out = (float)x;
   return rc;
@@ -287,7 +287,7 @@ static int sc_opt_floats(const sc_ctx_t *c, const json_value_t *obj, const char 
 static int sc_opt_int(const sc_ctx_t *c, const json_value_t *obj, const char *path,
                       const char *key, const sc_range_t *r, long long *out) {
   char p[SC_KEY_MAX];
-  double x;
+  double x = 0.0;
   const json_value_t *v = json_object_get(obj, key);
   if (!v) return BK_OK;
   int rc = sc_number(c, v, sc_key(p, path, key), r, &x);
@@ -437,7 +437,7 @@ static int sc_light(const sc_ctx_t *c, const json_value_t *v, const char *path, 
   static const char *const types[] = {"directional", "spot", "point"}; /* light_type_t order */
   char p[SC_KEY_MAX];
   const json_value_t *tv;
-  int rc, type;
+  int rc, type = 0;
   if ((rc = sc_object(c, v, path)) || (rc = sc_required(c, v, path, "type", &tv)) ||
       (rc = sc_enum(c, tv, sc_key(p, path, "type"), types, 3, &type)))
     return rc;

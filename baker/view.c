@@ -216,12 +216,7 @@ static int parse_args(int argc, char **argv, view_opts_t *o, bk_error_t *err) {
     } else if (!strcmp(a, "--device")) {
       NEED_VALUE();
       o->device = val;
-    } else if (!strcmp(a, "--progress")) {
-      bk_progress_forced = 1;
-    } else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) {
-      bk_verbosity = 0;
-    } else if (!strcmp(a, "-v") || !strcmp(a, "--verbose")) {
-      bk_verbosity = 2;
+    } else if (bk_common_option(a)) {
     } else if (a[0] == '-' && a[1] != 0) {
       return bk_fail(err, BK_ERR_INPUT, "unknown option '%s' (see baker view --help)", a);
     } else if (!o->in) {

@@ -17,20 +17,12 @@
 
 #include "adaptive.h"
 #include "clhost.h"
+#include "kernels/photons.h" /* ph_radical_inverse2: the march's own Hammersley */
 #include "scene.h"
 #include "test_util.h"
 
 #define CHECK TU_EXPECT
 
-/* Hammersley point i of n: (i/n, radical inverse base 2 of i). */
-static float radical_inverse2(uint32_t k) {
-  k = (k << 16) | (k >> 16);
-  k = ((k & 0x00ff00ffu) << 8) | ((k & 0xff00ff00u) >> 8);
-  k = ((k & 0x0f0f0f0fu) << 4) | ((k & 0xf0f0f0f0u) >> 4);
-  k = ((k & 0x33333333u) << 2) | ((k & 0xccccccccu) >> 2);
-  k = ((k & 0x55555555u) << 1) | ((k & 0xaaaaaaaau) >> 1);
-  return (float)(k >> 8) * (1.0f / 16777216.0f);
-}
 
 /* Fixed-seed generator: xorshift64*, and Gaussians by Box–Muller. */
 static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
@@ -117,7 +109,7 @@ static void check_table(const char *name, const float *table, int nx, int ny,
   double est_a = 0.0, est_b = 0.0, worst_inv = 0.0;
   int outside = 0, wrong_cell = 0, wrong_pdf = 0;
   for (uint32_t i = 0; i < N; i++) {
-    float ua = (float)i / (float)N, ub = radical_inverse2(i);
+    float ua = (float)i / (float)N, ub = ph_radical_inverse2(i);
     ad_sample s = ad_pdf_warp(table, nx, ny, ua, ub);
     if (!(s.x >= 0.0f && s.x < 1.0f && s.y >= 0.0f && s.y < 1.0f)) outside++;
     int col = (int)floorf(s.x * nx), row = (int)floorf(s.y * ny);
@@ -189,7 +181,7 @@ static int test_warp(void) {
   check_table("uniform", table, 8, 8, ones);
   double worst = 0.0;
   for (uint32_t i = 0; i < 4096; i++) {
-    float ua = i / 4096.0f, ub = radical_inverse2(i);
+    float ua = i / 4096.0f, ub = ph_radical_inverse2(i);
     ad_sample s = ad_pdf_warp(table, 8, 8, ua, ub);
     worst = fmax(worst, fmax(fabs(s.x - ua), fabs(s.y - ub)));
     CHECK(s.pdf == 1.0f, "uniform pdf %g", (double)s.pdf);
@@ -496,7 +488,7 @@ static int test_chain(void) {
   uint8_t *sel = calloc(V, 1);
   enum { PILOT = 4096, N = 65536 };
   for (uint32_t p = 0; p < PILOT; p++) {
-    float a = (float)p / PILOT, b = radical_inverse2(p);
+    float a = (float)p / PILOT, b = ph_radical_inverse2(p);
     int i = (int)(a * CN), j = (int)(b * CN);
     size_t v = (size_t)i + CN * (size_t)j;
     for (int c = 0; c < 3; c++) pilot[3 * v + c] += (float)(toy_f(i, j) / PILOT);
@@ -526,7 +518,7 @@ static int test_chain(void) {
   /* phase 2: warped Hammersley points, weight 1/pdf */
   double total = 0.0;
   for (uint32_t p = 0; p < N; p++) {
-    ad_sample s = ad_pdf_warp(pdf.table, pdf.nx, pdf.ny, (float)p / N, radical_inverse2(p));
+    ad_sample s = ad_pdf_warp(pdf.table, pdf.nx, pdf.ny, (float)p / N, ph_radical_inverse2(p));
     int i = (int)(s.x * CN), j = (int)(s.y * CN);
     size_t v = (size_t)i + CN * (size_t)j;
     double w = 1.0 / s.pdf;
@@ -980,7 +972,7 @@ static int test_device(void) {
   CHECK(ad_pdf_from_weights(w, 8, 8, 0.2f, table, NULL, &err) == BK_OK, "%s", err.msg);
   for (int i = 0; i < N; i++) {
     u[2 * i] = (float)i / N;
-    u[2 * i + 1] = radical_inverse2((uint32_t)i);
+    u[2 * i + 1] = ph_radical_inverse2((uint32_t)i);
   }
   if (clh_build_source(&cl, "tests/adaptive_device.cl", device_src, "", &prog, &err) != BK_OK) {
     fprintf(stderr, "FAIL build: %s\n", err.msg);
