@@ -110,41 +110,33 @@ def _fit_line(ax, fit, xs, style, label):
             label=f"{label}: exponent {fit['exponent']:.2f}")
 
 
-def scaling(sc, path, machine_line):
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.6))
-    ph = sc.get("photons") or {}
-    pts = [p for p in ph.get("points", []) if p.get("total_s")]
-    ax = axes[0]
+def _time_panel(ax, block, xkey, upper_fit, upper_label, xlabel, title):
+    """Total and march time against xkey, log-log, with the fitted power laws."""
+    pts = [p for p in block.get("points", []) if p.get("total_s")]
     if pts:
-        xs = [p["photons"] for p in pts]
+        xs = [p[xkey] for p in pts]
         ax.loglog(xs, [p["total_s"] for p in pts], "o", color="tab:blue", label="total")
         ax.loglog(xs, [p["march_s"] for p in pts if p.get("march_s")], "s", color="tab:orange",
                   label="photon marching")
-        _fit_line(ax, ph.get("fit_total"), xs, "--", "total fit")
-        _fit_line(ax, ph.get("fit_march"), xs, ":", "march fit")
-        _fit_line(ax, ph.get("fit_march_upper"), xs[len(xs) // 2:], "-", "march fit, larger half")
-    ax.set_xlabel("photons")
+        _fit_line(ax, block.get("fit_total"), xs, "--", "total fit")
+        _fit_line(ax, block.get("fit_march"), xs, ":", "march fit")
+        _fit_line(ax, block.get(upper_fit), xs[len(xs) // 2:], "-", upper_label)
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("time (s)")
-    ax.set_title(f"time vs photons at {ph.get('resolution', '?')}^3", fontsize=10)
+    ax.set_title(title, fontsize=10)
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.25)
 
+
+def scaling(sc, path, machine_line):
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.6))
+    ph = sc.get("photons") or {}
+    _time_panel(axes[0], ph, "photons", "fit_march_upper", "march fit, larger half", "photons",
+                f"time vs photons at {ph.get('resolution', '?')}^3")
     rs = sc.get("resolution") or {}
-    pts = [p for p in rs.get("points", []) if p.get("total_s")]
-    ax = axes[1]
-    if pts:
-        xs = [p["resolution"] for p in pts]
-        ax.loglog(xs, [p["total_s"] for p in pts], "o", color="tab:blue", label="total")
-        ax.loglog(xs, [p["march_s"] for p in pts if p.get("march_s")], "s", color="tab:orange",
-                  label="photon marching")
-        _fit_line(ax, rs.get("fit_total"), xs, "--", "total fit")
-        _fit_line(ax, rs.get("fit_march"), xs, ":", "march fit")
-        _fit_line(ax, rs.get("fit_total_upper"), xs[len(xs) // 2:], "-", "total fit, larger half")
-    ax.set_xlabel("resolution (voxels per side)")
-    ax.set_ylabel("time (s)")
-    ax.set_title(f"time vs resolution, {rs.get('photons', '?')} photons", fontsize=10)
-    ax.legend(fontsize=7)
-    ax.grid(True, which="both", alpha=0.25)
+    _time_panel(axes[1], rs, "resolution", "fit_total_upper", "total fit, larger half",
+                "resolution (voxels per side)",
+                f"time vs resolution, {rs.get('photons', '?')} photons")
 
     ax = axes[2]
     pts = [p for p in rs.get("points", []) if p.get("max_rss_mib")]
