@@ -1,6 +1,6 @@
 /* adaptive.c: voxel selection, automatic thresholds and the sampling PDF of
  * the adaptive pipeline (phase 1), and the reconstruction filter on the host
- * and on the OpenCL device. The shared math is kernels/adaptive.h. */
+ * and on the OpenCL device. The shared math is kernels/adaptive_filter.h. */
 #define _POSIX_C_SOURCE 200809L
 #include "adaptive.h"
 
@@ -10,7 +10,6 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "iorgrad.h"
 
 /* Host filter threads: the CPU cores, at most this many. */
 #define AD_MAX_THREADS 64
@@ -339,7 +338,7 @@ int ad_pdf_from_weights(const double *weights, int nx, int ny, float floor_fract
     for (int r = 0; r < ny; r++)
       for (int c = 0; c < nx; c++)
         cell_pdf[c + nx * r] =
-            ad_pdf_eval(table, nx, ny, ((float)c + 0.5f) / (float)nx, ((float)r + 0.5f) / (float)ny);
+            ld_pdf_eval(table, nx, ny, ((float)c + 0.5f) / (float)nx, ((float)r + 0.5f) / (float)ny);
   return BK_OK;
 }
 
@@ -355,8 +354,8 @@ int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
   memset(pdf, 0, sizeof *pdf);
   if (voxels > 0 && (!origin_masks || !selected))
     return bk_fail(err, BK_ERR_RUNTIME, "adaptive pdf: missing origin masks or selection");
-  pdf->nx = AD_CELLS_X;
-  pdf->ny = AD_CELLS_Y;
+  pdf->nx = LD_CELLS_X;
+  pdf->ny = LD_CELLS_Y;
   pdf->floor_fraction = floor_fraction;
   for (size_t v = 0; v < voxels; v++) {
     uint64_t m = origin_masks[v];
@@ -368,13 +367,13 @@ int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
     }
     pdf->selected_reached++;
   }
-  return ad_pdf_from_weights(pdf->importance, AD_CELLS_X, AD_CELLS_Y, floor_fraction, pdf->table,
+  return ad_pdf_from_weights(pdf->importance, LD_CELLS_X, LD_CELLS_Y, floor_fraction, pdf->table,
                              pdf->cell_pdf, err);
 }
 
 /* --- the reconstruction filter ------------------------------------------------ */
 
-/* The 1D Gaussian weights (kernels/adaptive.h): row q (level), column |d|. */
+/* The 1D Gaussian weights (kernels/adaptive_filter.h): row q (level), column |d|. */
 #define AD_WEIGHT_COUNT (AD_WROW * AD_WROW)
 static void filter_weights(float *w) {
   for (int i = 0; i < AD_WEIGHT_COUNT; i++) w[i] = 0.0f;
@@ -486,7 +485,7 @@ int ad_filter_host(const grid_dims_t *d, int channels, const float *radiance, co
       job->weights = weights;
       job->M = M;
       job->scratch = scratch + (size_t)t * per;
-      job->g = ig_kernel_grid(d);
+      job->g = pm_kernel_grid(d);
       job->C = channels;
       job->Q = levels;
       job->alpha = alpha;
@@ -562,7 +561,7 @@ int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_
   CLH_CHECK(cerr, err, error);
   ks = clCreateKernel(program, "ad_select", &cerr);
   CLH_CHECK(cerr, err, error);
-  bk_grid g = ig_kernel_grid(d);
+  bk_grid g = pm_kernel_grid(d);
   cl_int want = out_radius != NULL;
   CLH_CHECK(clSetKernelArg(km, 0, sizeof(cl_mem), &rgb), err, error);
   CLH_CHECK(clSetKernelArg(km, 1, sizeof(cl_mem), &w_buf), err, error);
@@ -809,7 +808,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   const grid_dims_t *d = &base.dims;
   const size_t V = base.voxels;
   const int nl = base.lights.count > 0 ? base.lights.count : 1;
-  const int TF = AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y);
+  const int TF = LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y);
   rc = BK_ERR_RUNTIME;
   tables = bk_calloc((size_t)nl, TF * sizeof(float), "adaptive PDF tables", err);
   if (!tables) goto error;
@@ -825,7 +824,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   if (have_pilot) {
     rc = pm_derive(&base, scene, (uint64_t)scene->pilot, &pilot, err);
     if (rc != BK_OK) goto error;
-    pm_use_pilot(&pilot, shift, NULL);
+    pm_record_origins(&pilot, shift, NULL);
     rc = BK_ERR_RUNTIME;
     masks = bk_calloc(pm_mask_count(&pilot), sizeof(uint64_t), "adaptive origin masks", err);
     pacc = bk_calloc(pm_acc_count(&pilot), sizeof(uint64_t), "adaptive pilot accumulator", err);
@@ -876,31 +875,31 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
                                    &pdf, err);
       } else {
         memset(&pdf, 0, sizeof pdf);
-        double zero[AD_CELLS] = {0};
-        rc = ad_pdf_from_weights(zero, AD_CELLS_X, AD_CELLS_Y, 1.0f, pdf.table, pdf.cell_pdf, err);
+        double zero[LD_CELLS] = {0};
+        rc = ad_pdf_from_weights(zero, LD_CELLS_X, LD_CELLS_Y, 1.0f, pdf.table, pdf.cell_pdf, err);
       }
       if (rc != BK_OK) goto error;
       memcpy(tables + (size_t)l * TF, pdf.table, TF * sizeof(float));
       if (bk_verbosity >= 2) {
-        char line[AD_CELLS_X * 8 + 1];
+        char line[LD_CELLS_X * 8 + 1];
         bk_log(2, "adaptive: light %d: pdf per cell (rows b, columns a), %zu selected cells "
                   "with origin data", l, pdf.selected_reached);
-        for (int y = 0; y < AD_CELLS_Y; y++) {
+        for (int y = 0; y < LD_CELLS_Y; y++) {
           int at = 0;
-          for (int x = 0; x < AD_CELLS_X; x++)
-            at += snprintf(line + at, sizeof line - at, " %6.2f", (double)pdf.cell_pdf[x + AD_CELLS_X * y]);
+          for (int x = 0; x < LD_CELLS_X; x++)
+            at += snprintf(line + at, sizeof line - at, " %6.2f", (double)pdf.cell_pdf[x + LD_CELLS_X * y]);
           bk_log(2, "  %s", line);
         }
       }
-      for (int c = 0; c < AD_CELLS; c++) {
+      for (int c = 0; c < LD_CELLS; c++) {
         pdf_min = fmin(pdf_min, pdf.cell_pdf[c]);
         pdf_max = fmax(pdf_max, pdf.cell_pdf[c]);
       }
     }
   } else {
-    double zero[AD_CELLS] = {0};
+    double zero[LD_CELLS] = {0};
     for (int l = 0; l < nl; l++) {
-      rc = ad_pdf_from_weights(zero, AD_CELLS_X, AD_CELLS_Y, 1.0f, tables + (size_t)l * TF, NULL,
+      rc = ad_pdf_from_weights(zero, LD_CELLS_X, LD_CELLS_Y, 1.0f, tables + (size_t)l * TF, NULL,
                                err);
       if (rc != BK_OK) goto error;
     }
@@ -913,7 +912,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   t0 = bk_now_ms();
   rc = pm_derive(&base, scene, (uint64_t)scene->photon_count, &main, err);
   if (rc != BK_OK) goto error;
-  rc = pm_use_pdf(&main, tables, 1.0 / pdf_min, err);
+  rc = pm_sample_tables(&main, tables, 1.0 / pdf_min, err);
   if (rc != BK_OK) goto error;
   stats->ms_generate += bk_now_ms() - t0;
   t0 = bk_now_ms();

@@ -2,9 +2,9 @@
  * voxel selection and a sampling PDF per light (phase 1), a march of
  * photons drawn from that PDF with weights 1/(N pdf) (phase 2), and the
  * reconstruction filter. ad_bake runs it all; the march is baker/march.c's
- * (modes PM_MODE_PILOT and PM_MODE_WEIGHTED of kernels/march.h) on one
+ * (modes PM_MODE_ORIGINS and PM_MODE_TABLES of kernels/photon_march.h) on one
  * prepared setup, and the math shared with the kernels is in
- * kernels/adaptive.h (cells, origin masks, the PDF warp, the filter).
+ * kernels/adaptive_filter.h (cells, origin masks, the PDF warp, the filter).
  *
  * What ad_bake does, per frame:
  *  1. Pilot march, uniform Hammersley points, `adaptive.pilot` photons (~4000)
@@ -14,8 +14,8 @@
  *     cell there, where at full resolution most voxels would see none and
  *     every gradient would be noise. It yields the pilot radiance per cell
  *     and the origin masks: one uint64_t per cell per light, light major
- *     (ad_origin_index), bit c set when a pilot photon from light-domain cell
- *     c = ad_cell_of(a, b) crossed the cell (ad_origin_mark).
+ *     (ld_origin_index), bit c set when a pilot photon from light-domain cell
+ *     c = ld_cell_of(a, b) crossed the cell (ld_origin_mark).
  *  2. ad_select_voxels on the pilot cells: those whose luminance gradient
  *     exceeds a threshold (edges, caustics) or whose luminance is below one
  *     (shadows). Thresholds are explicit or automatic (ad_auto_thresholds,
@@ -31,17 +31,17 @@
  *     density p has 1/p times the error; 1/4 cost more in the sparse fog
  *     than it gained at the edges).
  *  4. Main march: photon k of N takes its Hammersley point u, warps it with
- *     ad_pdf_warp(table, 8, 8, u) -> (x, pdf), generates the photon from x and
+ *     ld_pdf_warp(table, 8, 8, u) -> (x, pdf), generates the photon from x and
  *     multiplies its power (light power / N) by w = 1/pdf. Per voxel it keeps
  *     the photon count and the sum of w over the photons that entered it; the
  *     mean weight w_mean = sum / count (0 where count is 0) is the
  *     `photon_weight` grid and the count the `photon_count` grid. w_mean is 1
  *     for uniform sampling, < 1 where the PDF concentrated photons.
- *     One packed atomic per voxel entry (kernels/march.h) makes this march
+ *     One packed atomic per voxel entry (kernels/photon_march.h) makes this march
  *     about 1.2x the reference's cost per photon (bench_adaptive).
  *  5. The filter (ad_filter_host / ad_filter_cl) on the radiance with count
  *     and w_mean: radius min(alpha * w_mean, centre-surround radius) in half
- *     voxels, capped at AD_DEFAULT_MAX_RADIUS, see kernels/adaptive.h. A grey
+ *     voxels, capped at AD_DEFAULT_MAX_RADIUS, see kernels/adaptive_filter.h. A grey
  *     march (one channel) is filtered as one channel and coloured after. The
  *     radius grid is a debug output.
  * Timing rows: "octree", "pilot marching", "photon distribution" (selection
@@ -57,7 +57,8 @@
 
 #include "clhost.h"
 #include "grid.h"
-#include "kernels/adaptive.h"
+#include "kernels/adaptive_filter.h"
+#include "kernels/light_domain.h"
 #include "march.h"
 #include "scene.h"
 #include "voxelize.h"
@@ -133,22 +134,22 @@ int ad_select_voxels(const grid_dims_t *d, const float *pilot_radiance, const fl
                      const ad_select_opts_t *opt, uint8_t *selected, ad_select_stats_t *stats,
                      bk_error_t *err);
 
-/* One light's sampling PDF over the AD_CELLS_X x AD_CELLS_Y cells. */
+/* One light's sampling PDF over the LD_CELLS_X x LD_CELLS_Y cells. */
 typedef struct ad_pdf {
-  int nx, ny;                 /* AD_CELLS_X, AD_CELLS_Y */
+  int nx, ny;                 /* LD_CELLS_X, LD_CELLS_Y */
   float floor_fraction;       /* every cell has pdf >= this */
-  float cell_pdf[AD_CELLS];   /* density of each cell w.r.t. uniform (mean 1), as the warp reports it */
-  float table[AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y)]; /* what ad_pdf_warp reads */
-  double importance[AD_CELLS]; /* share of the selected voxels each cell reaches */
+  float cell_pdf[LD_CELLS];   /* density of each cell w.r.t. uniform (mean 1), as the warp reports it */
+  float table[LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y)]; /* what ld_pdf_warp reads */
+  double importance[LD_CELLS]; /* share of the selected voxels each cell reaches */
   size_t selected_reached;    /* selected voxels with origin data */
 } ad_pdf_t;
 
 /* Builds the PDF of one light from its origin masks (`voxels` entries: the
- * light's block, origin + ad_origin_index(0, light, voxels)) and the
+ * light's block, origin + ld_origin_index(0, light, voxels)) and the
  * selection. Each selected voxel with mask m spreads an importance of 1 evenly
  * over the popcount(m) cells that reached it, so a voxel every cell reaches
  * favours none; then
- *   pdf(c) = floor + (1 - floor) * AD_CELLS * importance(c) / sum(importance)
+ *   pdf(c) = floor + (1 - floor) * LD_CELLS * importance(c) / sum(importance)
  * a mixture with the uniform density (defensive sampling): pdf >= floor, so
  * weights stay <= 1/floor. No selected voxel with origin data: uniform.
  * floor_fraction must be in (0, 1]. */
@@ -161,7 +162,7 @@ int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
                           const float *voxel_weight, size_t voxels, float floor_fraction,
                           ad_pdf_t *pdf, bk_error_t *err);
 
-/* The general form: a table (AD_TABLE_FLOATS(nx, ny) floats) from
+/* The general form: a table (LD_TABLE_FLOATS(nx, ny) floats) from
  * non-negative cell weights (nx * ny, row major, cell = col + nx * row), with
  * the same floor mixture; cell_pdf (may be NULL) receives the densities the
  * warp will report. All-zero weights give the uniform density. */
@@ -174,7 +175,7 @@ int ad_pdf_from_weights(const double *weights, int nx, int ny, float floor_fract
  * float per voxel (mean of w = 1/pdf, see above); alpha >= 0; noise_k: the
  * first step's noise scale (< 0: no test, the slides' rule); levels: the
  * largest level, twice the largest radius in voxels, in
- * [0, AD_FILTER_MAX_LEVEL] (kernels/adaptive.h). out_radiance (channels per
+ * [0, AD_FILTER_MAX_LEVEL] (kernels/adaptive_filter.h). out_radiance (channels per
  * voxel, must not alias radiance) gets the filtered radiance; out_radius
  * (NULL: not wanted) the radius used per voxel, in voxels (multiples of
  * 1/2). Needs `levels` grids of `channels` floats of scratch. */
@@ -207,7 +208,7 @@ typedef struct ad_bake_opts {
   int smooth_radius;    /* pilot pre-smoothing, cells (ad_select_opts_t) */
   float floor_fraction; /* PDF floor, (0, 1] */
   int pilot_cells;      /* the pilot grid's cells along the longest axis */
-  float noise_k;        /* filter: the first step's noise allowance (kernels/adaptive.h) */
+  float noise_k;        /* filter: the first step's noise allowance (kernels/adaptive_filter.h) */
   int importance;       /* AD_IMPORTANCE_*: what a selected cell spreads over its origins */
 } ad_bake_opts_t;
 void ad_bake_defaults(ad_bake_opts_t *o);

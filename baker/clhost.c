@@ -337,7 +337,9 @@ static int buf_printf(clh_buf_t *b, const char *fmt, ...) {
   return buf_add(b, tmp, (size_t)n < sizeof tmp ? (size_t)n : sizeof tmp - 1);
 }
 
+/* Kernel files are named as they are included, "kernels/x.h", or bare. */
 static const clh_source_t *find_source(const clh_source_t *table, const char *name) {
+  if (strncmp(name, "kernels/", 8) == 0) name += 8;
   for (const clh_source_t *s = table; s && s->name; s++)
     if (strcmp(s->name, name) == 0) return s;
   return NULL;

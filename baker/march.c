@@ -8,13 +8,21 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "kernels/ior.h"
+#include "field.h"
 
 double pm_fixed_scale(double power_max, double path_bound) {
   if (!(power_max > 0.0) || !(path_bound > 0.0)) return 1.0;
   double s = ldexp(1.0, 62) / (power_max * path_bound);
   /* the deposit is computed in float: keep S and Φ·ℓ·S finite */
   return s < 1e30 ? s : 1e30;
+}
+
+bk_grid pm_kernel_grid(const grid_dims_t *d) {
+  bk_grid g;
+  g.nx = d->nx, g.ny = d->ny, g.nz = d->nz, g.pad0 = 0;
+  g.origin_x = (float)d->origin[0], g.origin_y = (float)d->origin[1], g.origin_z = (float)d->origin[2];
+  g.voxel_size = (float)d->voxel_size;
+  return g;
 }
 
 static void add_result(pm_stats_t *st, const pm_result *r) {
@@ -110,26 +118,13 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
 
   /* stage 3: pyramid and the n/∇n field, only where n varies */
   t0 = bk_now_ms();
-  bk_grid g;
-  g.nx = d->nx, g.ny = d->ny, g.nz = d->nz, g.pad0 = 0;
-  g.origin_x = d->origin[0], g.origin_y = d->origin[1], g.origin_z = d->origin[2];
-  g.voxel_size = d->voxel_size;
+  bk_grid g = pm_kernel_grid(d);
   if (s->has_refraction) {
     rc = oct_build(d, vol->ior, &s->pyramid, err);
     if (rc != BK_OK) goto error;
     rc = BK_ERR_RUNTIME;
-    s->ng = bk_calloc(s->voxels, 4 * sizeof(float), "march: n and grad n field", err);
+    s->ng = fld_build(d->nx, d->ny, d->nz, d->voxel_size, vol->ior, err);
     if (!s->ng) goto error;
-    for (int k = 0; k < d->nz; k++)
-      for (int j = 0; j < d->ny; j++)
-        for (int i = 0; i < d->nx; i++) {
-          size_t idx = grid_index(d, i, j, k);
-          bk_v3 gr = ior_gradient_at(vol->ior, g, i, j, k); /* 1/m -> 1/voxel */
-          s->ng[4 * idx] = gr.x * d->voxel_size;
-          s->ng[4 * idx + 1] = gr.y * d->voxel_size;
-          s->ng[4 * idx + 2] = gr.z * d->voxel_size;
-          s->ng[4 * idx + 3] = vol->ior[idx];
-        }
     s->octree_enabled = 1;
   }
   pm_params *P = &s->params;
@@ -163,9 +158,6 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   P->has_refraction = (bk_uint)s->has_refraction;
   P->homogeneous = (bk_uint)s->homogeneous;
   P->integrator = scene->integrator == INTEGRATOR_RK4 ? 1u : 0u;
-  P->pyr_nx = s->pyramid.bx;
-  P->pyr_ny = s->pyramid.by;
-  P->pyr_nz = s->pyramid.bz;
   P->mode = PM_MODE_REFERENCE;
   set_scale(s, 1.0);
   ms_generate += bk_now_ms() - t0;
@@ -225,10 +217,10 @@ int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm
   return BK_OK;
 }
 
-void pm_use_pilot(pm_setup_t *s, int coarse_shift, uint64_t *masks) {
+void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks) {
   pm_params *P = &s->params;
   const int m = (1 << coarse_shift) - 1;
-  P->mode = PM_MODE_PILOT;
+  P->mode = PM_MODE_ORIGINS;
   P->coarse_shift = coarse_shift;
   P->cnx = (s->dims.nx + m) >> coarse_shift;
   P->cny = (s->dims.ny + m) >> coarse_shift;
@@ -236,7 +228,7 @@ void pm_use_pilot(pm_setup_t *s, int coarse_shift, uint64_t *masks) {
   s->masks = masks;
 }
 
-int pm_use_pdf(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err) {
+int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err) {
   pm_params *P = &s->params;
   /* count bits: the photons, with room for 4 passages per photon on average
    * (curved paths may re-enter a voxel); the weight sum takes the rest, with
@@ -253,7 +245,7 @@ int pm_use_pdf(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err
                    "weight sums (%d bits); use at most about 4e7 photons, or photons.mode "
                    "\"reference\"",
                    (unsigned long long)s->lights.photons, count_bits);
-  P->mode = PM_MODE_WEIGHTED;
+  P->mode = PM_MODE_TABLES;
   P->count_shift = (bk_uint)shift;
   P->weight_scale = (float)ldexp(1.0, (int)floor(log2(room)) > 24 ? 24 : (int)floor(log2(room)));
   s->tables = tables;
@@ -263,13 +255,13 @@ int pm_use_pdf(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err
 
 size_t pm_acc_count(const pm_setup_t *s) {
   const pm_params *P = &s->params;
-  if (P->mode == PM_MODE_PILOT) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
+  if (P->mode == PM_MODE_ORIGINS) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
   return s->voxels * (size_t)pm_acc_stride((int)P->mode, s->channels);
 }
 
 size_t pm_mask_count(const pm_setup_t *s) {
   const pm_params *P = &s->params;
-  if (P->mode != PM_MODE_PILOT) return 0;
+  if (P->mode != PM_MODE_ORIGINS) return 0;
   return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->lights.count;
 }
 
@@ -310,12 +302,12 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
                    "needs for its fixed-point sums; choose another device with --device or march "
                    "on the host with --host",
                    cl->device_name);
-  if (acc_bytes > cl->max_alloc || (s->ng && s->voxels * 4 * sizeof(float) > cl->max_alloc))
+  if (acc_bytes > cl->max_alloc || (s->ng && fld_padded_count(s->dims.nx, s->dims.ny, s->dims.nz) * 4 * sizeof(float) > cl->max_alloc))
     return bk_fail(err, BK_ERR_RUNTIME,
                    "march: the %dx%dx%d grid needs buffers of %s; %s allows %s per buffer "
                    "(lower grid.resolution or march on the host with --host)",
                    s->dims.nx, s->dims.ny, s->dims.nz,
-                   bk_format_bytes((double)(s->ng ? s->voxels * 16 : acc_bytes), b1, sizeof b1),
+                   bk_format_bytes((double)(s->ng ? fld_padded_count(s->dims.nx, s->dims.ny, s->dims.nz) * 16 : acc_bytes), b1, sizeof b1),
                    cl->device_name, bk_format_bytes((double)cl->max_alloc, b2, sizeof b2));
 
   double t0 = bk_now_ms();
@@ -350,7 +342,9 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   b_dummy = clCreateBuffer(cl->context, CL_MEM_READ_WRITE, 64, NULL, &cerr);
   CLH_CHECK(cerr, err, error);
   if (s->ng) {
-    b_ng = clCreateBuffer(cl->context, in, s->voxels * 4 * sizeof(float), s->ng, &cerr);
+    b_ng = clCreateBuffer(cl->context, in,
+                          fld_padded_count(s->dims.nx, s->dims.ny, s->dims.nz) * 4 * sizeof(float), s->ng,
+                          &cerr);
     CLH_CHECK(cerr, err, error);
     b_pyr = clCreateBuffer(cl->context, in,
                            (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz, s->pyramid.level,
@@ -368,7 +362,7 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   CLH_CHECK(cerr, err, error);
   b_out = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, &cerr);
   CLH_CHECK(cerr, err, error);
-  if (mode == PM_MODE_PILOT) {
+  if (mode == PM_MODE_ORIGINS) {
     if (!s->masks) {
       bk_fail(err, BK_ERR_RUNTIME, "march: pilot march without origin masks");
       goto error;
@@ -379,13 +373,13 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
                              mask_bytes, s->masks, &cerr);
     CLH_CHECK(cerr, err, error);
   }
-  if (mode == PM_MODE_WEIGHTED) {
+  if (mode == PM_MODE_TABLES) {
     if (!s->tables) {
       bk_fail(err, BK_ERR_RUNTIME, "march: weighted march without PDF tables");
       goto error;
     }
     b_tables = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                              (size_t)nlights * AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y) *
+                              (size_t)nlights * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) *
                                   sizeof(float),
                               (void *)s->tables, &cerr);
     CLH_CHECK(cerr, err, error);

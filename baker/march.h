@@ -5,11 +5,11 @@
  * Out: the `radiance` grid, L̄ = φ/(4π) in W m^-2 sr^-1, 3 floats per voxel,
  * estimated by track length: each photon adds Φ·ℓ/(4π V) to each voxel it
  * crosses (ℓ its path length in the voxel, m; V the voxel volume), with Φ
- * integrated exactly over the voxel, Φ0 (1 - e^{-σt ℓ})/σt (kernels/march.h).
+ * integrated exactly over the voxel, Φ0 (1 - e^{-σt ℓ})/σt (kernels/photon_march.h).
  *
  * Stages and what they cost (bk_timings_t rows): "octree" (the constant-block
  * pyramid of n, baker/octree.h, and the float4 field of ∇n and n the march
- * samples, ∇n by kernels/ior.h's central differences), "photon generation"
+ * samples, baker/field.h), "photon generation"
  * (light set-up: the photons themselves are made in the kernel from their
  * index, kernels/photons.h), "photon marching".
  *
@@ -34,7 +34,7 @@
 #define BAKER_MARCH_H
 
 #include "clhost.h"
-#include "kernels/march.h"
+#include "kernels/photon_march.h"
 #include "octree.h"
 #include "photons.h"
 #include "scene.h"
@@ -67,16 +67,19 @@ typedef struct pm_setup {
   size_t voxels;
   int channels;          /* 1 or 3 */
   int has_refraction, homogeneous, grey;
-  float *ng;             /* has_refraction: 4 floats per voxel, ∇n (1/voxel) and n */
+  float *ng;             /* has_refraction: the padded {∇n, n} field (baker/field.h) */
   oct_pyramid_t pyramid; /* has_refraction */
   float *sigma;          /* !homogeneous: channels floats per voxel, σt per voxel length */
   double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
   int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
   unsigned seed;         /* photons.seed, for pm_derive */
-  /* The adaptive modes (params.mode, kernels/march.h), not owned: */
-  uint64_t *masks;       /* pilot: origin masks, pm_mask_count entries, zeroed by the caller */
-  const float *tables;   /* weighted: AD_TABLE_FLOATS(8, 8) floats per light */
+  /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */
+  uint64_t *masks;       /* origin recorder: pm_mask_count masks, zeroed by the caller */
+  const float *tables;   /* sampling tables: LD_TABLE_FLOATS(8, 8) floats per light */
 } pm_setup_t;
+
+/* The grid as the kernels see it (kernels/shared.h). */
+bk_grid pm_kernel_grid(const grid_dims_t *d);
 
 /* The fixed-point scale for total photon power `power_max` (W, brightest
  * channel) and a bound `path_bound` (voxels) on any photon's deposited path. */
@@ -91,23 +94,26 @@ void pm_setup_free(pm_setup_t *s);
  * everywhere, as the paper's reference pipeline without its octree. */
 void pm_disable_octree(pm_setup_t *s);
 
-/* The adaptive pipeline's marches share one prepared setup (the octree and
- * the n/∇n field are built once). pm_derive makes a shallow copy of base (it
- * owns nothing: free only base) whose lights carry `photons` photons, in
- * reference mode. pm_use_pilot turns it into a pilot march that deposits
- * into cells of 2^coarse_shift voxels a side and marks their origin masks
- * (masks: pm_mask_count entries, zeroed). pm_use_pdf turns it into the
- * weighted march over the PDF tables (one per light, in the order of
- * lights.lights) whose largest weight 1/pdf is w_max; it refuses photon
- * counts whose per-voxel count and weight sums could overflow their packed
- * counter (about 4e7). */
+/* Several marches may share one prepared setup (the octree and the n/∇n
+ * field are built once). pm_derive makes a shallow copy of base (it owns
+ * nothing: free only base) whose lights carry `photons` photons, in
+ * reference mode. Two optional inputs change what a march does
+ * (kernels/light_domain.h); the march does not know who asks for them:
+ * pm_record_origins makes it an origin recorder that deposits into cells of
+ * 2^coarse_shift voxels a side and marks in each the light-domain cells of
+ * the photons that reached it (masks: pm_mask_count entries, zeroed);
+ * pm_sample_tables draws each light's photons from its sampling table (one
+ * per light, in the order of lights.lights) with weight 1/pdf, w_max the
+ * largest, and keeps per voxel the photon count and weight sum; it refuses
+ * photon counts whose packed count and weight sums could overflow (about
+ * 4e7). */
 int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm_setup_t *out,
               bk_error_t *err);
-void pm_use_pilot(pm_setup_t *s, int coarse_shift, uint64_t *masks);
-int pm_use_pdf(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err);
+void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks);
+int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err);
 /* Counters in the accumulator of the setup's mode (channels per voxel; the
- * pilot's per coarse cell; the weighted march one more per voxel), and the
- * origin masks of a pilot (0 in other modes). */
+ * recorder's per coarse cell; with sampling tables one more per voxel), and
+ * the origin masks of a recorder (0 in other modes). */
 size_t pm_acc_count(const pm_setup_t *s);
 size_t pm_mask_count(const pm_setup_t *s);
 

@@ -1,13 +1,16 @@
-/* octree.h: the constant-block pyramid of n (pipeline stage 3).
+/* octree.h: the constant-block pyramid (pipeline stage 3), the one
+ * empty-space structure of the ray core (kernels/ray_core.h).
  *
- * In: n, one float per voxel. Out: one byte per finest block (2^3 voxels)
- * saying which is the coarsest constant block containing it: 0 where n
- * varies, L in 1..OCT_LEVELS for the block of 2 * 4^(L-1) voxels a side
- * (2, 8, 32, 128; kernels/march.h PM_BLOCK_SHIFT, PM_LEVELS). A block is
- * constant when n takes one value over the block and a halo of OCT_HALO
- * voxels around it (clipped to the grid); the march then crosses it in a
- * straight line with an exact DDA instead of integrating d/ds(n dx/ds) = ∇n
- * step by step.
+ * In: a field, one or more floats per voxel. Out: one byte per finest block
+ * (2^3 voxels) saying which is the coarsest constant block containing it: 0
+ * where the field varies, L in 1..OCT_LEVELS for the block of 2 * 4^(L-1)
+ * voxels a side (2, 8, 32, 128; RC_BLOCK_SHIFT, RC_LEVELS). A block is
+ * constant when every channel takes one value (within a tolerance) over the
+ * block and a halo around it (clipped to the grid). The photon march builds
+ * it over n with a halo of OCT_HALO and crosses constant blocks in a straight
+ * line with an exact DDA instead of integrating d/ds(n dx/ds) = ∇n step by
+ * step; the view builds it over n the same way, and over its medium (σs·L̄,
+ * σt) with a halo of 1, where one step crosses a whole block.
  *
  * Why a 2-voxel halo: inside a constant block the march must see exactly
  * ∇n = 0. ∇n at a voxel is a central difference (kernels/ior.h) reaching one
@@ -25,16 +28,17 @@
 #define BAKER_OCTREE_H
 
 #include "grid.h"
-#include "kernels/march.h"
+#include "kernels/ray_core.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
 #define OCT_HALO 2
-/* the block sizes are the march's (kernels/march.h) */
-#define OCT_LEVELS PM_LEVELS
-#define OCT_BLOCK_SHIFT PM_BLOCK_SHIFT
+/* the block sizes are the ray core's (kernels/ray_core.h) */
+#define OCT_LEVELS RC_LEVELS
+#define OCT_BLOCK_SHIFT RC_BLOCK_SHIFT
+#define OCT_MAX_HALO 2
 
 typedef struct oct_pyramid {
   int bx, by, bz;        /* finest blocks along each axis (the last ones may be partial) */
@@ -45,9 +49,19 @@ typedef struct oct_pyramid {
   uint64_t voxels_at_level[OCT_LEVELS + 1];
 } oct_pyramid_t;
 
-/* Builds the pyramid of `ior` (grid_count(d) floats). BK_ERR_RUNTIME when out
- * of memory. */
+/* One input of a pyramid: `channels` floats every `stride` floats per voxel. */
+typedef struct oct_source {
+  const float *values;
+  int stride, channels;
+} oct_source_t;
+
+/* Builds the pyramid of `ior` (grid_count(d) floats), exact equality and a
+ * halo of OCT_HALO: the photon march's. BK_ERR_RUNTIME when out of memory. */
 int oct_build(const grid_dims_t *d, const float *ior, oct_pyramid_t *out, bk_error_t *err);
+/* The general form: constant where every channel of every source varies by
+ * at most tol over the block and `halo` (0..OCT_MAX_HALO) voxels around. */
+int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, int halo,
+                     float tol, oct_pyramid_t *out, bk_error_t *err);
 void oct_free(oct_pyramid_t *p);
 
 #ifdef __cplusplus

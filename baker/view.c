@@ -1,5 +1,5 @@
 /* view.c: `baker view`: read a baked VDB, march camera rays on OpenCL, write
- * EXR (and PNG). The ray math lives in kernels/view.h; this file gathers the
+ * EXR (and PNG). The ray math lives in kernels/view_march.h; this file gathers the
  * grids onto one dense box, places the camera in its voxel space, runs the
  * kernel and writes the images. */
 #define _POSIX_C_SOURCE 200809L
@@ -17,8 +17,9 @@
 #include "exr.h"
 #include "frames.h"
 #include "grid.h"
-#include "kernels/ior.h"
-#include "kernels/view.h"
+#include "field.h"
+#include "kernels/view_march.h"
+#include "octree.h"
 #include "png_io.h"
 #include "scene.h"
 #include "vdbio.h"
@@ -379,11 +380,10 @@ typedef struct view_volume {
   float st_const[3];
   float *ior;                  /* NULL: n = 1 */
   float *ng;                   /* refraction only: {∇n per voxel length, n} per voxel */
-  unsigned char *flat;         /* refraction only: distance to ∇n != 0 (view_flat_field) */
   int refraction;
   float n_min, n_max;
-  unsigned char *bricks;
-  int bx, by, bz;
+  oct_pyramid_t npyr;          /* refraction only: constant blocks of n */
+  oct_pyramid_t mpyr;          /* constant blocks of the medium */
   char desc[512];              /* what was read, for -v */
 } view_volume_t;
 
@@ -406,8 +406,8 @@ static void volume_free(view_volume_t *v) {
   free(v->sigma_t4);
   free(v->ior);
   free(v->ng);
-  free(v->flat);
-  free(v->bricks);
+  oct_free(&v->npyr);
+  oct_free(&v->mpyr);
   memset(v, 0, sizeof *v);
 }
 
@@ -528,159 +528,25 @@ static int check_values(const char *path, const char *name, const float *a, size
   return BK_OK;
 }
 
-/* 1 when the `ch` floats of every voxel of [lo, hi] (clamped) equal the first one's
- * (within tol). */
-static int box_is_constant(const view_volume_t *v, const float *a, int ch, int lo[3], int hi[3],
-                           float tol) {
-  int l[3], h[3], n[3] = {v->nx, v->ny, v->nz};
-  for (int k = 0; k < 3; k++) {
-    l[k] = lo[k] < 0 ? 0 : lo[k];
-    h[k] = hi[k] > n[k] - 1 ? n[k] - 1 : hi[k];
-  }
-  const float *a0 = a + ((size_t)l[0] + (size_t)v->nx * ((size_t)l[1] + (size_t)v->ny * l[2])) * ch;
-  for (int k = l[2]; k <= h[2]; k++)
-    for (int j = l[1]; j <= h[1]; j++) {
-      const float *row = a + (size_t)v->nx * ((size_t)j + (size_t)v->ny * k) * ch;
-      for (int i = l[0] * ch; i < (h[0] + 1) * ch; i++)
-        if (fabsf(row[i] - a0[i % ch]) > tol) return 0;
-    }
-  return 1;
+/* The medium's constant blocks: S = σs L̄ and σt constant over a block and
+ * the one voxel around it that trilinear sampling reads (one step crosses
+ * it). Built before padding. */
+static size_t pyr_bytes(const oct_pyramid_t *p) {
+  return p->level ? (size_t)p->bx * p->by * p->bz : 16;
 }
 
-/* Per 8³ brick: VIEW_BRICK_N_CONST when n is one value over the brick and
- * VIEW_BRICK_MARGIN voxels around (the curved march walks straight there),
- * VIEW_BRICK_MEDIUM_CONST when S = σs L̄ and σt are over the brick and the
- * one voxel around that trilinear sampling reads (one step crosses it). */
-static int build_bricks(view_volume_t *v, bk_error_t *err) {
-  const int B = 1 << VIEW_BRICK_SHIFT;
-  v->bx = (v->nx + B - 1) / B;
-  v->by = (v->ny + B - 1) / B;
-  v->bz = (v->nz + B - 1) / B;
-  v->bricks = bk_calloc((size_t)v->bx * v->by * v->bz, 1, "view: brick flags", err);
-  if (!v->bricks) return BK_ERR_RUNTIME;
-  for (int k = 0; k < v->bz; k++)
-    for (int j = 0; j < v->by; j++)
-      for (int i = 0; i < v->bx; i++) {
-        int b[3] = {i * B, j * B, k * B}, lo[3], hi[3];
-        unsigned char f = 0;
-        for (int a = 0; a < 3; a++)
-          lo[a] = b[a] - VIEW_BRICK_MARGIN, hi[a] = b[a] + B - 1 + VIEW_BRICK_MARGIN;
-        if (!v->ior || box_is_constant(v, v->ior, 1, lo, hi, VIEW_N_EPS)) f |= VIEW_BRICK_N_CONST;
-        for (int a = 0; a < 3; a++) lo[a] = b[a] - 1, hi[a] = b[a] + B;
-        if (box_is_constant(v, v->medium, 4, lo, hi, 0.0f) &&
-            (!v->sigma_t4 || box_is_constant(v, v->sigma_t4, 4, lo, hi, 0.0f)))
-          f |= VIEW_BRICK_MEDIUM_CONST;
-        v->bricks[i + (size_t)v->bx * (j + (size_t)v->by * k)] = f;
-      }
-  return BK_OK;
+static int build_medium_pyramid(view_volume_t *v, bk_error_t *err) {
+  oct_source_t src[2] = {{v->medium, 4, 4}, {v->sigma_t4, 4, 3}};
+  return oct_build_fields(v->nx, v->ny, v->nz, src, v->sigma_t4 ? 2 : 1, 1, 0.0f, &v->mpyr, err);
 }
 
-void view_ng_field(int nx, int ny, int nz, const float *ior, float *ng) {
-  const bk_grid g = {nx, ny, nz, 0, 0.0f, 0.0f, 0.0f, 1.0f}; /* voxel units */
-  for (int k = 0; k < nz; k++)
-    for (int j = 0; j < ny; j++)
-      for (int i = 0; i < nx; i++) {
-        size_t v = (size_t)i + (size_t)nx * ((size_t)j + (size_t)ny * k);
-        bk_v3 d = ior_gradient_at(ior, g, i, j, k);
-        ng[4 * v] = d.x;
-        ng[4 * v + 1] = d.y;
-        ng[4 * v + 2] = d.z;
-        ng[4 * v + 3] = ior[v];
-      }
-}
-
-/* 1D pass of the Chebyshev distance transform along one axis (stride st,
- * length len, capped at VIEW_FLAT_MAX): out(i) = min over |r| < cap of
- * max(|r|, in(i + r)). Three passes give min over voxels j of
- * max(|i − j|∞, in(j)). */
-static void flat_pass(const unsigned char *in, unsigned char *out, size_t st, int len) {
-  int lo = VIEW_FLAT_MAX;
-  for (int i = 0; i < len && lo == VIEW_FLAT_MAX; i++) lo = in[(size_t)i * st];
-  if (lo == VIEW_FLAT_MAX) { /* nothing near this line (most lines) */
-    for (int i = 0; i < len; i++) out[(size_t)i * st] = VIEW_FLAT_MAX;
-    return;
-  }
-  for (int i = 0; i < len; i++) {
-    int best = in[(size_t)i * st];
-    for (int r = 1; r < best; r++) {
-      int a = i - r >= 0 ? in[(size_t)(i - r) * st] : VIEW_FLAT_MAX;
-      int b = i + r < len ? in[(size_t)(i + r) * st] : VIEW_FLAT_MAX;
-      int m = a < b ? a : b;
-      if (m < r) m = r;
-      if (m < best) best = m;
-    }
-    out[(size_t)i * st] = (unsigned char)best;
-  }
-}
-
-void view_flat_field(int nx, int ny, int nz, const float *ng, unsigned char *flat,
-                     unsigned char *scratch) {
-  const size_t sy = (size_t)nx, sz = (size_t)nx * ny;
-  /* "zero" as the bricks see it: n steps below VIEW_N_EPS bend nothing */
-  const float eps = 0.5f * VIEW_N_EPS;
-  int lo[3] = {nx, ny, nz}, hi[3] = {-1, -1, -1};
-  for (int k = 0; k < nz; k++)
-    for (int j = 0; j < ny; j++)
-      for (int i = 0; i < nx; i++) {
-        size_t v = (size_t)i + sy * j + sz * k;
-        int zero = fabsf(ng[4 * v]) <= eps && fabsf(ng[4 * v + 1]) <= eps &&
-                   fabsf(ng[4 * v + 2]) <= eps;
-        flat[v] = zero ? VIEW_FLAT_MAX : 0;
-        if (!zero) {
-          int c[3] = {i, j, k};
-          for (int a = 0; a < 3; a++) {
-            if (c[a] < lo[a]) lo[a] = c[a];
-            if (c[a] > hi[a]) hi[a] = c[a];
-          }
-        }
-      }
-  if (hi[0] < 0) return; /* ∇n = 0 everywhere */
-  /* distances below the cap only occur within VIEW_FLAT_MAX of a nonzero
-   * voxel: the passes cover that box alone */
-  const int n[3] = {nx, ny, nz};
-  for (int a = 0; a < 3; a++) {
-    lo[a] = lo[a] - VIEW_FLAT_MAX < 0 ? 0 : lo[a] - VIEW_FLAT_MAX;
-    hi[a] = hi[a] + VIEW_FLAT_MAX > n[a] - 1 ? n[a] - 1 : hi[a] + VIEW_FLAT_MAX;
-  }
-  const int len[3] = {hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
-#define AT(i, j, k) ((size_t)(i) + sy * (size_t)(j) + sz * (size_t)(k))
-  for (int k = lo[2]; k <= hi[2]; k++)
-    for (int j = lo[1]; j <= hi[1]; j++)
-      flat_pass(flat + AT(lo[0], j, k), scratch + AT(lo[0], j, k), 1, len[0]);
-  for (int k = lo[2]; k <= hi[2]; k++)
-    for (int i = lo[0]; i <= hi[0]; i++)
-      flat_pass(scratch + AT(i, lo[1], k), flat + AT(i, lo[1], k), sy, len[1]);
-  for (int k = lo[2]; k <= hi[2]; k++)
-    for (int j = lo[1]; j <= hi[1]; j++)
-      memcpy(scratch + AT(lo[0], j, k), flat + AT(lo[0], j, k), (size_t)len[0]);
-  for (int j = lo[1]; j <= hi[1]; j++)
-    for (int i = lo[0]; i <= hi[0]; i++)
-      flat_pass(scratch + AT(i, j, lo[2]), flat + AT(i, j, lo[2]), sz, len[2]);
-#undef AT
-}
-
-void view_pad4(int nx, int ny, int nz, const float *src, float *dst) {
-  const size_t px = (size_t)nx + 2, py = (size_t)ny + 2;
-  for (size_t K = 0; K < (size_t)nz + 2; K++) {
-    size_t k = K == 0 ? 0 : K > (size_t)nz ? (size_t)nz - 1 : K - 1;
-    for (size_t J = 0; J < py; J++) {
-      size_t j = J == 0 ? 0 : J > (size_t)ny ? (size_t)ny - 1 : J - 1;
-      const float *row = src + 4 * (size_t)nx * (j + (size_t)ny * k);
-      float *out = dst + 4 * px * (J + py * K);
-      memcpy(out + 4, row, 4 * sizeof(float) * (size_t)nx);
-      memcpy(out, row, 4 * sizeof(float));
-      memcpy(out + 4 * ((size_t)nx + 1), row + 4 * ((size_t)nx - 1), 4 * sizeof(float));
-    }
-  }
-}
-
-/* Replaces an unpadded 4-float field by its padded copy (kernels/view.h). */
+/* Replaces an unpadded 4-float field by its padded copy (kernels/ray_core.h). */
 static int pad_field(const view_volume_t *v, float **a, bk_error_t *err) {
   if (!*a) return BK_OK;
-  size_t n = ((size_t)v->nx + 2) * ((size_t)v->ny + 2) * ((size_t)v->nz + 2);
-  float *o = view_alloc(n, 4 * sizeof(float), "view: padded field", err);
+  float *o = view_alloc(fld_padded_count(v->nx, v->ny, v->nz), 4 * sizeof(float),
+                        "view: padded field", err);
   if (!o) return BK_ERR_RUNTIME;
-  view_pad4(v->nx, v->ny, v->nz, *a, o);
+  fld_pad4(v->nx, v->ny, v->nz, *a, o);
   free(*a);
   *a = o;
   return BK_OK;
@@ -857,21 +723,13 @@ static int volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
     }
     v->refraction = v->n_max - v->n_min > VIEW_N_EPS;
     if (v->refraction) {
-      v->ng = view_alloc(nvox, 4 * sizeof(float), "view: refractive field", err);
-      if (!v->ng) {
+      const oct_source_t n = {v->ior, 1, 1};
+      v->ng = fld_build(v->nx, v->ny, v->nz, v->voxel_size, v->ior, err);
+      if (!v->ng || (rc = oct_build_fields(v->nx, v->ny, v->nz, &n, 1, OCT_HALO, 0.0f,
+                                           &v->npyr, err))) {
         rc = BK_ERR_RUNTIME;
         goto error;
       }
-      view_ng_field(v->nx, v->ny, v->nz, v->ior, v->ng);
-      unsigned char *scratch = bk_calloc(nvox, 1, "view: scratch", err);
-      v->flat = scratch ? view_alloc(nvox, 1, "view: flat distances", err) : NULL;
-      if (!v->flat) {
-        free(scratch);
-        rc = BK_ERR_RUNTIME;
-        goto error;
-      }
-      view_flat_field(v->nx, v->ny, v->nz, v->ng, v->flat, scratch);
-      free(scratch);
     }
   } else {
     v->n_min = v->n_max = 1.0f;
@@ -923,8 +781,8 @@ static int volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
   }
   /* the grids as read are packed now: free them before padding (peak memory) */
   for (int g = 0; g < G_COUNT; g++) free(arr[g]), arr[g] = NULL;
-  if ((rc = build_bricks(v, err)) || (rc = pad_field(v, &v->medium, err)) ||
-      (rc = pad_field(v, &v->sigma_t4, err)) || (rc = pad_field(v, &v->ng, err)))
+  if ((rc = build_medium_pyramid(v, err)) || (rc = pad_field(v, &v->medium, err)) ||
+      (rc = pad_field(v, &v->sigma_t4, err)))
     goto error;
 
 done:
@@ -957,7 +815,7 @@ static void volume_world_box(const view_volume_t *v, double bmin[3], double bmax
 typedef struct view_gpu {
   clh_context_t cl;
   int ready;
-  int host;            /* --device host: kernels/view.h in plain C, no OpenCL */
+  int host;            /* --device host: kernels/view_march.h in plain C, no OpenCL */
   cl_program program;
   cl_kernel kernel;
   char options[256];
@@ -1009,9 +867,6 @@ static void setup_params(const view_volume_t *v, const view_cam_t *c, const floa
   p->nx = v->nx;
   p->ny = v->ny;
   p->nz = v->nz;
-  p->bx = v->bx;
-  p->by = v->by;
-  p->bz = v->bz;
   p->step = step;
   p->straight_step = step > 1.0f ? step : 1.0f;
   /* a curved ray may wander (total internal reflection): 8 box diagonals' worth */
@@ -1056,7 +911,7 @@ static double cpu_ms(void) {
  * one pixel after another. Slow; for tests and for machines without OpenCL. */
 static int render_host(const view_volume_t *v, const view_params_t *p, int integrator,
                        float *rgba, view_totals_t *tot) {
-  const view_fields f = {v->medium, v->sigma_t4, v->ng, v->bricks, v->flat};
+  const view_fields f = {v->medium, v->sigma_t4, v->ng, v->npyr.level, v->mpyr.level};
   const view_flags fl = {v->refraction, v->sigma_ch == 1, integrator, v->homogeneous};
   double t0 = bk_now_ms(), c0 = cpu_ms();
   bk_progress_t prog;
@@ -1117,15 +972,14 @@ static int render(view_gpu_t *g, const view_volume_t *v, const view_cam_t *c, co
   double t1 = bk_now_ms();
   tot->build_ms += t1 - t0;
 
-  const size_t nvox = (size_t)v->nx * v->ny * v->nz;
   const size_t npad = ((size_t)v->nx + 2) * ((size_t)v->ny + 2) * ((size_t)v->nz + 2);
   const cl_mem_flags ro = CL_MEM_READ_ONLY;
   if (!(b[0] = make_buffer(g, v->medium, npad * 4 * sizeof(float), ro, "medium", err)) ||
       !(b[1] = make_buffer(g, v->sigma_t4, v->sigma_t4 ? npad * 4 * sizeof(float) : 16, ro,
                            "extinction", err)) ||
       !(b[2] = make_buffer(g, v->ng, v->ng ? npad * 4 * sizeof(float) : 16, ro, "ior", err)) ||
-      !(b[3] = make_buffer(g, v->bricks, (size_t)v->bx * v->by * v->bz, ro, "brick flags", err)) ||
-      !(b[4] = make_buffer(g, v->flat, v->flat ? nvox : 16, ro, "flat distances", err)) ||
+      !(b[3] = make_buffer(g, v->npyr.level, pyr_bytes(&v->npyr), ro, "constant blocks of n", err)) ||
+      !(b[4] = make_buffer(g, v->mpyr.level, pyr_bytes(&v->mpyr), ro, "constant blocks", err)) ||
       !(b[5] = make_buffer(g, NULL, npix * 4 * sizeof(float), CL_MEM_WRITE_ONLY, "image", err)) ||
       !(b[6] =
             make_buffer(g, NULL, npix * sizeof(bk_uint), CL_MEM_WRITE_ONLY, "step counts", err))) {

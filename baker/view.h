@@ -4,7 +4,7 @@
  * and a pinhole camera (flags, else the scene's camera, else one framing the
  * grid). Out: a linear half RGBA OpenEXR and optionally an sRGB PNG preview,
  * per frame. Each pixel's camera ray bends through n with the ray equation
- * and gathers L = ∫ T σs L̄ dt + T_end·L_background (kernels/view.h).
+ * and gathers L = ∫ T σs L̄ dt + T_end·L_background (kernels/view_march.h).
  *
  * Grids read (DESIGN.md §5): `radiance` (Vec3f, required, L̄), `ior` (float;
  * absent: n = 1; values below 1, e.g. the zero background, are taken as 1),
@@ -35,22 +35,6 @@ extern "C" {
 int view_main(int argc, char **argv);
 
 void view_usage(FILE *out);
-
-/* The refractive field the kernel reads, from n (nx*ny*nz floats, x-fastest):
- * ng holds 4 floats per voxel, ∇n per voxel length (central differences,
- * one-sided on the faces: kernels/ior.h, as the photon march) and n. */
-void view_ng_field(int nx, int ny, int nz, const float *ior, float *ng);
-
-/* The layout the kernel reads 4-float fields in: src (nx*ny*nz voxels of 4
- * floats) with one layer of replicated edge voxels around it, into dst of
- * (nx+2)*(ny+2)*(nz+2) voxels. */
-void view_pad4(int nx, int ny, int nz, const float *src, float *dst);
-
-/* Where camera rays may walk straight inside refracting bricks: per voxel,
- * the Chebyshev distance in voxels (capped at VIEW_FLAT_MAX) to the nearest
- * voxel whose ∇n (from view_ng_field) is not zero. scratch: nx*ny*nz bytes. */
-void view_flat_field(int nx, int ny, int nz, const float *ng, unsigned char *flat,
-                     unsigned char *scratch);
 
 #ifdef __cplusplus
 }

@@ -14,7 +14,7 @@
  * sums, or a near tie in the centre-surround test could pick another radius. */
 #pragma OPENCL FP_CONTRACT OFF
 
-#include "adaptive.h"
+#include "kernels/adaptive_filter.h"
 
 #ifndef AD_CH
 #define AD_CH 3

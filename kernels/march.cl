@@ -9,7 +9,7 @@
  * two paths round alike. */
 #pragma OPENCL FP_CONTRACT OFF
 
-#include "march.h"
+#include "kernels/photon_march.h"
 
 /* masks and tables serve the adaptive modes (PM_MODE, march.h); the
  * reference march never reads them. */

@@ -22,7 +22,7 @@
 #ifndef BAKER_PHOTONS_KERNEL_H
 #define BAKER_PHOTONS_KERNEL_H
 
-#include "shared.h"
+#include "kernels/shared.h"
 
 #if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
 #define PH_DEVICE 1
@@ -120,27 +120,6 @@ BK_INLINE void ph_sample(BK_CONSTANT const ph_light *L, bk_uint k, bk_v3 *origin
   float a, b;
   ph_point(L, k, &a, &b);
   ph_map(L, a, b, origin, dir);
-}
-
-/* Where the ray o + t d (unit d) first meets the box [0, n] of the grid, for
- * t >= 0. Returns 0 when it misses; else *t_enter (0 when o is inside). */
-BK_INLINE int ph_enter_grid(const bk_grid g, bk_v3 o, bk_v3 d, float *t_enter) {
-  float t0 = 0.0f, t1 = 3.0e38f;
-  float ov[3] = {o.x, o.y, o.z}, dv[3] = {d.x, d.y, d.z};
-  float nv[3] = {(float)g.nx, (float)g.ny, (float)g.nz};
-  for (int a = 0; a < 3; a++) {
-    if (dv[a] == 0.0f) {
-      if (ov[a] < 0.0f || ov[a] > nv[a]) return 0;
-      continue;
-    }
-    float inv = 1.0f / dv[a];
-    float ta = (0.0f - ov[a]) * inv, tb = (nv[a] - ov[a]) * inv;
-    float lo = fmin(ta, tb), hi = fmax(ta, tb);
-    t0 = fmax(t0, lo);
-    t1 = fmin(t1, hi);
-  }
-  *t_enter = t0;
-  return t0 < t1;
 }
 
 #endif

@@ -13,6 +13,7 @@
 #define BK_GLOBAL __global
 #define BK_CONSTANT __constant
 #define BK_STATIC_ASSERT(cond, msg)
+typedef uchar bk_uchar;
 typedef uint bk_uint;
 typedef ulong bk_ulong;
 typedef long bk_long;
@@ -23,6 +24,7 @@ typedef long bk_long;
 #define BK_GLOBAL
 #define BK_CONSTANT
 #define BK_STATIC_ASSERT(cond, msg) _Static_assert(cond, msg)
+typedef uint8_t bk_uchar;
 typedef uint32_t bk_uint;
 typedef uint64_t bk_ulong;
 typedef int64_t bk_long;

@@ -1,11 +1,11 @@
-/* view.cl: the viewing pass, one work-item per pixel (see view.h for the math).
+/* view.cl: the viewing pass, one work-item per pixel (see view_march.h for the math).
  *
  * Specialised by the host with -D flags so that only what the file contains
  * is computed: HAS_REFRACTION (n varies: curved rays, else straight),
  * INTEGRATOR (0 Euler, 1 RK4), GREY (grey σt, packed with S = σs L̄ in one
  * float4), HOMOGENEOUS (RGB σt constant, passed in the parameters). The
  * defaults below only serve the device-less compile check. */
-#include "view.h"
+#include "kernels/view_march.h"
 
 #ifndef HAS_REFRACTION
 #define HAS_REFRACTION 1
@@ -22,7 +22,7 @@
 
 __kernel void view_render(const view_params_t p, __global const float *medium,
                           __global const float *sigma_t, __global const float *ng,
-                          __global const unsigned char *bricks, __global const uchar *flat,
+                          __global const uchar *npyr, __global const uchar *mpyr,
                           __global float *rgba, __global uint *steps) {
   int px = (int)get_global_id(0), py = (int)get_global_id(1);
   if (px >= p.width || py >= p.height) return;
@@ -30,8 +30,8 @@ __kernel void view_render(const view_params_t p, __global const float *medium,
   f.medium = medium;
   f.sigma_t = sigma_t;
   f.ng = ng;
-  f.bricks = bricks;
-  f.flat = flat;
+  f.npyr = npyr;
+  f.mpyr = mpyr;
   view_flags fl;
   fl.refraction = HAS_REFRACTION;
   fl.grey = GREY;

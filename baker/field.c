@@ -1,0 +1,58 @@
+/* field.c: the {∇n, n} field of the ray core (see field.h). */
+#include "field.h"
+
+#include <string.h>
+
+#include "kernels/ray_core.h"
+
+size_t fld_padded_count(int nx, int ny, int nz) {
+  return ((size_t)nx + 2) * ((size_t)ny + 2) * ((size_t)nz + 2);
+}
+
+/* Fills the outer layer of a padded float4 field from its edge voxels: x
+ * faces per row, then whole y rows, then whole z planes, so edges and
+ * corners copy what the previous pass put there. */
+static void pad_faces(int nx, int ny, int nz, float *f) {
+  const size_t px = (size_t)nx + 2, py = (size_t)ny + 2, row = 4 * px, plane = row * py;
+  for (size_t K = 1; K <= (size_t)nz; K++)
+    for (size_t J = 1; J <= (size_t)ny; J++) {
+      float *r = f + K * plane + J * row;
+      memcpy(r, r + 4, 4 * sizeof(float));
+      memcpy(r + 4 * (px - 1), r + 4 * (px - 2), 4 * sizeof(float));
+    }
+  for (size_t K = 1; K <= (size_t)nz; K++) {
+    float *p = f + K * plane;
+    memcpy(p, p + row, row * sizeof(float));
+    memcpy(p + (py - 1) * row, p + (py - 2) * row, row * sizeof(float));
+  }
+  memcpy(f, f + plane, plane * sizeof(float));
+  memcpy(f + ((size_t)nz + 1) * plane, f + (size_t)nz * plane, plane * sizeof(float));
+}
+
+float *fld_build(int nx, int ny, int nz, double h, const float *ior, bk_error_t *err) {
+  float *f = bk_calloc(fld_padded_count(nx, ny, nz), 4 * sizeof(float), "field: n and grad n", err);
+  if (!f) return NULL;
+  const rc_dims d = {nx, ny, nz};
+  const float inv_h = 1.0f / (float)h;
+  for (int k = 0; k < nz; k++)
+    for (int j = 0; j < ny; j++)
+      for (int i = 0; i < nx; i++) {
+        bk_v3 g = rc_gradient_at(d, inv_h, ior, i, j, k); /* 1/m -> 1/voxel */
+        float *q = f + 4 * rc_pad_index(d, i, j, k);
+        q[0] = (float)(g.x * h);
+        q[1] = (float)(g.y * h);
+        q[2] = (float)(g.z * h);
+        q[3] = ior[(size_t)i + (size_t)nx * ((size_t)j + (size_t)ny * k)];
+      }
+  pad_faces(nx, ny, nz, f);
+  return f;
+}
+
+void fld_pad4(int nx, int ny, int nz, const float *src, float *dst) {
+  const rc_dims d = {nx, ny, nz};
+  for (int k = 0; k < nz; k++)
+    for (int j = 0; j < ny; j++)
+      memcpy(dst + 4 * rc_pad_index(d, 0, j, k), src + 4 * (size_t)nx * ((size_t)j + (size_t)ny * k),
+             4 * sizeof(float) * (size_t)nx);
+  pad_faces(nx, ny, nz, dst);
+}

@@ -1,0 +1,34 @@
+/* field.h: the refractive field the rays read (kernels/ray_core.h), built on
+ * the host for the photon march and for the view alike.
+ *
+ * In: n, one float per voxel (x-fastest), on cubic voxels of size h (m).
+ * Out: {∇n (1/voxel), n} as one float4 per voxel in the ray core's padded
+ * layout ((nx+2)(ny+2)(nz+2) float4, the outer layer a copy of the edge
+ * voxels). ∇n is rc_gradient_at's central difference, taken in 1/m and
+ * scaled by h, so that a bake and a view of its file read the same numbers. */
+#ifndef BAKER_FIELD_H
+#define BAKER_FIELD_H
+
+#include <stddef.h>
+
+#include "common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Float4 entries of a padded field of nx x ny x nz voxels. */
+size_t fld_padded_count(int nx, int ny, int nz);
+
+/* The {∇n, n} field of `ior` (caller frees); NULL and BK_ERR_RUNTIME in err
+ * when out of memory. */
+float *fld_build(int nx, int ny, int nz, double h, const float *ior, bk_error_t *err);
+
+/* Copies an unpadded float4 field src (nx*ny*nz float4) into the padded
+ * layout dst (fld_padded_count float4). */
+void fld_pad4(int nx, int ny, int nz, const float *src, float *dst);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

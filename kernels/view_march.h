@@ -1,0 +1,328 @@
+/* view_march.h: camera rays of the viewing pass, shared by the host and
+ * kernels/view.cl.
+ *
+ * In: a pinhole camera and the baked fields resampled onto one dense grid,
+ * in the ray core's padded float4 layout (kernels/ray_core.h): {S = σs·L̄
+ * (RGB), σt} (grey) or {S, unused} plus {σt RGB, unused} (RGB), and the
+ * {∇n, n} field the photon march reads; and two constant-block pyramids
+ * (baker/octree.h): one of n (with refraction), one of the medium (S and σt,
+ * with the 1-voxel halo trilinear sampling reads). Out: per pixel
+ *   L = ∫ T(t) σs(x) L̄(x) dt + T_end·L_background,  RGBA with A = 1 − mean(T_end).
+ * Everything is in voxel coordinates u (voxel (i,j,k) spans [i, i+1), its
+ * value sits at i + 0.5; the box is [0,nx]×[0,ny]×[0,nz]). The host maps the
+ * camera into that space; for a similarity transform (rotation + uniform
+ * scale) the ray equation keeps its form there, and σ is pre-multiplied by
+ * the voxel size so optical depth is σ·(length in voxels).
+ *
+ * Rays bend by the ray equation with the ray core's step (Euler or RK4) and
+ * field. Where n is constant the solution is a straight line and the ray
+ * walks it without the ray equation: grid-wide (HAS_REFRACTION = 0), across
+ * a brick (a level-2 block of the pyramid, 8³ voxels) whose n is constant
+ * with its halo, and inside refracting bricks across the finer constant
+ * blocks of 2³. Where, besides, S and σt are constant over a brick (e.g.
+ * unlit fog), one step crosses the whole brick, which the exact integration
+ * below makes exact; a point on a block face belongs to the block the ray
+ * enters (the DDA rule). Consecutive straight bricks of varying medium are
+ * one chord, sampled at most straight_step apart.
+ * Each step of chord length Δ takes σt and S (interpolated as one field, so
+ * a step reads one float4 per trilinear corner) at the chord's midpoint as
+ * constant and integrates exactly with the ray core's attenuation:
+ *   L += T S Δ (1 − e^(−σt Δ))/(σt Δ),  T *= e^(−σt Δ).
+ * A ray stops when it leaves the box or max(T) < VIEW_T_CUTOFF. Outside the
+ * box the medium is empty. */
+#ifndef BAKER_VIEW_MARCH_H
+#define BAKER_VIEW_MARCH_H
+
+#include "kernels/ray_core.h"
+
+#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
+#define VIEW_DEVICE 1
+#else
+#define VIEW_DEVICE 0
+#endif
+
+#define VIEW_T_CUTOFF 1e-4f      /* below this the rest of the ray is invisible */
+#define VIEW_BRICK_LEVEL 2        /* bricks are the pyramid's blocks of 8³ */
+#define VIEW_DIR_EPS 1e-12f
+
+enum { VIEW_EULER = RC_EULER, VIEW_RK4 = RC_RK4 };
+
+/* Kernel argument, by value: only 4-byte members, so host and device agree. */
+typedef struct view_params {
+  bk_v3 cam_pos;      /* voxel coordinates */
+  bk_v3 cam_forward;  /* voxel-space image of the world forward vector */
+  bk_v3 cam_right;    /* ... of right · tan(fov_y/2) · aspect */
+  bk_v3 cam_up;       /* ... of up · tan(fov_y/2) */
+  bk_v3 background;   /* RGB radiance behind the volume */
+  bk_v3 sigma_t;      /* RGB and HOMOGENEOUS: σt per voxel length */
+  int width, height;
+  int nx, ny, nz;
+  int pad0, pad1, pad2;
+  int max_steps;      /* per ray (curved rays trapped by total internal reflection) */
+  float step;         /* voxels, curved march */
+  float straight_step;/* voxels, most, where n is constant (a brick's or the grid's) */
+} view_params_t;
+BK_STATIC_ASSERT(sizeof(view_params_t) == 6 * 12 + 11 * 4, "view_params_t is a kernel argument");
+
+/* Feature switches; the kernel passes compile-time constants so the unused
+ * paths vanish, the host tests pass any combination. */
+typedef struct view_flags {
+  int refraction;     /* n varies: march the ray equation */
+  int grey;           /* σt is lane w of `medium`, else the `sigma_t` array */
+  int integrator;     /* VIEW_EULER or VIEW_RK4 */
+  int homogeneous;    /* RGB σt constant: params.sigma_t, no `sigma_t` lookups */
+} view_flags;
+
+typedef struct view_fields {
+  BK_GLOBAL const float *medium;          /* 4 per voxel: S = σs L̄ (RGB), σt if grey */
+  BK_GLOBAL const float *sigma_t;         /* 4 per voxel: σt (RGB), when not grey */
+  BK_GLOBAL const float *ng;              /* 4 per voxel: ∇n (per voxel length), n >= 1 */
+  BK_GLOBAL const bk_uchar *npyr;         /* refraction: constant-block pyramid of n */
+  BK_GLOBAL const bk_uchar *mpyr;         /* constant-block pyramid of S and σt */
+} view_fields;
+
+
+/* Direction (voxel space, unit length) through image point (fx, fy) in
+ * pixels, y down from the top row: pixel centres are at px + 0.5. */
+BK_INLINE bk_v3 view_camera_dir(const view_params_t *p, float fx, float fy) {
+  float sx = 2.0f * fx / (float)p->width - 1.0f;
+  float sy = 1.0f - 2.0f * fy / (float)p->height;
+  bk_v3 d = v3_madd(v3_madd(p->cam_forward, p->cam_right, sx), p->cam_up, sy);
+  return v3_normalize(d);
+}
+
+/* Shortens the segment a -> *b (a inside the box) to where it leaves the box;
+ * returns 1 when it did. */
+BK_INLINE int view_clip_segment(bk_v3 a, bk_v3 *b, bk_v3 bmax) {
+  float t = 1.0f;
+  float aa[3] = {a.x, a.y, a.z}, bb[3] = {b->x, b->y, b->z}, mm[3] = {bmax.x, bmax.y, bmax.z};
+  for (int i = 0; i < 3; i++) {
+    float dlt = bb[i] - aa[i];
+    if (bb[i] < 0.0f && dlt < 0.0f) t = fmin(t, (0.0f - aa[i]) / dlt);
+    if (bb[i] > mm[i] && dlt > 0.0f) t = fmin(t, (mm[i] - aa[i]) / dlt);
+  }
+  if (t >= 1.0f) return 0;
+  t = fmax(t, 0.0f);
+  *b = v3_madd(a, v3_sub(*b, a), t);
+  return 1;
+}
+
+BK_INLINE rc_dims view_dims(const view_params_t *p) {
+  rc_dims n = {p->nx, p->ny, p->nz};
+  return n;
+}
+
+/* The voxel holding u for a ray moving along d: a point on a face belongs
+ * to the voxel the ray moves into (the DDA rule), so a ray on a block's face
+ * never stalls there. */
+BK_INLINE void view_voxel_at(rc_dims n, bk_v3 u, bk_v3 d, int c[3]) {
+  const float uu[3] = {u.x, u.y, u.z}, dd[3] = {d.x, d.y, d.z};
+  const int nn[3] = {n.nx, n.ny, n.nz};
+  for (int a = 0; a < 3; a++) {
+    int i = rc_floori(uu[a]);
+    if (dd[a] < 0.0f && (float)i == uu[a]) i--;
+    c[a] = bk_clampi(i, 0, nn[a] - 1);
+  }
+}
+
+/* 1/d per axis, 0 where d is (nearly) zero: that axis is never crossed. */
+BK_INLINE bk_v3 view_inv_dir(bk_v3 d) {
+  return v3(d.x > -VIEW_DIR_EPS && d.x < VIEW_DIR_EPS ? 0.0f : 1.0f / d.x,
+            d.y > -VIEW_DIR_EPS && d.y < VIEW_DIR_EPS ? 0.0f : 1.0f / d.y,
+            d.z > -VIEW_DIR_EPS && d.z < VIEW_DIR_EPS ? 0.0f : 1.0f / d.z);
+}
+
+/* Moves *u along unit d (inverse inv, view_inv_dir) to where it leaves the
+ * block [lo, hi) and returns the distance. The leaving coordinate is set
+ * exactly onto the face, so the next lookup finds the next block. */
+BK_INLINE float view_block_exit(const int *lo, const int *hi, bk_v3 *u, bk_v3 d, bk_v3 inv) {
+  const float uu[3] = {u->x, u->y, u->z}, ii[3] = {inv.x, inv.y, inv.z};
+  float t = RC_FAR, face = 0.0f;
+  int axis = -1;
+  for (int a = 0; a < 3; a++) {
+    if (ii[a] == 0.0f) continue;
+    float f = (float)(ii[a] > 0.0f ? hi[a] : lo[a]);
+    float ta = fmax((f - uu[a]) * ii[a], 0.0f);
+    if (ta < t) t = ta, face = f, axis = a;
+  }
+  if (axis < 0) return 0.0f; /* d is zero: nothing to cross */
+  *u = v3_madd(*u, d, t);
+  if (axis == 0) u->x = face;
+  else if (axis == 1) u->y = face;
+  else u->z = face;
+  return t;
+}
+
+/* Integrates one segment of length len (voxels) whose medium is sampled at
+ * its midpoint um, into L and T. Grey media evaluate one channel, not three,
+ * and keep their transmittance in T->x alone (the caller copies it to y, z). */
+BK_INLINE void view_segment(const view_params_t *p, view_fields f, view_flags fl, bk_v3 um,
+                            float len, bk_v3 *L, bk_v3 *T) {
+  const rc_dims n = view_dims(p);
+  rc_tri t = rc_tri_at(n, um);
+  rc_f4 m = rc_gather4(n, f.medium, &t);
+  bk_v3 src = v3(m.x, m.y, m.z);
+  if (fl.grey) {
+    float trans, wg = rc_atten(m.w * len, &trans);
+    *L = v3_madd(*L, src, T->x * wg * len);
+    T->x *= trans;
+    return;
+  }
+  bk_v3 st = p->sigma_t, w, tr;
+  if (!fl.homogeneous) {
+    rc_f4 q = rc_gather4(n, f.sigma_t, &t);
+    st = v3(q.x, q.y, q.z);
+  }
+  w.x = rc_atten(st.x * len, &tr.x);
+  w.y = rc_atten(st.y * len, &tr.y);
+  w.z = rc_atten(st.z * len, &tr.z);
+  *L = v3_add(*L, v3_scale(v3_mul(v3_mul(*T, src), w), len));
+  *T = v3_mul(*T, tr);
+}
+
+/* The largest transmittance left, for the cutoff: grey media keep it in x. */
+BK_INLINE float view_t_max(view_flags fl, bk_v3 T) {
+  return fl.grey ? T.x : fmax(T.x, fmax(T.y, T.z));
+}
+
+/* The state of one camera ray. A chord is a straight piece ca + cd·[0, clen]
+ * integrated in cn equal steps; `run` collects consecutive straight bricks
+ * of varying medium into one pending chord from run_a along dir. */
+typedef struct view_ray {
+  bk_v3 x, v, dir, inv; /* position, n dx/ds, unit direction and its inverse */
+  bk_v3 run_a;
+  float run;
+  bk_v3 ca, cd;
+  float clen;
+  int cn, flush, done;
+} view_ray;
+
+/* A straight stretch where n is constant over the block [lo, hi) that holds
+ * the ray: with constant medium over the brick (mconst), one step across
+ * the smaller of the two; else, in a brick (fine 0), the brick joins the
+ * pending chord; in a finer block of a refracting brick (fine 1), a chord of
+ * its own sampled as finely as the curved steps around it. */
+BK_INLINE void view_straight(const view_params_t *p, view_ray *r, const int *lo, const int *hi,
+                             int mconst, int fine) {
+  bk_v3 xn = r->x;
+  float h = view_block_exit(lo, hi, &xn, r->dir, r->inv);
+  if (!(h > 0.0f)) { /* on the grid's far face: out */
+    r->done = r->flush = 1;
+  } else if (!mconst && !fine) {
+    if (r->run == 0.0f) r->run_a = r->x;
+    r->run += h;
+    r->x = xn;
+  } else if (r->run > 0.0f) {
+    r->flush = 1; /* the pending chord first; this block on the next turn */
+  } else {
+    r->clen = h;
+    if (fine) r->cn = rc_ceili(h / fmin(p->step, p->straight_step));
+    if (r->cn < 1) r->cn = 1;
+    r->x = xn;
+  }
+}
+
+/* One curved step of the ray equation, clipped to the box. */
+BK_INLINE void view_curved(const view_params_t *p, view_fields f, view_flags fl, view_ray *r) {
+  if (r->run > 0.0f) {
+    r->flush = 1;
+    return;
+  }
+  const bk_v3 bmax = v3((float)p->nx, (float)p->ny, (float)p->nz);
+  bk_v3 xn, vn;
+  rc_step(view_dims(p), f.ng, fl.integrator, p->step, r->x, r->v, &xn, &vn);
+  r->done = view_clip_segment(r->x, &xn, bmax);
+  bk_v3 seg = v3_sub(xn, r->x);
+  r->clen = rc_length(seg);
+  if (r->clen > 0.0f) r->cd = v3_scale(seg, 1.0f / r->clen);
+  r->x = xn;
+  r->v = vn;
+  r->dir = rc_normalize(vn);
+  r->inv = view_inv_dir(r->dir);
+}
+
+/* Chooses this turn's chord for the ray at r->x (see view_march_pixel). */
+BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags fl, view_ray *r) {
+  const rc_dims n = view_dims(p);
+  int c[3], lo[3], hi[3];
+  r->ca = r->x;
+  r->cd = r->dir;
+  r->clen = 0.0f;
+  r->cn = 1;
+  r->flush = 0;
+  view_voxel_at(n, r->x, r->dir, c);
+  int mconst = rc_block_level(f.mpyr, n, c) >= VIEW_BRICK_LEVEL;
+  int nlevel = fl.refraction ? rc_block_level(f.npyr, n, c) : RC_LEVELS;
+  if (nlevel >= VIEW_BRICK_LEVEL) {
+    rc_block_bounds(n, VIEW_BRICK_LEVEL, c, lo, hi);
+    view_straight(p, r, lo, hi, mconst, 0);
+  } else if (nlevel > 0) {
+    rc_block_bounds(n, nlevel, c, lo, hi);
+    view_straight(p, r, lo, hi, mconst, 1);
+  } else {
+    view_curved(p, f, fl, r);
+  }
+  if (r->flush) {
+    r->ca = r->run_a;
+    r->cd = r->dir;
+    r->clen = r->run;
+    r->cn = rc_ceili(r->run / p->straight_step);
+    if (r->cn < 1) r->cn = 1;
+    r->run = 0.0f;
+  }
+}
+
+/* The whole camera ray of pixel (px, py): rgba and the number of steps.
+ * The ray is cut into chords, each integrated by uniform steps:
+ *  - a brick of constant medium where n is constant: one step across it;
+ *  - consecutive bricks of constant n and varying medium (the whole box
+ *    without refraction) are gathered into one chord stepped at most
+ *    straight_step apart: per step one trilinear lookup and one segment;
+ *  - inside refracting bricks, a finer constant block of n is a straight
+ *    chord stepped as finely as the curved steps around it;
+ *  - elsewhere, one curved step of the ray equation (Euler or RK4).
+ * All segments go through one call site so the compiler keeps L and T in
+ * registers. */
+BK_INLINE void view_march_pixel(const view_params_t *p, view_fields f, view_flags fl, int px,
+                                int py, float rgba[4], bk_uint *steps_out) {
+  bk_v3 d = view_camera_dir(p, (float)px + 0.5f, (float)py + 0.5f);
+  bk_v3 L = v3(0.0f, 0.0f, 0.0f), T = v3(1.0f, 1.0f, 1.0f);
+  bk_uint steps = 0;
+  float t0, t1;
+  if (rc_slab(p->cam_pos, d, v3(0.0f, 0.0f, 0.0f), v3((float)p->nx, (float)p->ny, (float)p->nz),
+              &t0, &t1)) {
+    view_ray r;
+    r.x = v3_madd(p->cam_pos, d, t0);
+    r.dir = r.v = d;
+    r.inv = view_inv_dir(d);
+    r.run_a = r.x;
+    r.run = 0.0f;
+    r.done = 0;
+    if (fl.refraction) {
+      bk_v3 g;
+      r.v = v3_scale(d, rc_field(view_dims(p), f.ng, r.x, &g));
+    }
+    for (int it = 0; !r.done && steps < (bk_uint)p->max_steps && it < p->max_steps; it++) {
+      view_next_chord(p, f, fl, &r);
+      if (!(r.clen > 0.0f)) continue;
+      const float h = r.clen / (float)r.cn;
+      for (int i = 0; i < r.cn; i++) {
+        view_segment(p, f, fl, v3_madd(r.ca, r.cd, ((float)i + 0.5f) * h), h, &L, &T);
+        steps++;
+        if (view_t_max(fl, T) < VIEW_T_CUTOFF) {
+          r.done = 1;
+          break;
+        }
+      }
+    }
+  }
+  if (fl.grey) T.y = T.z = T.x;
+  L = v3_add(L, v3_mul(T, p->background));
+  rgba[0] = L.x;
+  rgba[1] = L.y;
+  rgba[2] = L.z;
+  rgba[3] = 1.0f - (T.x + T.y + T.z) / 3.0f;
+  *steps_out = steps;
+}
+
+#endif
