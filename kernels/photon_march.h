@@ -96,6 +96,7 @@
 #define PM_MODE_OF(P) (PM_MODE)
 #define PM_ATOMIC_ADD(p, q) atom_add((p), (q))
 #define PM_REC_DECL
+#define PM_REC_ARG
 #define PM_RECORD(x)
 #else
 #define PM_HAS_REFRACTION(P) ((P)->has_refraction)
@@ -120,6 +121,7 @@ static inline void pm_record(pm_path_rec *rec, bk_v3 x) {
   rec->count++;
 }
 #define PM_REC_DECL , pm_path_rec *rec
+#define PM_REC_ARG , rec
 #define PM_RECORD(x) pm_record(rec, (x))
 #endif
 
@@ -304,32 +306,19 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
   return status;
 }
 
-/* Marches photon `index` (0 <= index < photon_total) to its end. masks: the
- * pilot's origin masks (PM_MODE_ORIGINS); tables: one PDF table of
- * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) floats per light (PM_MODE_TABLES);
- * unused otherwise. */
-BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT const ph_light *lights,
-                               BK_GLOBAL const float *ng, BK_GLOBAL const bk_uchar *pyr,
-                               BK_GLOBAL const float *sigma, BK_GLOBAL bk_ulong *acc,
-                               BK_GLOBAL bk_ulong *masks, BK_GLOBAL const float *tables,
-                               bk_uint index, pm_result *res PM_REC_DECL) {
-  /* a private copy: the compiler cannot know the deposits leave P alone and
-   * would reload it after every atomic */
-  const pm_params Pv = *Pc;
-  const pm_params *P = &Pv;
+/* Starts photon `index`: its light, its point of the light domain (warped
+ * through the light's sampling table in PM_MODE_TABLES, which sets its
+ * weight), origin, direction and grid entry. Returns 0 when it misses the
+ * grid. */
+BK_INLINE int pm_start(const pm_params *P, BK_CONSTANT const ph_light *lights,
+                       BK_GLOBAL const float *ng, BK_GLOBAL const float *tables, bk_uint index,
+                       pm_photon *ph PM_REC_DECL) {
   const bk_grid g = P->grid;
-  const rc_dims n3 = {g.nx, g.ny, g.nz};
-  const int gl[3] = {0, 0, 0}, gh[3] = {g.nx, g.ny, g.nz};
   bk_uint l = 0;
   while (l + 1 < P->light_count && index >= lights[l].first + lights[l].count) l++;
   BK_CONSTANT const ph_light *L = lights + l;
-  res->fate = PM_FATE_MISSED;
-  res->steps = 0;
-  res->voxels = 0;
-  res->path = 0.0f;
-
   bk_v3 o, d;
-  float t0, a, b, w = 1.0f;
+  float t0, t1, a, b, w = 1.0f;
   ph_point(L, index - L->first, &a, &b);
 #if !PH_DEVICE || PM_MODE == PM_MODE_TABLES
   if (PM_MODE_OF(P) == PM_MODE_TABLES) {
@@ -342,38 +331,88 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
 #endif
   ph_map(L, a, b, &o, &d);
   PM_RECORD(o);
-  float t1;
   if (!rc_slab(o, d, v3(0.0f, 0.0f, 0.0f), v3((float)g.nx, (float)g.ny, (float)g.nz), &t0, &t1))
-    return;
-  pm_photon ph;
-  ph.light = (int)l;
-  ph.cell = ld_cell_of(a, b);
-  ph.last = -1;
-  ph.packed = ((bk_ulong)1 << P->count_shift) + (bk_ulong)(w * P->weight_scale + 0.5f);
-  ph.x = v3_madd(o, d, t0);
-  ph.c[0] = bk_clampi(rc_floori(ph.x.x), 0, g.nx - 1);
-  ph.c[1] = bk_clampi(rc_floori(ph.x.y), 0, g.ny - 1);
-  ph.c[2] = bk_clampi(rc_floori(ph.x.z), 0, g.nz - 1);
-  ph.v = d;
-  ph.power[0] = L->power[0] * w;
-  ph.power[1] = L->power[1] * w;
-  ph.power[2] = L->power[2] * w;
-  float pmax = ph.power[0];
-  for (int ch = 1; ch < PM_NCH(P); ch++) pmax = ph.power[ch] > pmax ? ph.power[ch] : pmax;
-  ph.threshold = P->absorb_fraction * pmax;
-  ph.path = 0.0f;
-  ph.voxels = 0;
-  PM_RECORD(ph.x);
-
+    return 0;
+  ph->light = (int)l;
+  ph->cell = ld_cell_of(a, b);
+  ph->last = -1;
+  ph->packed = ((bk_ulong)1 << P->count_shift) + (bk_ulong)(w * P->weight_scale + 0.5f);
+  ph->x = v3_madd(o, d, t0);
+  ph->c[0] = bk_clampi(rc_floori(ph->x.x), 0, g.nx - 1);
+  ph->c[1] = bk_clampi(rc_floori(ph->x.y), 0, g.ny - 1);
+  ph->c[2] = bk_clampi(rc_floori(ph->x.z), 0, g.nz - 1);
+  ph->v = d;
+  ph->power[0] = L->power[0] * w;
+  ph->power[1] = L->power[1] * w;
+  ph->power[2] = L->power[2] * w;
+  float pmax = ph->power[0];
+  for (int ch = 1; ch < PM_NCH(P); ch++) pmax = ph->power[ch] > pmax ? ph->power[ch] : pmax;
+  ph->threshold = P->absorb_fraction * pmax;
+  ph->path = 0.0f;
+  ph->voxels = 0;
+  PM_RECORD(ph->x);
 #if !PH_DEVICE || HAS_REFRACTION
   if (PM_HAS_REFRACTION(P)) {
+    const rc_dims n3 = {g.nx, g.ny, g.nz};
     bk_v3 g0;
-    ph.v = v3_scale(d, rc_field(n3, ng, ph.x, &g0));
+    ph->v = v3_scale(d, rc_field(n3, ng, ph->x, &g0));
   }
 #endif
+  return 1;
+}
 
-  bk_uint steps = 0;
-  bk_uint fate = PM_FATE_LEFT;
+#if !PH_DEVICE || HAS_REFRACTION
+/* One step where n varies: the ray core's step, its chord deposited.
+ * Returns a PM_DDA_* status. */
+BK_INLINE int pm_curved_step(const pm_params *P, BK_GLOBAL const float *ng,
+                             BK_GLOBAL const float *sigma, BK_GLOBAL bk_ulong *acc,
+                             BK_GLOBAL bk_ulong *masks, pm_photon *ph) {
+  const bk_grid g = P->grid;
+  const rc_dims n3 = {g.nx, g.ny, g.nz};
+  const int gl[3] = {0, 0, 0}, gh[3] = {g.nx, g.ny, g.nz};
+  bk_v3 x1, v1;
+  rc_step(n3, ng, (int)PM_INTEGRATOR(P), P->step, ph->x, ph->v, &x1, &v1);
+  bk_v3 seg = v3_sub(x1, ph->x);
+  float len = rc_length(seg);
+  int r = PM_DDA_REACHED;
+  if (rc_floori(x1.x) == ph->c[0] && rc_floori(x1.y) == ph->c[1] && rc_floori(x1.z) == ph->c[2]) {
+    /* most steps of half a voxel stay in their voxel: no DDA set-up */
+    if (len > 0.0f &&
+        pm_cross_voxel(P, sigma, acc, masks, ph, pm_index(g, ph->c[0], ph->c[1], ph->c[2]), ph->c, len))
+      r = PM_DDA_ABSORBED;
+  } else if (len > 0.0f) {
+    r = pm_dda(P, sigma, acc, masks, ph, v3_scale(seg, 1.0f / len), len, gl, gh);
+  }
+  if (r == PM_DDA_REACHED) ph->x = x1;
+  ph->v = v1;
+  return r;
+}
+#endif
+
+/* Marches photon `index` (0 <= index < photon_total) to its end. masks: the
+ * origin recorder's masks (PM_MODE_ORIGINS); tables: one sampling table of
+ * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) floats per light (PM_MODE_TABLES);
+ * unused otherwise. Each iteration either crosses a constant block of the
+ * pyramid straight to its boundary or takes one curved step. */
+BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT const ph_light *lights,
+                               BK_GLOBAL const float *ng, BK_GLOBAL const bk_uchar *pyr,
+                               BK_GLOBAL const float *sigma, BK_GLOBAL bk_ulong *acc,
+                               BK_GLOBAL bk_ulong *masks, BK_GLOBAL const float *tables,
+                               bk_uint index, pm_result *res PM_REC_DECL) {
+  /* a private copy: the compiler cannot know the deposits leave P alone and
+   * would reload it after every atomic */
+  const pm_params Pv = *Pc;
+  const pm_params *P = &Pv;
+  const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
+  const int gl[3] = {0, 0, 0}, gh[3] = {n3.nx, n3.ny, n3.nz};
+  res->fate = PM_FATE_MISSED;
+  res->steps = 0;
+  res->voxels = 0;
+  res->path = 0.0f;
+  pm_photon ph;
+  if (!pm_start(P, lights, ng, tables, index, &ph PM_REC_ARG)) return;
+
+  bk_uint steps = 0, fate = PM_FATE_LEFT;
   for (;;) {
     if (steps >= PM_MAX_STEPS || ph.path >= P->path_cap) {
       fate = PM_FATE_STEP_LIMIT;
@@ -384,28 +423,12 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
 #if !PH_DEVICE || HAS_REFRACTION
     if (PM_HAS_REFRACTION(P)) {
       int level = rc_block_level(pyr, n3, ph.c);
-      if (level > 0) {
-        /* constant block: straight to its boundary */
+      if (level > 0) { /* constant block: straight to its boundary */
         int lo[3], hi[3];
         rc_block_bounds(n3, level, ph.c, lo, hi);
         r = pm_dda(P, sigma, acc, masks, &ph, rc_normalize(ph.v), RC_FAR, lo, hi);
       } else {
-        bk_v3 x1, v1;
-        rc_step(n3, ng, (int)PM_INTEGRATOR(P), P->step, ph.x, ph.v, &x1, &v1);
-        bk_v3 seg = v3_sub(x1, ph.x);
-        float len = rc_length(seg);
-        r = PM_DDA_REACHED;
-        if (rc_floori(x1.x) == ph.c[0] && rc_floori(x1.y) == ph.c[1] &&
-            rc_floori(x1.z) == ph.c[2]) {
-          /* most steps of half a voxel stay in their voxel: no DDA set-up */
-          if (len > 0.0f && pm_cross_voxel(P, sigma, acc, masks, &ph,
-                                           pm_index(g, ph.c[0], ph.c[1], ph.c[2]), ph.c, len))
-            r = PM_DDA_ABSORBED;
-        } else if (len > 0.0f) {
-          r = pm_dda(P, sigma, acc, masks, &ph, v3_scale(seg, 1.0f / len), len, gl, gh);
-        }
-        if (r == PM_DDA_REACHED) ph.x = x1;
-        ph.v = v1;
+        r = pm_curved_step(P, ng, sigma, acc, masks, &ph);
       }
     } else
 #endif
@@ -413,12 +436,8 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
       r = pm_dda(P, sigma, acc, masks, &ph, ph.v, RC_FAR, gl, gh);
     }
     PM_RECORD(ph.x);
-    if (r == PM_DDA_LEFT_GRID) {
-      fate = PM_FATE_LEFT;
-      break;
-    }
-    if (r == PM_DDA_ABSORBED) {
-      fate = PM_FATE_ABSORBED;
+    if (r == PM_DDA_LEFT_GRID || r == PM_DDA_ABSORBED) {
+      fate = r == PM_DDA_LEFT_GRID ? PM_FATE_LEFT : PM_FATE_ABSORBED;
       break;
     }
   }
