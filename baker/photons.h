@@ -16,7 +16,7 @@
 #ifndef BAKER_PHOTONS_H
 #define BAKER_PHOTONS_H
 
-#include "grid.h"
+#include "base/grid.h"
 #include "kernels/photons.h"
 #include "scene.h"
 

@@ -9,7 +9,7 @@
 #define BAKER_SCENE_H
 
 #include <limits.h>
-#include "common.h"
+#include "base/common.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -14,8 +14,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
-#include "frames.h"
+#include "base/common.h"
+#include "base/frames.h"
 #include "kernels/view.h"
 #include "png_io.h"
 #include "view.h"

@@ -37,7 +37,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "common.h"
+#include "base/common.h"
 #include "exr.h"
 #include "png_io.h"
 #include "vdbio.h"
