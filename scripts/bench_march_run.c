@@ -1,4 +1,4 @@
-/* test_march_bench.c: the march benchmark behind scripts/bench_march (not a
+/* bench_march_run.c: the march benchmark behind scripts/bench_march (not a
  * test: it asserts nothing about time). The slides' sphere scene: a ball of
  * n = 1.5 (radius 0.5, 2-voxel smoothing) in fog (σs 0.5, σa 0.05 per m)
  * over [-1,1]^3 under a spot light (25°, from 1.8 m above), 122 000 photons.
@@ -13,7 +13,7 @@
  * Usage: bench_march_run [RES] [PHOTONS] [euler|rk4] [RUNS] [host,cl,noct] */
 #include <unistd.h>
 
-#include "test_march_util.h"
+#include "tests/test_march_util.h"
 
 typedef struct best {
   double octree, generate, build, march, readout;
