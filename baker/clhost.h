@@ -14,7 +14,7 @@
 #define CL_TARGET_OPENCL_VERSION 120
 #endif
 #include <CL/cl.h>
-#include "common.h"
+#include "base/common.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -6,9 +6,8 @@
  * coordinates, with its range of photon indices and its power per photon.
  * The photons themselves are generated inside the march from their index.
  *
- * Sharing: light l emits P_l (W, RGB): directional E·A (A the area of the
- * rectangle perpendicular to the light covering the grid's projection, m^2),
- * spot I·Ω with Ω = 2π(1 - cos θ), point I·4π. Photons are shared out in
+ * Sharing: light l emits P_l (W, RGB), its kind's power (lights.h:
+ * directional E·A, spot I·Ω, point I·4π). Photons are shared out in
  * proportion to the sum of RGB of P_l (largest remainders, so the counts add
  * up to N exactly); each of light l's N_l photons carries P_l / N_l. A light
  * of zero power gets none. Each light's Hammersley set gets its own
@@ -16,8 +15,9 @@
 #ifndef BAKER_PHOTONS_H
 #define BAKER_PHOTONS_H
 
-#include "grid.h"
+#include "base/grid.h"
 #include "kernels/photons.h"
+#include "lights.h"
 #include "scene.h"
 
 #ifdef __cplusplus
@@ -37,13 +37,18 @@ typedef struct ph_setup {
    * one channel, the sum of RGB, and colour the result by chroma at the end. */
   int one_colour;
   double chroma[3];                  /* that colour, normalised to sum 1 */
-  int has_type[3];                   /* light types present (PH_DIRECTIONAL...) */
+  int has_type[LIGHT_KIND_COUNT];       /* light types present, by light_type_t */
 } ph_setup_t;
 
 /* Power the light emits towards the grid, W per channel; returns the sum of
  * RGB. For a directional light also the rectangle (voxel coordinates) that
  * its photons start from. */
 double ph_light_power(const scene_light_t *l, const grid_dims_t *d, double rgb[3]);
+
+/* The kernel's light flags, "-DLIGHT_DIRECTIONAL=1 -DLIGHT_SPOT=0 ...", one
+ * per row of light_kinds[] (lights.h): a specialised march keeps only the
+ * generators of the kinds present. BK_ERR_RUNTIME when n is too small. */
+int ph_kernel_defines(const ph_setup_t *s, char *buf, size_t n);
 
 /* Splits `total` photons over n weights >= 0 in proportion, by largest
  * remainders (ties to the lower index); counts sum to total unless every

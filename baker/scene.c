@@ -12,7 +12,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "integrators.h"
 #include "json.h"
+#include "lights.h"
 
 #define SC_KEY_MAX 512 /* longest key path quoted in a message */
 
@@ -396,8 +398,7 @@ static int sc_object_entry(const sc_ctx_t *c, const json_value_t *v, const char 
   char p[SC_KEY_MAX];
   const json_value_t *mesh, *t;
   int rc;
-  o->ior = 1.5f;
-  for (int a = 0; a < 3; a++) o->scale[a] = 1.0f;
+  scene_object_defaults(o);
   if ((rc = sc_object(c, v, path))) return rc;
   sc_check_keys(c, v, path, keys);
   if ((rc = sc_required(c, v, path, "mesh", &mesh)) ||
@@ -418,76 +419,75 @@ static int sc_object_entry(const sc_ctx_t *c, const json_value_t *v, const char 
   return BK_OK;
 }
 
-/* Which keys each light type takes; all of them are required. */
-static const struct {
-  const char *key;
-  unsigned types; /* bit per light_type_t */
-} sc_light_keys[] = {
-    {"position", 1u << LIGHT_SPOT | 1u << LIGHT_POINT},
-    {"direction", 1u << LIGHT_SPOT | 1u << LIGHT_DIRECTIONAL},
-    {"angle_deg", 1u << LIGHT_SPOT},
-    {"intensity", 1u << LIGHT_SPOT | 1u << LIGHT_POINT},
-    {"irradiance", 1u << LIGHT_DIRECTIONAL},
-};
-#define SC_LIGHT_KEYS (sizeof sc_light_keys / sizeof sc_light_keys[0])
+/* The loader's typed reads for a light kind's parse function (lights.h). */
+typedef struct sc_light_ctx {
+  const sc_ctx_t *c;
+  const json_value_t *v; /* the light's object */
+  const char *path;      /* "lights[i]" */
+} sc_light_ctx_t;
 
+static int sc_light_position(void *ctx, const char *key, float out[3]) {
+  const sc_light_ctx_t *x = ctx;
+  return sc_opt_floats(x->c, x->v, x->path, key, &R_ANY, 3, 0, out);
+}
+static int sc_light_colour(void *ctx, const char *key, float out[3]) {
+  const sc_light_ctx_t *x = ctx;
+  return sc_opt_floats(x->c, x->v, x->path, key, &R_NONNEG, 3, 1, out);
+}
+static int sc_light_angle(void *ctx, const char *key, float *out) {
+  const sc_light_ctx_t *x = ctx;
+  return sc_opt_float(x->c, x->v, x->path, key, &R_ANGLE, out);
+}
+static int sc_light_direction(void *ctx, const char *key, float out[3]) {
+  const sc_light_ctx_t *x = ctx;
+  char p[SC_KEY_MAX];
+  const json_value_t *d;
+  int rc;
+  if ((rc = sc_required(x->c, x->v, x->path, key, &d))) return rc;
+  sc_key(p, x->path, key);
+  if ((rc = sc_floats(x->c, d, p, &R_ANY, 3, 0, out)) || (rc = sc_direction(x->c, d, p, out)))
+    return rc;
+  return BK_OK;
+}
+
+/* One light: its kind from light_kinds[], whose keys are all required. */
 static int sc_light(const sc_ctx_t *c, const json_value_t *v, const char *path, scene_light_t *l) {
-  static const char *const all[] = {"type", "position", "direction", "angle_deg",
-                                    "intensity", "irradiance", NULL};
-  static const char *const types[] = {"directional", "spot", "point"}; /* light_type_t order */
+  const char *names[LIGHT_KIND_COUNT];
   char p[SC_KEY_MAX];
   const json_value_t *tv;
   int rc, type = 0;
+  for (int i = 0; i < LIGHT_KIND_COUNT; i++) names[i] = light_kinds[i].name;
   if ((rc = sc_object(c, v, path)) || (rc = sc_required(c, v, path, "type", &tv)) ||
-      (rc = sc_enum(c, tv, sc_key(p, path, "type"), types, 3, &type)))
+      (rc = sc_enum(c, tv, sc_key(p, path, "type"), names, LIGHT_KIND_COUNT, &type)))
     return rc;
-  l->type = (light_type_t)type;
+  const light_kind_t *kind = &light_kinds[type];
+  l->type = kind->type;
   for (size_t i = 0; i < v->count; i++) {
     const json_member_t *m = &v->members[i];
-    if (!sc_known(m->key, all)) {
-      sc_warn_unknown(c, m, path, all);
-      continue;
-    }
-    for (size_t k = 0; k < SC_LIGHT_KEYS; k++)
-      if (strcmp(m->key, sc_light_keys[k].key) == 0 && !(sc_light_keys[k].types >> type & 1u))
-        bk_warn("%s:%d:%d: %s: not used by a %s light, ignored", c->file, m->line, m->col,
-                sc_key(p, path, m->key), types[type]);
+    if (!sc_known(m->key, light_keys))
+      sc_warn_unknown(c, m, path, light_keys);
+    else if (strcmp(m->key, "type") != 0 && !light_kind_takes(kind, m->key))
+      bk_warn("%s:%d:%d: %s: not used by a %s light, ignored", c->file, m->line, m->col,
+              sc_key(p, path, m->key), kind->name);
   }
-  for (size_t k = 0; k < SC_LIGHT_KEYS; k++) {
+  for (const char *const *k = kind->keys; *k; k++) {
     const json_value_t *kv;
-    if (!(sc_light_keys[k].types >> type & 1u)) continue;
-    if ((rc = sc_required(c, v, path, sc_light_keys[k].key, &kv))) return rc;
+    if ((rc = sc_required(c, v, path, *k, &kv))) return rc;
   }
-  switch (l->type) {
-  case LIGHT_SPOT:
-    if ((rc = sc_opt_float(c, v, path, "angle_deg", &R_ANGLE, &l->angle_deg))) return rc;
-    /* fall through */
-  case LIGHT_POINT:
-    if ((rc = sc_opt_floats(c, v, path, "position", &R_ANY, 3, 0, l->position)) ||
-        (rc = sc_opt_floats(c, v, path, "intensity", &R_NONNEG, 3, 1, l->intensity)))
-      return rc;
-    break;
-  case LIGHT_DIRECTIONAL:
-    if ((rc = sc_opt_floats(c, v, path, "irradiance", &R_NONNEG, 3, 1, l->irradiance))) return rc;
-    break;
-  }
-  if (l->type != LIGHT_POINT) {
-    const json_value_t *d = json_object_get(v, "direction");
-    sc_key(p, path, "direction");
-    if ((rc = sc_floats(c, d, p, &R_ANY, 3, 0, l->direction)) ||
-        (rc = sc_direction(c, d, p, l->direction)))
-      return rc;
-  }
-  return BK_OK;
+  sc_light_ctx_t x = {c, v, path};
+  const light_reader_t reader = {&x, sc_light_position, sc_light_colour, sc_light_angle,
+                                 sc_light_direction};
+  return kind->parse(&reader, l);
 }
 
 static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
   static const char *const keys[] = {"mode", "count", "seed", "integrator", "step", NULL};
   static const char *const modes[] = {"reference", "adaptive"};        /* photon_mode_t */
-  static const char *const integrators[] = {"euler", "rk4"};          /* integrator_t */
+  const char *integrators[INTEGRATOR_KIND_COUNT];
   const json_value_t *e;
   long long seed = s->seed;
   int rc, k;
+  for (int i = 0; i < INTEGRATOR_KIND_COUNT; i++) integrators[i] = integrator_kinds[i].name;
   if ((rc = sc_object(c, v, "photons"))) return rc;
   sc_check_keys(c, v, "photons", keys);
   if ((e = json_object_get(v, "mode"))) {
@@ -495,8 +495,9 @@ static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
     s->mode = (photon_mode_t)k;
   }
   if ((e = json_object_get(v, "integrator"))) {
-    if ((rc = sc_enum(c, e, "photons.integrator", integrators, 2, &k))) return rc;
-    s->integrator = (integrator_t)k;
+    if ((rc = sc_enum(c, e, "photons.integrator", integrators, INTEGRATOR_KIND_COUNT, &k)))
+      return rc;
+    s->integrator = integrator_kinds[k].id;
   }
   if ((rc = sc_opt_int(c, v, "photons", "count", &R_PHOTONS, &s->photon_count)) ||
       (rc = sc_opt_int(c, v, "photons", "seed", &R_SEED, &seed)) ||
@@ -616,7 +617,8 @@ static int sc_root(const sc_ctx_t *c, const json_value_t *root, scene_t *s) {
 
 /* --- public ----------------------------------------------------------------- */
 
-static void sc_defaults(scene_t *s) {
+void scene_defaults(scene_t *s) {
+  memset(s, 0, sizeof *s);
   s->ior_smoothing = 2.0f;
   s->medium_ior = 1.0f;
   s->mode = MODE_REFERENCE;
@@ -634,6 +636,12 @@ static void sc_defaults(scene_t *s) {
   s->camera.height = 600;
 }
 
+void scene_object_defaults(scene_object_t *o) {
+  memset(o, 0, sizeof *o);
+  o->ior = 1.5f;
+  for (int a = 0; a < 3; a++) o->scale[a] = 1.0f;
+}
+
 int scene_load(const char *path, scene_t *s, bk_error_t *err) {
   bk_error_t local;
   char *text = NULL;
@@ -642,8 +650,7 @@ int scene_load(const char *path, scene_t *s, bk_error_t *err) {
   sc_ctx_t c = {s->path, s->dir, err ? err : &local};
   int rc;
   if (!err) err = &local;
-  memset(s, 0, sizeof *s);
-  sc_defaults(s);
+  scene_defaults(s);
   size_t pl = strlen(path);
   if (pl == 0 || pl >= SCENE_PATH_MAX)
     return bk_fail(err, BK_ERR_INPUT, "%.200s: expected a scene path of 1 to %d bytes, found %zu",
@@ -681,12 +688,8 @@ void scene_free(scene_t *s) {
 }
 
 const char *scene_light_type_name(light_type_t t) {
-  switch (t) {
-  case LIGHT_DIRECTIONAL: return "directional";
-  case LIGHT_SPOT: return "spot";
-  case LIGHT_POINT: return "point";
-  }
-  return "unknown";
+  const light_kind_t *k = light_kind(t);
+  return k ? k->name : "unknown";
 }
 
 const char *scene_mode_name(photon_mode_t m) {
@@ -698,9 +701,6 @@ const char *scene_mode_name(photon_mode_t m) {
 }
 
 const char *scene_integrator_name(integrator_t i) {
-  switch (i) {
-  case INTEGRATOR_EULER: return "euler";
-  case INTEGRATOR_RK4: return "rk4";
-  }
-  return "unknown";
+  const integrator_kind_t *k = integrator_kind(i);
+  return k ? k->name : "unknown";
 }

@@ -9,7 +9,7 @@
 #define BAKER_SCENE_H
 
 #include <limits.h>
-#include "common.h"
+#include "base/common.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -20,6 +20,7 @@ extern "C" {
 #define SCENE_MAX_OBJECTS 1024
 #define SCENE_MAX_LIGHTS 64
 
+/* Rows of light_kinds[] (lights.h) and of integrator_kinds[] (integrators.h). */
 typedef enum { LIGHT_DIRECTIONAL = 0, LIGHT_SPOT = 1, LIGHT_POINT = 2 } light_type_t;
 typedef enum { MODE_REFERENCE = 0, MODE_ADAPTIVE = 1 } photon_mode_t;
 typedef enum { INTEGRATOR_EULER = 0, INTEGRATOR_RK4 = 1 } integrator_t;
@@ -97,6 +98,12 @@ typedef struct scene {
   scene_camera_t camera;
   float background[3];
 } scene_t;
+
+/* Every default of DESIGN.md §4 on a zeroed scene: what scene_load starts
+ * from, and what a scene made in code (tests, benchmarks) starts from. */
+void scene_defaults(scene_t *s);
+/* An object's defaults: ior 1.5, scale 1, nothing else. */
+void scene_object_defaults(scene_object_t *o);
 
 /* Loads and validates. On failure returns BK_ERR_INPUT (a missing or
  * unreadable scene file included: the user named it) or BK_ERR_RUNTIME (out of

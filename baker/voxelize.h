@@ -27,7 +27,7 @@
 #ifndef BAKER_VOXELIZE_H
 #define BAKER_VOXELIZE_H
 
-#include "grid.h"
+#include "base/grid.h"
 #include "scene.h"
 
 #ifdef __cplusplus

@@ -12,7 +12,7 @@
 #ifndef BAKER_EXR_H
 #define BAKER_EXR_H
 
-#include "common.h"
+#include "base/common.h"
 
 #ifdef __cplusplus
 extern "C" {

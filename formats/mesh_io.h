@@ -9,7 +9,7 @@
 #ifndef BAKER_MESH_IO_H
 #define BAKER_MESH_IO_H
 
-#include "common.h"
+#include "base/common.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -13,7 +13,7 @@
 #ifndef BAKER_VDBIO_H
 #define BAKER_VDBIO_H
 
-#include "grid.h"
+#include "base/grid.h"
 
 #ifdef __cplusplus
 extern "C" {

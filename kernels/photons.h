@@ -36,7 +36,9 @@
 #define PH_DEVICE 0
 #endif
 
-#define PH_DIRECTIONAL 0 /* same values as light_type_t in baker/scene.h */
+/* ph_light.type: the rows of light_kinds[] (baker/lights.h), whose `define`
+ * names the LIGHT_* flag above */
+#define PH_DIRECTIONAL 0
 #define PH_SPOT 1
 #define PH_POINT 2
 
@@ -90,27 +92,44 @@ BK_INLINE void ph_point(BK_CONSTANT const ph_light *L, bk_uint k, float *a, floa
   ph_hammersley(k, L->count, L->rot_u, L->rot_v, a, b);
 }
 
-/* Origin and unit direction, voxel coordinates, of the photon from the
- * light-domain point (a, b) in [0,1)^2. The LIGHT_* flags of a specialised
- * kernel drop the generators of light types the scene does not have. */
-BK_INLINE void ph_map(BK_CONSTANT const ph_light *L, float a, float b, bk_v3 *origin, bk_v3 *dir) {
+/* The sampling function of each light kind (baker/lights.h): origin and unit
+ * direction, voxel coordinates, of the photon from the light-domain point
+ * (a, b) in [0,1)^2. */
+
+/* directional: the rectangle corner + a U + b V, along d */
+BK_INLINE void ph_map_directional(BK_CONSTANT const ph_light *L, float a, float b, bk_v3 *origin,
+                                  bk_v3 *dir) {
   bk_v3 d = v3(L->dx, L->dy, L->dz);
   bk_v3 u = v3(L->ux, L->uy, L->uz), w = v3(L->vx, L->vy, L->vz);
-#if !PH_DEVICE || LIGHT_DIRECTIONAL
-  if (L->type == PH_DIRECTIONAL) {
-    *origin = v3_madd(v3_madd(v3(L->px, L->py, L->pz), u, a), w, b);
-    *dir = d;
-    return;
-  }
-#endif
-#if !PH_DEVICE || LIGHT_SPOT || LIGHT_POINT
-  /* spot and point: uniform in solid angle about d down to cos_max */
+  *origin = v3_madd(v3_madd(v3(L->px, L->py, L->pz), u, a), w, b);
+  *dir = d;
+}
+
+/* spot and point: uniform in solid angle about d down to cos_max */
+BK_INLINE void ph_map_cone(BK_CONSTANT const ph_light *L, float a, float b, bk_v3 *origin,
+                           bk_v3 *dir) {
+  bk_v3 d = v3(L->dx, L->dy, L->dz);
+  bk_v3 u = v3(L->ux, L->uy, L->uz), w = v3(L->vx, L->vy, L->vz);
   float ct = 1.0f - a * (1.0f - L->cos_max);
   float st = sqrt(fmax(0.0f, 1.0f - ct * ct));
   float phi = 6.283185307179586f * b;
   float cp = cos(phi), sp = sin(phi);
   *origin = v3(L->px, L->py, L->pz);
   *dir = v3_normalize(v3_madd(v3_madd(v3_scale(d, ct), u, st * cp), w, st * sp));
+}
+
+/* The photon of light L from the light-domain point (a, b), by its kind.
+ * The LIGHT_* flags of a specialised kernel drop the kinds the scene does not
+ * have. */
+BK_INLINE void ph_map(BK_CONSTANT const ph_light *L, float a, float b, bk_v3 *origin, bk_v3 *dir) {
+#if !PH_DEVICE || LIGHT_DIRECTIONAL
+  if (L->type == PH_DIRECTIONAL) {
+    ph_map_directional(L, a, b, origin, dir);
+    return;
+  }
+#endif
+#if !PH_DEVICE || LIGHT_SPOT || LIGHT_POINT
+  ph_map_cone(L, a, b, origin, dir);
 #endif
 }
 

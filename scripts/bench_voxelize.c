@@ -42,19 +42,16 @@ int main(int argc, char **argv) {
 
   static scene_t scene; /* large: keep it off the stack */
   scene_object_t obj;
-  memset(&scene, 0, sizeof scene);
-  memset(&obj, 0, sizeof obj);
+  scene_defaults(&scene);
+  scene_object_defaults(&obj); /* ior 1.5, scale 1 */
   snprintf(scene.path, sizeof scene.path, "bench_voxelize");
   for (int a = 0; a < 3; a++) {
     scene.bounds_min[a] = lo[a] - 0.05f * longest;
     scene.bounds_max[a] = hi[a] + 0.05f * longest;
-    obj.scale[a] = 1.0f;
   }
   scene.resolution = resolution;
   scene.ior_smoothing = smoothing;
-  scene.medium_ior = 1.0f;
   snprintf(obj.mesh, sizeof obj.mesh, "%s", path);
-  obj.ior = 1.5f;
   scene.objects = &obj;
   scene.object_count = 1;
 

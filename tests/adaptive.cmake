@@ -26,7 +26,3 @@ set_tests_properties(adaptive_filter_cl adaptive_device adaptive_unbiased adapti
                      adaptive_filter_radius adaptive_host_vs_device adaptive_cli
                      PROPERTIES ENVIRONMENT "BAKER_CACHE_DIR=${CMAKE_BINARY_DIR}/adaptive_kernel_cache"
                                 TIMEOUT 300)
-
-# The benchmark behind scripts/bench_adaptive: built with the tests, never run by ctest.
-add_executable(bench_adaptive_run ${BAKER_TEST_DIR}/test_adaptive_bench.c)
-target_link_libraries(bench_adaptive_run PRIVATE bakercore)

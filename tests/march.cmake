@@ -24,13 +24,11 @@ add_test(NAME march_photons COMMAND test_march photons)
 add_test(NAME march_host_vs_device COMMAND test_march_robust host_vs_device)
 # 512^3 needs ~9 GiB: skipped (exit 77) when the machine has less available
 add_test(NAME march_extremes_512 COMMAND test_march_robust extremes_512)
-set_tests_properties(march_extremes_512 PROPERTIES SKIP_RETURN_CODE 77)
+# About 23 s on 2 cores: labelled slow, still in the default run
+# (scripts/test.sh -LE slow leaves it out, -L slow runs it alone).
+set_tests_properties(march_extremes_512 PROPERTIES SKIP_RETURN_CODE 77 LABELS slow)
 
 get_property(MARCH_TESTS DIRECTORY PROPERTY TESTS)
 list(FILTER MARCH_TESTS INCLUDE REGEX "^march_")
 set_tests_properties(${MARCH_TESTS} PROPERTIES
   ENVIRONMENT "BAKER_CACHE_DIR=${MARCH_CACHE}" TIMEOUT 120)
-
-# The benchmark behind scripts/bench_march: built with the tests, never run by ctest.
-add_executable(bench_march_run ${BAKER_TEST_DIR}/test_march_bench.c)
-target_link_libraries(bench_march_run PRIVATE bakercore)

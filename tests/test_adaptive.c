@@ -21,9 +21,6 @@
 #include "scene.h"
 #include "test_util.h"
 
-#define CHECK TU_EXPECT
-
-
 /* Fixed-seed generator: xorshift64*, and Gaussians by Box–Muller. */
 static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
 static double rng_uniform(void) {
@@ -49,30 +46,30 @@ static grid_dims_t cube_dims(int n) {
 /* --- cells ------------------------------------------------------------------- */
 
 static int test_cells(void) {
-  CHECK(ad_cell_of(0.0f, 0.0f) == 0, "origin");
-  CHECK(ad_cell_of(0.125f, 0.0f) == 1, "%d", ad_cell_of(0.125f, 0.0f));
-  CHECK(ad_cell_of(0.12499999f, 0.0f) == 0, "just below an edge");
-  CHECK(ad_cell_of(0.0f, 0.125f) == AD_CELLS_X, "%d", ad_cell_of(0.0f, 0.125f));
-  CHECK(ad_cell_of(AD_ONE_BELOW, AD_ONE_BELOW) == AD_CELLS - 1, "top corner");
-  CHECK(ad_cell_of(1.0f, 1.0f) == AD_CELLS - 1 && ad_cell_of(-0.5f, -1e-9f) == 0, "clamped");
-  CHECK(ad_cell_of(0.3f, 0.6f) == 2 + 8 * 4, "%d", ad_cell_of(0.3f, 0.6f));
+  EXPECT(ad_cell_of(0.0f, 0.0f) == 0, "origin");
+  EXPECT(ad_cell_of(0.125f, 0.0f) == 1, "%d", ad_cell_of(0.125f, 0.0f));
+  EXPECT(ad_cell_of(0.12499999f, 0.0f) == 0, "just below an edge");
+  EXPECT(ad_cell_of(0.0f, 0.125f) == AD_CELLS_X, "%d", ad_cell_of(0.0f, 0.125f));
+  EXPECT(ad_cell_of(AD_ONE_BELOW, AD_ONE_BELOW) == AD_CELLS - 1, "top corner");
+  EXPECT(ad_cell_of(1.0f, 1.0f) == AD_CELLS - 1 && ad_cell_of(-0.5f, -1e-9f) == 0, "clamped");
+  EXPECT(ad_cell_of(0.3f, 0.6f) == 2 + 8 * 4, "%d", ad_cell_of(0.3f, 0.6f));
   /* every cell is hit by exactly 1/64 of a 64x64 lattice of cell centres */
   int hits[AD_CELLS] = {0};
   for (int j = 0; j < 64; j++)
     for (int i = 0; i < 64; i++) hits[ad_cell_of((i + 0.5f) / 64.0f, (j + 0.5f) / 64.0f)]++;
-  for (int c = 0; c < AD_CELLS; c++) CHECK(hits[c] == 64, "cell %d hit %d times", c, hits[c]);
-  CHECK(ad_cell_bit(63) == 0x8000000000000000ull && ad_cell_bit(0) == 1ull, "bits");
+  for (int c = 0; c < AD_CELLS; c++) EXPECT(hits[c] == 64, "cell %d hit %d times", c, hits[c]);
+  EXPECT(ad_cell_bit(63) == 0x8000000000000000ull && ad_cell_bit(0) == 1ull, "bits");
   /* origin masks: light-major blocks, bits OR-ed, idempotent */
   uint64_t masks[2 * 10] = {0};
   ad_origin_mark(masks, ad_origin_index(3, 1, 10), 5);
   ad_origin_mark(masks, ad_origin_index(3, 1, 10), 5);
   ad_origin_mark(masks, ad_origin_index(3, 1, 10), 63);
   ad_origin_mark(masks, ad_origin_index(3, 0, 10), 0);
-  CHECK(masks[13] == ((1ull << 5) | (1ull << 63)) && masks[3] == 1ull, "%llx %llx",
+  EXPECT(masks[13] == ((1ull << 5) | (1ull << 63)) && masks[3] == 1ull, "%llx %llx",
         (unsigned long long)masks[13], (unsigned long long)masks[3]);
   int other = 0;
   for (int i = 0; i < 20; i++) other += i != 3 && i != 13 && masks[i] != 0;
-  CHECK(other == 0, "stray bits in %d masks", other);
+  EXPECT(other == 0, "stray bits in %d masks", other);
   printf("cells: ok\n");
   return tu_failures;
 }
@@ -85,12 +82,12 @@ static int test_cells(void) {
 static void check_table(const char *name, const float *table, int nx, int ny,
                         const double *expect) {
   int cells = nx * ny;
-  for (int r = 0; r < ny; r++) CHECK(table[r + 1] >= table[r], "%s: marginal not monotone", name);
-  CHECK(table[0] == 0.0f && table[ny] == 1.0f, "%s: marginal ends", name);
+  for (int r = 0; r < ny; r++) EXPECT(table[r + 1] >= table[r], "%s: marginal not monotone", name);
+  EXPECT(table[0] == 0.0f && table[ny] == 1.0f, "%s: marginal ends", name);
   for (int r = 0; r < ny; r++) {
     const float *c = table + (ny + 1) + r * (nx + 1);
-    CHECK(c[0] == 0.0f && c[nx] == 1.0f, "%s: row %d ends", name, r);
-    for (int i = 0; i < nx; i++) CHECK(c[i + 1] >= c[i], "%s: row %d not monotone", name, r);
+    EXPECT(c[0] == 0.0f && c[nx] == 1.0f, "%s: row %d ends", name, r);
+    for (int i = 0; i < nx; i++) EXPECT(c[i + 1] >= c[i], "%s: row %d not monotone", name, r);
   }
   /* the density integrates to 1 and matches the analytic one */
   double integral = 0.0, worst = 0.0;
@@ -101,8 +98,8 @@ static void check_table(const char *name, const float *table, int nx, int ny,
       double e = fabs(p - expect[c + nx * r]) / expect[c + nx * r];
       if (e > worst) worst = e;
     }
-  CHECK(fabs(integral - 1.0) < 1e-5, "%s: pdf integrates to %.8f", name, integral);
-  CHECK(worst < 1e-5, "%s: cell density off by %.2e relative", name, worst);
+  EXPECT(fabs(integral - 1.0) < 1e-5, "%s: pdf integrates to %.8f", name, integral);
+  EXPECT(worst < 1e-5, "%s: cell density off by %.2e relative", name, worst);
 
   enum { N = 65536 };
   int *hist = calloc((size_t)cells, sizeof(int));
@@ -126,21 +123,21 @@ static void check_table(const char *name, const float *table, int nx, int ny,
   }
   est_a /= N;
   est_b /= N;
-  CHECK(outside == 0, "%s: %d warped points outside [0,1)^2", name, outside);
-  CHECK(wrong_cell == 0, "%s: %d points outside the cell the warp reports", name, wrong_cell);
-  CHECK(wrong_pdf == 0, "%s: %d pdfs differ from ad_pdf_eval", name, wrong_pdf);
+  EXPECT(outside == 0, "%s: %d warped points outside [0,1)^2", name, outside);
+  EXPECT(wrong_cell == 0, "%s: %d points outside the cell the warp reports", name, wrong_cell);
+  EXPECT(wrong_pdf == 0, "%s: %d pdfs differ from ad_pdf_eval", name, wrong_pdf);
   double worst_hist = 0.0;
   for (int c = 0; c < cells; c++) {
     double want = expect[c] / cells * N;
     double dev = fabs(hist[c] - want);
     if (dev / want > worst_hist) worst_hist = dev / want;
-    CHECK(dev <= 0.01 * want + 2.0, "%s: cell %d holds %d points, expected %.1f", name, c,
+    EXPECT(dev <= 0.01 * want + 2.0, "%s: cell %d holds %d points, expected %.1f", name, c,
           hist[c], want);
   }
   double ia = (exp(1.0) - 1.0) * 4.0 / 3.0;
-  CHECK(fabs(est_a - ia) / ia < 1e-3, "%s: E[f/pdf] = %.6f, integral %.6f", name, est_a, ia);
-  CHECK(fabs(est_b - 1.0) < 1e-3, "%s: E[g/pdf] = %.6f, integral 1", name, est_b);
-  CHECK(worst_inv < 2e-6, "%s: unwarp(warp(u)) - u up to %.2e", name, worst_inv);
+  EXPECT(fabs(est_a - ia) / ia < 1e-3, "%s: E[f/pdf] = %.6f, integral %.6f", name, est_a, ia);
+  EXPECT(fabs(est_b - 1.0) < 1e-3, "%s: E[g/pdf] = %.6f, integral 1", name, est_b);
+  EXPECT(worst_inv < 2e-6, "%s: unwarp(warp(u)) - u up to %.2e", name, worst_inv);
   printf("warp %s: histogram within %.3f%%, E[f/pdf] rel err %.2e and %.2e, inverse %.1e\n", name,
          100.0 * worst_hist, fabs(est_a - ia) / ia, fabs(est_b - 1.0), worst_inv);
   free(hist);
@@ -157,13 +154,13 @@ static int test_warp(void) {
   w[2 + 8 * 5] += 200.0;
   const float floor_f = 0.1f;
   float table[AD_TABLE_FLOATS(8, 8)], cell_pdf[AD_CELLS];
-  CHECK(ad_pdf_from_weights(w, 8, 8, floor_f, table, cell_pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_pdf_from_weights(w, 8, 8, floor_f, table, cell_pdf, &err) == BK_OK, "%s", err.msg);
   double total = 0.0, expect[AD_CELLS];
   for (int c = 0; c < AD_CELLS; c++) total += w[c];
   for (int c = 0; c < AD_CELLS; c++) expect[c] = floor_f + (1.0 - floor_f) * AD_CELLS * w[c] / total;
   check_table("8x8", table, 8, 8, expect);
   for (int c = 0; c < AD_CELLS; c++)
-    CHECK(cell_pdf[c] >= floor_f * (1.0f - 1e-5f), "cell %d pdf %g below the floor", c,
+    EXPECT(cell_pdf[c] >= floor_f * (1.0f - 1e-5f), "cell %d pdf %g below the floor", c,
           (double)cell_pdf[c]);
 
   /* another shape: 5 x 3 cells, smooth weights */
@@ -171,24 +168,24 @@ static int test_warp(void) {
   for (int c = 0; c < 15; c++) t2 += (w2[c] = 1.0 + (c % 5) * (c / 5) + (c == 7 ? 9.0 : 0.0));
   for (int c = 0; c < 15; c++) e2[c] = 0.3 + 0.7 * 15.0 * w2[c] / t2;
   float table2[AD_TABLE_FLOATS(5, 3)];
-  CHECK(ad_pdf_from_weights(w2, 5, 3, 0.3f, table2, NULL, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_pdf_from_weights(w2, 5, 3, 0.3f, table2, NULL, &err) == BK_OK, "%s", err.msg);
   check_table("5x3", table2, 5, 3, e2);
 
   /* no weight anywhere: uniform, and the warp is the identity */
   double zero[AD_CELLS] = {0}, ones[AD_CELLS];
   for (int c = 0; c < AD_CELLS; c++) ones[c] = 1.0;
-  CHECK(ad_pdf_from_weights(zero, 8, 8, 0.5f, table, NULL, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_pdf_from_weights(zero, 8, 8, 0.5f, table, NULL, &err) == BK_OK, "%s", err.msg);
   check_table("uniform", table, 8, 8, ones);
   double worst = 0.0;
   for (uint32_t i = 0; i < 4096; i++) {
     float ua = i / 4096.0f, ub = ph_radical_inverse2(i);
     ad_sample s = ad_pdf_warp(table, 8, 8, ua, ub);
     worst = fmax(worst, fmax(fabs(s.x - ua), fabs(s.y - ub)));
-    CHECK(s.pdf == 1.0f, "uniform pdf %g", (double)s.pdf);
+    EXPECT(s.pdf == 1.0f, "uniform pdf %g", (double)s.pdf);
   }
-  CHECK(worst < 1e-6, "uniform warp moves points by %.2e", worst);
+  EXPECT(worst < 1e-6, "uniform warp moves points by %.2e", worst);
   /* monotone in each coordinate */
-  CHECK(ad_pdf_from_weights(w, 8, 8, floor_f, table, NULL, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_pdf_from_weights(w, 8, 8, floor_f, table, NULL, &err) == BK_OK, "%s", err.msg);
   int bad = 0;
   for (int a = 0; a < 16; a++) {
     float prev = -1.0f;
@@ -198,19 +195,19 @@ static int test_warp(void) {
       prev = s.y;
     }
   }
-  CHECK(bad == 0, "warp not monotone in b (%d)", bad);
+  EXPECT(bad == 0, "warp not monotone in b (%d)", bad);
   /* extremes stay inside */
   ad_sample s = ad_pdf_warp(table, 8, 8, 1.0f, 1.0f);
-  CHECK(s.x < 1.0f && s.y < 1.0f && s.cell == AD_CELLS - 1, "u = 1 gives (%g, %g) cell %d",
+  EXPECT(s.x < 1.0f && s.y < 1.0f && s.cell == AD_CELLS - 1, "u = 1 gives (%g, %g) cell %d",
         (double)s.x, (double)s.y, s.cell);
   s = ad_pdf_warp(table, 8, 8, 0.0f, 0.0f);
-  CHECK(s.x == 0.0f && s.y == 0.0f && s.cell == 0, "u = 0 gives (%g, %g)", (double)s.x,
+  EXPECT(s.x == 0.0f && s.y == 0.0f && s.cell == 0, "u = 0 gives (%g, %g)", (double)s.x,
         (double)s.y);
   /* bad input */
-  CHECK(ad_pdf_from_weights(w, 8, 8, 0.0f, table, NULL, &err) == BK_ERR_INPUT &&
+  EXPECT(ad_pdf_from_weights(w, 8, 8, 0.0f, table, NULL, &err) == BK_ERR_INPUT &&
             strstr(err.msg, "floor"), "floor 0: %s", err.msg);
   w[3] = -1.0;
-  CHECK(ad_pdf_from_weights(w, 8, 8, 0.5f, table, NULL, &err) == BK_ERR_RUNTIME &&
+  EXPECT(ad_pdf_from_weights(w, 8, 8, 0.5f, table, NULL, &err) == BK_ERR_RUNTIME &&
             strstr(err.msg, "cell 3"), "negative weight: %s", err.msg);
   return tu_failures;
 }
@@ -241,17 +238,17 @@ static int test_pdf(void) {
     }
   }
   const float f = 0.25f;
-  CHECK(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
-  CHECK(pdf.selected_reached == (size_t)nsel, "%zu selected with origins, expected %d",
+  EXPECT(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(pdf.selected_reached == (size_t)nsel, "%zu selected with origins, expected %d",
         pdf.selected_reached, nsel);
   double imp = 0.0, integral = 0.0, lo = 1e9, hi = 0.0;
   for (int c = 0; c < AD_CELLS; c++) {
     imp += pdf.importance[c];
     integral += pdf.cell_pdf[c] / AD_CELLS;
-    CHECK(pdf.cell_pdf[c] >= f * (1.0f - 1e-5f), "cell %d pdf %g below the floor %g", c,
+    EXPECT(pdf.cell_pdf[c] >= f * (1.0f - 1e-5f), "cell %d pdf %g below the floor %g", c,
           (double)pdf.cell_pdf[c], (double)f);
     if (c % 8 >= 4) {
-      CHECK(fabs(pdf.cell_pdf[c] - f) < 1e-5, "right cell %d: pdf %g, expected the floor", c,
+      EXPECT(fabs(pdf.cell_pdf[c] - f) < 1e-5, "right cell %d: pdf %g, expected the floor", c,
             (double)pdf.cell_pdf[c]);
     } else {
       lo = fmin(lo, pdf.cell_pdf[c]);
@@ -260,10 +257,10 @@ static int test_pdf(void) {
   }
   /* each selected voxel spreads exactly 1; the 32 left cells share evenly
    * (every left cell is used the same number of times by construction) */
-  CHECK(fabs(imp - nsel) < 1e-9, "importance sums to %g, expected %d", imp, nsel);
-  CHECK(fabs(integral - 1.0) < 1e-5, "pdf integrates to %.7f", integral);
+  EXPECT(fabs(imp - nsel) < 1e-9, "importance sums to %g, expected %d", imp, nsel);
+  EXPECT(fabs(integral - 1.0) < 1e-5, "pdf integrates to %.7f", integral);
   double left_expect = f + (1.0 - f) * 2.0;
-  CHECK(fabs(lo - left_expect) < 1e-4 && fabs(hi - left_expect) < 1e-4,
+  EXPECT(fabs(lo - left_expect) < 1e-4 && fabs(hi - left_expect) < 1e-4,
         "left cells %g..%g, expected %g", lo, hi, left_expect);
   printf("pdf: left cells %.4f (expected %.4f), right cells at the floor %.2f\n", lo, left_expect,
          (double)f);
@@ -274,24 +271,24 @@ static int test_pdf(void) {
   masks[17] = ad_cell_bit(42);
   sel[17] = AD_SEL_SHADOW;
   sel[18] = AD_SEL_SHADOW; /* selected but never reached: no origin, no effect */
-  CHECK(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
-  CHECK(fabs(pdf.cell_pdf[42] - (f + (1.0f - f) * AD_CELLS)) < 1e-3, "hot cell %g",
+  EXPECT(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(fabs(pdf.cell_pdf[42] - (f + (1.0f - f) * AD_CELLS)) < 1e-3, "hot cell %g",
         (double)pdf.cell_pdf[42]);
-  CHECK(fabs(pdf.cell_pdf[0] - f) < 1e-6, "cold cell %g", (double)pdf.cell_pdf[0]);
-  CHECK(pdf.selected_reached == 1, "%zu", pdf.selected_reached);
+  EXPECT(fabs(pdf.cell_pdf[0] - f) < 1e-6, "cold cell %g", (double)pdf.cell_pdf[0]);
+  EXPECT(pdf.selected_reached == 1, "%zu", pdf.selected_reached);
   ad_sample s = ad_pdf_warp(pdf.table, pdf.nx, pdf.ny, 0.5f, 0.5f);
-  CHECK(s.cell == 42, "the middle of the domain warps into the hot cell, got %d", s.cell);
+  EXPECT(s.cell == 42, "the middle of the domain warps into the hot cell, got %d", s.cell);
 
   /* a voxel reached from every cell favours none; nothing selected: uniform */
   masks[17] = ~0ull;
-  CHECK(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   for (int c = 0; c < AD_CELLS; c++)
-    CHECK(fabs(pdf.cell_pdf[c] - 1.0f) < 1e-5, "cell %d pdf %g, expected uniform", c,
+    EXPECT(fabs(pdf.cell_pdf[c] - 1.0f) < 1e-5, "cell %d pdf %g, expected uniform", c,
           (double)pdf.cell_pdf[c]);
   memset(sel, 0, V);
-  CHECK(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
-  CHECK(pdf.selected_reached == 0 && fabs(pdf.cell_pdf[5] - 1.0f) < 1e-6, "no selection");
-  CHECK(ad_build_pdf(masks, sel, V, 1.5f, &pdf, &err) == BK_ERR_INPUT, "floor 1.5 accepted");
+  EXPECT(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(pdf.selected_reached == 0 && fabs(pdf.cell_pdf[5] - 1.0f) < 1e-6, "no selection");
+  EXPECT(ad_build_pdf(masks, sel, V, 1.5f, &pdf, &err) == BK_ERR_INPUT, "floor 1.5 accepted");
   free(masks);
   free(sel);
   return tu_failures;
@@ -372,55 +369,55 @@ static int test_thresholds(void) {
   double edge, shadow, smooth;
 
   make_pilot(rgb, 0.0, 1.0);
-  CHECK(ad_select_voxels(&d, rgb, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_select_voxels(&d, rgb, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
   classify(sel, &edge, &shadow, &smooth);
   printf("thresholds (clean): gradient %.4g /m (median %.4g), luminance %.4g (median %.4g); "
          "selected %zu of %zu; edge %.1f%%, shadow %.1f%%, smooth %.2f%%\n",
          (double)st.gradient_threshold, (double)st.median_gradient,
          (double)st.luminance_threshold, (double)st.median_luminance, st.selected, st.considered,
          100 * edge, 100 * shadow, 100 * smooth);
-  CHECK(edge >= 0.95, "only %.1f%% of the cone's edge voxels selected", 100 * edge);
-  CHECK(shadow >= 0.99, "only %.1f%% of the shadow voxels selected", 100 * shadow);
-  CHECK(smooth <= 0.01, "%.2f%% of the smooth voxels selected", 100 * smooth);
-  CHECK(st.reached == V && st.considered == V, "reached %zu considered %zu", st.reached,
+  EXPECT(edge >= 0.95, "only %.1f%% of the cone's edge voxels selected", 100 * edge);
+  EXPECT(shadow >= 0.99, "only %.1f%% of the shadow voxels selected", 100 * shadow);
+  EXPECT(smooth <= 0.01, "%.2f%% of the smooth voxels selected", 100 * smooth);
+  EXPECT(st.reached == V && st.considered == V, "reached %zu considered %zu", st.reached,
         st.considered);
 
   /* the same with the threshold functions called on their own */
   float g, l;
-  CHECK(ad_auto_thresholds(&d, rgb, NULL, AD_DEFAULT_SMOOTH_RADIUS, &g, &l, NULL, &err) == BK_OK,
+  EXPECT(ad_auto_thresholds(&d, rgb, NULL, AD_DEFAULT_SMOOTH_RADIUS, &g, &l, NULL, &err) == BK_OK,
         "%s", err.msg);
-  CHECK(g == st.gradient_threshold && l == st.luminance_threshold, "auto %g %g vs %g %g",
+  EXPECT(g == st.gradient_threshold && l == st.luminance_threshold, "auto %g %g vs %g %g",
         (double)g, (double)l, (double)st.gradient_threshold, (double)st.luminance_threshold);
 
   /* scale invariance: 1000x the light gives 1000x the thresholds, the same voxels */
   make_pilot(rgb, 0.0, 1000.0);
-  CHECK(ad_select_voxels(&d, rgb, NULL, &opt, sel2, &st2, &err) == BK_OK, "%s", err.msg);
-  CHECK(fabs(st2.gradient_threshold / st.gradient_threshold - 1000.0) < 1.0 &&
+  EXPECT(ad_select_voxels(&d, rgb, NULL, &opt, sel2, &st2, &err) == BK_OK, "%s", err.msg);
+  EXPECT(fabs(st2.gradient_threshold / st.gradient_threshold - 1000.0) < 1.0 &&
             fabs(st2.luminance_threshold / st.luminance_threshold - 1000.0) < 1.0,
         "thresholds scale by %g and %g", st2.gradient_threshold / st.gradient_threshold,
         st2.luminance_threshold / st.luminance_threshold);
   size_t differ = 0;
   for (size_t v = 0; v < V; v++) differ += sel[v] != sel2[v];
-  CHECK(differ <= V / 10000, "%zu voxels change selection with the light's scale", differ);
+  EXPECT(differ <= V / 10000, "%zu voxels change selection with the light's scale", differ);
 
   /* a noisy pilot (10% per voxel) still finds edges and shadows */
   rng_state = 12345;
   make_pilot(rgb, 0.10, 1.0);
-  CHECK(ad_select_voxels(&d, rgb, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_select_voxels(&d, rgb, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
   classify(sel, &edge, &shadow, &smooth);
   printf("thresholds (10%% noise): gradient %.4g /m (median %.4g), luminance %.4g; edge %.1f%%, "
          "shadow %.1f%%, smooth %.2f%%\n",
          (double)st.gradient_threshold, (double)st.median_gradient,
          (double)st.luminance_threshold, 100 * edge, 100 * shadow, 100 * smooth);
-  CHECK(edge >= 0.90, "noisy: only %.1f%% of the edge voxels selected", 100 * edge);
-  CHECK(shadow >= 0.99, "noisy: only %.1f%% of the shadow voxels selected", 100 * shadow);
-  CHECK(smooth <= 0.02, "noisy: %.2f%% of the smooth voxels selected", 100 * smooth);
+  EXPECT(edge >= 0.90, "noisy: only %.1f%% of the edge voxels selected", 100 * edge);
+  EXPECT(shadow >= 0.99, "noisy: only %.1f%% of the shadow voxels selected", 100 * shadow);
+  EXPECT(smooth <= 0.02, "noisy: %.2f%% of the smooth voxels selected", 100 * smooth);
 
   /* pure noise on a flat fog: next to nothing is an edge */
   for (size_t v = 0; v < V; v++) rgb[3 * v] = rgb[3 * v + 1] = rgb[3 * v + 2] =
       (float)(1.0 + 0.1 * rng_gauss());
-  CHECK(ad_select_voxels(&d, rgb, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
-  CHECK(st.by_gradient <= V / 1000 && st.by_shadow == 0,
+  EXPECT(ad_select_voxels(&d, rgb, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
+  EXPECT(st.by_gradient <= V / 1000 && st.by_shadow == 0,
         "flat noisy fog: %zu by gradient, %zu by shadow", st.by_gradient, st.by_shadow);
   printf("thresholds (flat fog, 10%% noise): %zu of %zu by gradient\n", st.by_gradient, V);
 
@@ -428,29 +425,29 @@ static int test_thresholds(void) {
    * neither selected nor counted */
   make_pilot(rgb, 0.0, 1.0);
   ad_select_opts_t fixed = {1e30f, 0.0f, 1};
-  CHECK(ad_select_voxels(&d, rgb, NULL, &fixed, sel, &st, &err) == BK_OK, "%s", err.msg);
-  CHECK(st.selected == 0 && st.gradient_threshold == 1e30f && st.luminance_threshold == 0.0f,
+  EXPECT(ad_select_voxels(&d, rgb, NULL, &fixed, sel, &st, &err) == BK_OK, "%s", err.msg);
+  EXPECT(st.selected == 0 && st.gradient_threshold == 1e30f && st.luminance_threshold == 0.0f,
         "explicit thresholds: %zu selected", st.selected);
   fixed.luminance_threshold = 0.5f;
   fixed.gradient_threshold = 1e30f;
   for (size_t v = 0; v < V; v++) sig[v] = (v % 2) ? 1.0f : 0.0f;
-  CHECK(ad_select_voxels(&d, rgb, sig, &fixed, sel, &st, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_select_voxels(&d, rgb, sig, &fixed, sel, &st, &err) == BK_OK, "%s", err.msg);
   size_t even = 0, dark = 0;
   float *lum = calloc(V, sizeof(float)), *grad = calloc(V, sizeof(float));
-  CHECK(ad_pilot_fields(&d, rgb, 1, lum, grad, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_pilot_fields(&d, rgb, 1, lum, grad, &err) == BK_OK, "%s", err.msg);
   for (size_t v = 0; v < V; v++) {
     even += (v % 2 == 0) && sel[v];
     dark += (v % 2 == 1) && lum[v] < 0.5f;
   }
-  CHECK(even == 0 && st.selected == dark && st.considered == V / 2,
+  EXPECT(even == 0 && st.selected == dark && st.considered == V / 2,
         "scattering mask: %zu masked voxels selected, %zu selected of %zu dark", even,
         st.selected, dark);
   /* bad input names the key */
   fixed.gradient_threshold = NAN;
-  CHECK(ad_select_voxels(&d, rgb, NULL, &fixed, sel, &st, &err) == BK_ERR_INPUT &&
+  EXPECT(ad_select_voxels(&d, rgb, NULL, &fixed, sel, &st, &err) == BK_ERR_INPUT &&
             strstr(err.msg, "gradient_threshold"), "NaN threshold: %s", err.msg);
   rgb[3 * 5] = -1.0f;
-  CHECK(ad_select_voxels(&d, rgb, NULL, &opt, sel, &st, &err) == BK_ERR_RUNTIME &&
+  EXPECT(ad_select_voxels(&d, rgb, NULL, &opt, sel, &st, &err) == BK_ERR_RUNTIME &&
             strstr(err.msg, "(5,0,0)"), "negative radiance: %s", err.msg);
   free(lum);
   free(grad);
@@ -497,8 +494,8 @@ static int test_chain(void) {
   ad_select_opts_t opt = {SCENE_AUTO, SCENE_AUTO, AD_DEFAULT_SMOOTH_RADIUS};
   ad_select_stats_t st;
   ad_pdf_t pdf;
-  CHECK(ad_select_voxels(&d, pilot, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
-  CHECK(ad_build_pdf(masks, sel, V, AD_DEFAULT_FLOOR, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_select_voxels(&d, pilot, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_build_pdf(masks, sel, V, AD_DEFAULT_FLOOR, &pdf, &err) == BK_OK, "%s", err.msg);
   /* the cells over the two squares are the favoured ones */
   int hot = 0, hot_feature = 0;
   for (int c = 0; c < AD_CELLS; c++) {
@@ -513,7 +510,7 @@ static int test_chain(void) {
     else fprintf(stderr, "favoured cell %d (%d, %d) pdf %g is far from both squares\n", c, cx, cy,
                  (double)pdf.cell_pdf[c]);
   }
-  CHECK(hot > 0 && hot_feature == hot, "%d favoured cells, %d of them over the squares", hot,
+  EXPECT(hot > 0 && hot_feature == hot, "%d favoured cells, %d of them over the squares", hot,
         hot_feature);
   /* phase 2: warped Hammersley points, weight 1/pdf */
   double total = 0.0;
@@ -563,11 +560,11 @@ static int test_chain(void) {
          "weight %.2f in favoured cells, %.2f in cells at the floor\n",
          st.selected, st.by_gradient, st.by_shadow, hot, (double)pmin, (double)pmax, total, exact,
          worst, hot_n ? hot_w / hot_n : 0.0, cold_n ? cold_w / cold_n : 0.0);
-  CHECK(fabs(total - exact) / exact < 1e-3, "weighted total %.6f, exact %.6f", total, exact);
-  CHECK(worst <= 1.0, "a voxel's weighted energy is off by %.2f times its allowance", worst);
-  CHECK(empty == 0, "%zu voxels got no photon", empty);
-  CHECK(hot_n > 0 && hot_w / hot_n < 1.0, "favoured cells: mean weight %.2f", hot_w / hot_n);
-  CHECK(cold_n > 0 && fabs(cold_w / cold_n - 1.0 / AD_DEFAULT_FLOOR) < 1e-3,
+  EXPECT(fabs(total - exact) / exact < 1e-3, "weighted total %.6f, exact %.6f", total, exact);
+  EXPECT(worst <= 1.0, "a voxel's weighted energy is off by %.2f times its allowance", worst);
+  EXPECT(empty == 0, "%zu voxels got no photon", empty);
+  EXPECT(hot_n > 0 && hot_w / hot_n < 1.0, "favoured cells: mean weight %.2f", hot_w / hot_n);
+  EXPECT(cold_n > 0 && fabs(cold_w / cold_n - 1.0 / AD_DEFAULT_FLOOR) < 1e-3,
         "other cells: mean weight %.4f, expected 1/floor", cold_w / cold_n);
   free(pilot);
   free(wsum);
@@ -712,7 +709,7 @@ static int test_filter(void) {
   /* a sparsely sampled region: mean weight 2 -> photon-weight radius 2 */
   rng_state = 777;
   make_fog(truth, noisy, count, wmean, 0.1, 2.0f);
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Q, out, rad, &err) ==
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Q, out, rad, &err) ==
             BK_OK, "%s", err.msg);
   reference_filter(noisy, FN, FN, 3, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Q, ref, rref);
   size_t rdiff, ref_bad = compare_filters(out, rad, ref, rref, V, 3, &rdiff);
@@ -750,35 +747,35 @@ static int test_filter(void) {
          "%zu/%zu voxels differ from the brute-force reference (%zu radii)\n",
          r_smooth, rms_in, rms_out, rms_in / rms_out, r_step, 100.0 * step_small / n_step,
          100.0 * step_bias, ref_bad + rdiff, V, rdiff);
-  CHECK(above == 0, "%zu voxels exceed the photon-weight radius 2", above);
-  CHECK(ref_bad == 0 && rdiff <= V / 1000, "%zu voxels (%zu radii) differ from the brute-force filter",
+  EXPECT(above == 0, "%zu voxels exceed the photon-weight radius 2", above);
+  EXPECT(ref_bad == 0 && rdiff <= V / 1000, "%zu voxels (%zu radii) differ from the brute-force filter",
         ref_bad + rdiff, rdiff);
-  CHECK(r_smooth >= 1.2, "smooth part: mean radius %.2f, expected large (>= 1.2 of 2)", r_smooth);
-  CHECK(rms_out <= 0.4 * rms_in, "smooth part: RMS noise %.4f -> %.4f, expected below 40%%",
+  EXPECT(r_smooth >= 1.2, "smooth part: mean radius %.2f, expected large (>= 1.2 of 2)", r_smooth);
+  EXPECT(rms_out <= 0.4 * rms_in, "smooth part: RMS noise %.4f -> %.4f, expected below 40%%",
         rms_in, rms_out);
-  CHECK(step_small >= 0.9 * n_step, "only %zu of %zu step voxels have radius <= 0.5", step_small,
+  EXPECT(step_small >= 0.9 * n_step, "only %zu of %zu step voxels have radius <= 0.5", step_small,
         n_step);
   /* radius 1/2 takes 11% from across the step (e^-2 / (1 + 2 e^-2) of one
    * neighbour); radius 1 would take 28% */
-  CHECK(step_bias <= 0.13, "step voxels blurred by %.1f%% of the step", 100.0 * step_bias);
+  EXPECT(step_bias <= 0.13, "step voxels blurred by %.1f%% of the step", 100.0 * step_bias);
 
   /* the slides' rule (no noise test for the first step) blurs the step */
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, -1.0f, Q, out, rad, &err) == BK_OK, "%s",
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, -1.0f, Q, out, rad, &err) == BK_OK, "%s",
         err.msg);
   reference_filter(noisy, FN, FN, 3, count, wmean, 1.0f, -1.0f, Q, ref, rref);
   ref_bad = compare_filters(out, rad, ref, rref, V, 3, &rdiff);
-  CHECK(ref_bad == 0 && rdiff <= V / 1000, "noise_k < 0: %zu voxels differ from the brute-force "
+  EXPECT(ref_bad == 0 && rdiff <= V / 1000, "noise_k < 0: %zu voxels differ from the brute-force "
         "filter", ref_bad + rdiff);
 
   /* densely sampled (w = 0.2 -> radius 0) or alpha = 0: no filtering at all */
   for (size_t v = 0; v < V; v++) wmean[v] = 0.2f;
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Q, out, rad, &err) ==
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Q, out, rad, &err) ==
             BK_OK, "%s", err.msg);
-  CHECK(memcmp(out, noisy, 3 * V * sizeof(float)) == 0, "radius 0 must keep the input");
+  EXPECT(memcmp(out, noisy, 3 * V * sizeof(float)) == 0, "radius 0 must keep the input");
   for (size_t v = 0; v < V; v++) wmean[v] = 3.0f;
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 0.0f, AD_DEFAULT_NOISE_K, Q, out, NULL, &err) ==
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 0.0f, AD_DEFAULT_NOISE_K, Q, out, NULL, &err) ==
             BK_OK, "%s", err.msg);
-  CHECK(memcmp(out, noisy, 3 * V * sizeof(float)) == 0, "alpha 0 must keep the input");
+  EXPECT(memcmp(out, noisy, 3 * V * sizeof(float)) == 0, "alpha 0 must keep the input");
   /* voxels no photon reached may take the largest level (3 voxels here), the
    * others at most round(2 * 1 * 0.5) / 2 = 1/2 */
   for (size_t v = 0; v < V; v++) {
@@ -786,7 +783,7 @@ static int test_filter(void) {
     wmean[v] = 0.5f;
     for (int c = 0; c < 3; c++) noisy[3 * v + c] = (float)(0.5 + 0.05 * rng_gauss());
   }
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, 6, out, rad, &err) ==
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, 6, out, rad, &err) ==
             BK_OK, "%s", err.msg);
   size_t reached_big = 0, n0 = 0;
   double r0 = 0.0;
@@ -801,25 +798,25 @@ static int test_filter(void) {
     }
   }
   r0 /= n0;
-  CHECK(reached_big == 0, "%zu voxels with photons exceed the photon-weight radius 1/2",
+  EXPECT(reached_big == 0, "%zu voxels with photons exceed the photon-weight radius 1/2",
         reached_big);
-  CHECK(r0 > 1.0 && r0max == 3.0f, "unreached voxels: mean radius %.2f, largest %g", r0,
+  EXPECT(r0 > 1.0 && r0max == 3.0f, "unreached voxels: mean radius %.2f, largest %g", r0,
         (double)r0max);
   /* a constant field stays as it is (up to the rounding of the weighted sums) */
   for (size_t v = 0; v < 3 * V; v++) noisy[v] = 0.5f;
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, 6, out, rad, &err) ==
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, 6, out, rad, &err) ==
             BK_OK, "%s", err.msg);
   double cdev = 0.0;
   for (size_t v = 0; v < 3 * V; v++) cdev = fmax(cdev, fabs(out[v] - 0.5));
-  CHECK(cdev < 1e-6, "constant field changed by %.2e", cdev);
+  EXPECT(cdev < 1e-6, "constant field changed by %.2e", cdev);
   /* bad arguments */
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, -1.0f, 1.0f, 8, out, NULL, &err) ==
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, -1.0f, 1.0f, 8, out, NULL, &err) ==
                 BK_ERR_INPUT && strstr(err.msg, "alpha"), "alpha -1: %s", err.msg);
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, 1.0f, AD_FILTER_MAX_LEVEL + 1, out, NULL,
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, 1.0f, AD_FILTER_MAX_LEVEL + 1, out, NULL,
                        &err) == BK_ERR_INPUT, "level %d accepted", AD_FILTER_MAX_LEVEL + 1);
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, 1.0f, 8, noisy, NULL, &err) ==
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 1.0f, 1.0f, 8, noisy, NULL, &err) ==
             BK_ERR_RUNTIME, "aliasing accepted");
-  CHECK(ad_filter_host(&d, 2, noisy, count, wmean, 1.0f, 1.0f, 8, out, NULL, &err) ==
+  EXPECT(ad_filter_host(&d, 2, noisy, count, wmean, 1.0f, 1.0f, 8, out, NULL, &err) ==
             BK_ERR_RUNTIME, "2 channels accepted");
   free(truth);
   free(noisy);
@@ -863,10 +860,10 @@ static int test_filter_cl(void) {
     if (v % 17 == 0) count[v] = 0.0f;
   }
   const int Q = AD_FILTER_MAX_LEVEL;
-  CHECK(ad_filter_host(&d, 3, noisy, count, wmean, 0.7f, 1.0f, Q, oh, rh, &err) == BK_OK, "%s",
+  EXPECT(ad_filter_host(&d, 3, noisy, count, wmean, 0.7f, 1.0f, Q, oh, rh, &err) == BK_OK, "%s",
         err.msg);
   int rcode = ad_filter_cl(&cl, &d, 3, noisy, count, wmean, 0.7f, 1.0f, Q, oc, rc, &err);
-  CHECK(rcode == BK_OK, "%s", err.msg);
+  EXPECT(rcode == BK_OK, "%s", err.msg);
   double worst = 0.0;
   size_t rdiff = 0, hist[AD_FILTER_MAX_LEVEL + 1] = {0};
   for (size_t v = 0; v < V; v++) {
@@ -878,17 +875,17 @@ static int test_filter_cl(void) {
          cl.device_name, d.nx, d.ny, d.nz, worst, rdiff);
   for (int q = 0; q <= Q; q++) printf(" %g:%zu", 0.5 * q, hist[q]);
   printf("\n");
-  CHECK(worst <= 1e-5, "host and OpenCL differ by %.3g", worst);
-  CHECK(rdiff == 0, "%zu radii differ", rdiff);
-  CHECK(hist[0] > 0 && hist[1] > 0 && hist[2] > 0 && hist[Q] > 0, "a level is never used");
+  EXPECT(worst <= 1e-5, "host and OpenCL differ by %.3g", worst);
+  EXPECT(rdiff == 0, "%zu radii differ", rdiff);
+  EXPECT(hist[0] > 0 && hist[1] > 0 && hist[2] > 0 && hist[Q] > 0, "a level is never used");
   /* without the radius grid */
   memset(oc, 0, 3 * V * sizeof(float));
-  CHECK(ad_filter_cl(&cl, &d, 3, noisy, count, wmean, 0.7f, 1.0f, Q, oc, NULL, &err) == BK_OK,
+  EXPECT(ad_filter_cl(&cl, &d, 3, noisy, count, wmean, 0.7f, 1.0f, Q, oc, NULL, &err) == BK_OK,
         "%s", err.msg);
   worst = 0.0;
   for (size_t v = 0; v < 3 * V; v++) worst = fmax(worst, fabs(oh[v] - oc[v]));
-  CHECK(worst <= 1e-5, "without the radius grid: differ by %.3g", worst);
-  CHECK(ad_filter_cl(&cl, &d, 3, noisy, count, wmean, NAN, 1.0f, 8, oc, NULL, &err) ==
+  EXPECT(worst <= 1e-5, "without the radius grid: differ by %.3g", worst);
+  EXPECT(ad_filter_cl(&cl, &d, 3, noisy, count, wmean, NAN, 1.0f, 8, oc, NULL, &err) ==
             BK_ERR_INPUT, "NaN alpha accepted");
   /* one channel (a grey march), at the default largest radius: host, OpenCL
    * and the brute-force reference */
@@ -897,9 +894,9 @@ static int test_filter_cl(void) {
         *gc = calloc(V, sizeof(float)), *gr = calloc(V, sizeof(float)), *rr = calloc(V, sizeof(float));
   for (size_t v = 0; v < V; v++)
     grey[v] = ad_luminance(noisy[3 * v], noisy[3 * v + 1], noisy[3 * v + 2]);
-  CHECK(ad_filter_host(&d, 1, grey, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Qd, gh, rh, &err) ==
+  EXPECT(ad_filter_host(&d, 1, grey, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Qd, gh, rh, &err) ==
             BK_OK, "%s", err.msg);
-  CHECK(ad_filter_cl(&cl, &d, 1, grey, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Qd, gc, rc, &err) ==
+  EXPECT(ad_filter_cl(&cl, &d, 1, grey, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Qd, gc, rc, &err) ==
             BK_OK, "%s", err.msg);
   reference_filter(grey, d.ny, d.nz, 1, count, wmean, 1.0f, AD_DEFAULT_NOISE_K, Qd, gr, rr);
   double gworst = 0.0;
@@ -912,8 +909,8 @@ static int test_filter_cl(void) {
   printf("filter_cl grey: max |host - OpenCL| = %.3g, %zu radii differ, %zu/%zu voxels differ "
          "from the brute-force reference (%zu radii)\n",
          gworst, grdiff, gref_bad + gref_rdiff, V, gref_rdiff);
-  CHECK(gworst <= 1e-5 && grdiff == 0, "grey: host and OpenCL differ");
-  CHECK(gref_bad == 0 && gref_rdiff <= V / 1000, "grey: %zu voxels differ from the brute-force "
+  EXPECT(gworst <= 1e-5 && grdiff == 0, "grey: host and OpenCL differ");
+  EXPECT(gref_bad == 0 && gref_rdiff <= V / 1000, "grey: %zu voxels differ from the brute-force "
         "filter", gref_bad + gref_rdiff);
   free(grey);
   free(gh);
@@ -965,11 +962,11 @@ static int test_device(void) {
   float *u = calloc(2 * N, sizeof(float)), *o = calloc(4 * N, sizeof(float));
   uint64_t *masks = calloc(VOX * LIGHTS, sizeof(uint64_t));
   uint64_t *host = calloc(VOX * LIGHTS, sizeof(uint64_t));
-  CHECK(cl.has_int64_atomics, "%s lacks cl_khr_int64_base_atomics", cl.device_name);
+  EXPECT(cl.has_int64_atomics, "%s lacks cl_khr_int64_base_atomics", cl.device_name);
   double w[AD_CELLS];
   for (int c = 0; c < AD_CELLS; c++) w[c] = (c * 37) % 11;
   float table[AD_TABLE_FLOATS(8, 8)];
-  CHECK(ad_pdf_from_weights(w, 8, 8, 0.2f, table, NULL, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_pdf_from_weights(w, 8, 8, 0.2f, table, NULL, &err) == BK_OK, "%s", err.msg);
   for (int i = 0; i < N; i++) {
     u[2 * i] = (float)i / N;
     u[2 * i + 1] = ph_radical_inverse2((uint32_t)i);
@@ -1034,8 +1031,8 @@ static int test_device(void) {
   printf("device: warp of %d points, max |host - OpenCL| %.2e (pdf %.2e), %d cells differ; "
          "origin masks %d of %d differ (%d bits set by %d atomic marks)\n",
          N, worst, worst_pdf, cells, mask_diff, VOX * LIGHTS, bits, MARKS);
-  CHECK(worst <= 1e-6 && worst_pdf <= 1e-6 && cells == 0, "device warp differs");
-  CHECK(mask_diff == 0 && bits > VOX * LIGHTS && bits < VOX * LIGHTS * 64,
+  EXPECT(worst <= 1e-6 && worst_pdf <= 1e-6 && cells == 0, "device warp differs");
+  EXPECT(mask_diff == 0 && bits > VOX * LIGHTS && bits < VOX * LIGHTS * 64,
         "device origin masks differ (or are trivially empty or full)");
 error:
   if (err.msg[0] && err.code) {

@@ -36,8 +36,6 @@
 #include "voxelize.h"
 #include "test_util.h"
 
-#define CHECK TU_REQUIRE
-
 #define TEST_RES 64
 /* 122 000 photons at 128^3 (the slides' reference count) have the photons
  * per voxel column of 30 500 at 64^3 */
@@ -54,21 +52,21 @@ static void setup(int with_cl, int resolution) {
   char path[1024];
   memset(&err, 0, sizeof err);
   snprintf(path, sizeof path, "%s/sphere.json", scene_dir);
-  CHECK(scene_load(path, &scene, &err) == BK_OK, "%s", err.msg);
+  REQUIRE(scene_load(path, &scene, &err) == BK_OK, "%s", err.msg);
   scene.resolution = resolution;
-  CHECK(vox_build(&scene, &vol, NULL, &err) == BK_OK, "%s", err.msg);
+  REQUIRE(vox_build(&scene, &vol, NULL, &err) == BK_OK, "%s", err.msg);
   V = grid_count(&vol.dims);
-  if (with_cl) CHECK(clh_init(&cl, NULL, &err) == BK_OK, "clh_init: %s", err.msg);
+  if (with_cl) REQUIRE(clh_init(&cl, NULL, &err) == BK_OK, "clh_init: %s", err.msg);
 }
 
 static float *grid3(void) {
   float *g = calloc(3 * V, sizeof(float));
-  CHECK(g, "out of memory");
+  REQUIRE(g, "out of memory");
   return g;
 }
 static float *grid1(void) {
   float *g = calloc(V, sizeof(float));
-  CHECK(g, "out of memory");
+  REQUIRE(g, "out of memory");
   return g;
 }
 
@@ -79,7 +77,7 @@ static float *reference(clh_context_t *c, long long photons, double *ms) {
   float *r = grid3();
   scene.photon_count = photons;
   double t0 = bk_now_ms();
-  CHECK(pm_bake(c, &scene, &vol, r, &st, NULL, &err) == BK_OK, "pm_bake: %s", err.msg);
+  REQUIRE(pm_bake(c, &scene, &vol, r, &st, NULL, &err) == BK_OK, "pm_bake: %s", err.msg);
   if (ms) *ms = bk_now_ms() - t0;
   return r;
 }
@@ -93,9 +91,9 @@ static float *adaptive(clh_context_t *c, long long photons, int filter, float *c
   o.filter = filter;
   float *r = grid3();
   scene.photon_count = photons;
-  CHECK(ad_bake(c, &scene, &vol, &o, r, count, weight, radius, st, NULL, &err) == BK_OK,
+  REQUIRE(ad_bake(c, &scene, &vol, &o, r, count, weight, radius, st, NULL, &err) == BK_OK,
         "ad_bake: %s", err.msg);
-  CHECK(st->march.photons == (uint64_t)photons, "%llu photons marched, %lld asked",
+  REQUIRE(st->march.photons == (uint64_t)photons, "%llu photons marched, %lld asked",
         (unsigned long long)st->march.photons, photons);
   return r;
 }
@@ -127,11 +125,11 @@ static int test_unbiased(void) {
          (double)st.pdf_min, (double)st.pdf_max, wmin, wmax, reached);
   /* the estimate is unbiased only if the photons really were redistributed:
    * a uniform PDF would pass trivially */
-  CHECK(st.pdf_max > 1.3f && st.pdf_min < 0.9f, "the PDF is nearly uniform (%.2f..%.2f)",
+  REQUIRE(st.pdf_max > 1.3f && st.pdf_min < 0.9f, "the PDF is nearly uniform (%.2f..%.2f)",
         (double)st.pdf_min, (double)st.pdf_max);
-  CHECK(wmax / wmin > 1.5, "photon weights %.2f..%.2f: nearly uniform", wmin, wmax);
-  CHECK(e < 0.01, "adaptive (no filter) differs from the reference by %.4f (limit 0.01)", e);
-  CHECK(fabs(sum_a / sum_r - 1.0) < 0.003, "total radiance off by %.4f", sum_a / sum_r - 1.0);
+  REQUIRE(wmax / wmin > 1.5, "photon weights %.2f..%.2f: nearly uniform", wmin, wmax);
+  REQUIRE(e < 0.01, "adaptive (no filter) differs from the reference by %.4f (limit 0.01)", e);
+  REQUIRE(fabs(sum_a / sum_r - 1.0) < 0.003, "total radiance off by %.4f", sum_a / sum_r - 1.0);
   free(count);
   free(weight);
   free(ref);
@@ -175,8 +173,8 @@ static int test_lights(void) {
          "(no filter) vs reference %.4f\n",
          N, (unsigned long long)st.pilot.photons, (double)st.pdf_min, (double)st.pdf_max, wmin,
          wmax, e);
-  CHECK(wmin < 0.8 && wmax > 1.5, "the spot's photons did not follow its PDF");
-  CHECK(e < 0.01, "adaptive differs from the reference by %.4f", e);
+  REQUIRE(wmin < 0.8 && wmax > 1.5, "the spot's photons did not follow its PDF");
+  REQUIRE(e < 0.01, "adaptive differs from the reference by %.4f", e);
   free(count);
   free(weight);
   free(ref);
@@ -207,7 +205,7 @@ static int test_quality(void) {
          "reference's), unfiltered %.4f\n",
          vol.dims.nx, vol.dims.ny, vol.dims.nz, N, 4 * N, 40 * N, ms_conv, N, e_ref, half,
          scene.pilot, half + scene.pilot, e_ad, e_ad / e_ref, e_raw);
-  CHECK(e_ad <= e_ref, "adaptive with half the photons: error %.4f, reference with all %.4f",
+  REQUIRE(e_ad <= e_ref, "adaptive with half the photons: error %.4f, reference with all %.4f",
         e_ad, e_ref);
   free(conv);
   free(ref);
@@ -282,12 +280,12 @@ static int test_filter_radius(void) {
   /* the default largest radius is 1 voxel (levels 0, 1/2, 1): sharp voxels
    * keep their own value or the narrowest Gaussian, smooth ones mostly the
    * widest */
-  CHECK(n_sharp > 100 && n_smooth > 1000, "too few voxels classified");
-  CHECK(sharp_small >= 0.9 * n_sharp, "sharp voxels: mean radius %.3f of at most %g, %zu of %zu "
+  REQUIRE(n_sharp > 100 && n_smooth > 1000, "too few voxels classified");
+  REQUIRE(sharp_small >= 0.9 * n_sharp, "sharp voxels: mean radius %.3f of at most %g, %zu of %zu "
         "at most 1/2", r_sharp, (double)st.max_radius, sharp_small, n_sharp);
-  CHECK(r_smooth >= 0.75 * st.max_radius, "smooth voxels: mean radius %.3f of at most %g",
+  REQUIRE(r_smooth >= 0.75 * st.max_radius, "smooth voxels: mean radius %.3f of at most %g",
         r_smooth, (double)st.max_radius);
-  CHECK(r_smooth >= 1.6 * r_sharp, "smooth %.3f vs sharp %.3f: not told apart", r_smooth, r_sharp);
+  REQUIRE(r_smooth >= 1.6 * r_sharp, "smooth %.3f vs sharp %.3f: not told apart", r_smooth, r_sharp);
   free(conv);
   free(radius);
   free(ad);
@@ -320,12 +318,12 @@ static int test_host_vs_device(void) {
          vol.dims.nx, vol.dims.ny, vol.dims.nz, N, e, count_diff, radius_diff, wdiff,
          (double)sh.pdf_min, (double)sh.pdf_max, (double)sd.pdf_min, (double)sd.pdf_max,
          sh.select.selected, sd.select.selected);
-  CHECK(sh.select.selected == sd.select.selected && sh.pdf_max == sd.pdf_max,
+  REQUIRE(sh.select.selected == sd.select.selected && sh.pdf_max == sd.pdf_max,
         "the pilots differ");
   /* the fixed-point sums are exact; only float rounding of the march may
    * move a photon by an ulp */
-  CHECK(e < 1e-4, "host and OpenCL differ by %.2e", e);
-  CHECK(count_diff <= V / 1000 && radius_diff <= V / 1000, "counts or radii differ");
+  REQUIRE(e < 1e-4, "host and OpenCL differ by %.2e", e);
+  REQUIRE(count_diff <= V / 1000 && radius_diff <= V / 1000, "counts or radii differ");
   free(ch);
   free(wh);
   free(rh);
@@ -343,9 +341,9 @@ static void expect_meta(const char *path, const char *key, const char *want) {
   char got[256];
   bk_error_t err;
   memset(&err, 0, sizeof err);
-  CHECK(vdbio_read_meta(path, key, got, sizeof got, &err) == BK_OK, "%s", err.msg);
-  CHECK(got[0], "%s: no metadata %s", path, key);
-  if (want) CHECK(strcmp(got, want) == 0, "%s: %s = %s, expected %s", path, key, got, want);
+  REQUIRE(vdbio_read_meta(path, key, got, sizeof got, &err) == BK_OK, "%s", err.msg);
+  REQUIRE(got[0], "%s: no metadata %s", path, key);
+  if (want) REQUIRE(strcmp(got, want) == 0, "%s: %s = %s, expected %s", path, key, got, want);
 }
 
 static int has_grid(const char *path, const char *name) {
@@ -353,7 +351,7 @@ static int has_grid(const char *path, const char *name) {
   int n, found = 0;
   bk_error_t err;
   memset(&err, 0, sizeof err);
-  CHECK(vdbio_list_grids(path, &names, &types, &n, &err) == BK_OK, "%s", err.msg);
+  REQUIRE(vdbio_list_grids(path, &names, &types, &n, &err) == BK_OK, "%s", err.msg);
   for (int i = 0; i < n; i++) found |= strcmp(names[i], name) == 0;
   vdbio_free_names(names, types, n);
   return found;
@@ -366,11 +364,11 @@ static int test_cli(void) {
   snprintf(out2, sizeof out2, "%s/adaptive_cli_nofilter.vdb", out_dir);
   char *a1[] = {"bake", scene_path, "-o", out, "--mode", "adaptive", "--resolution", "32",
                 "--photons", "6000", "--write-filter-radius", "--force", "-q"};
-  CHECK(bake_main((int)(sizeof a1 / sizeof a1[0]), a1) == 0, "bake --mode adaptive failed");
+  REQUIRE(bake_main((int)(sizeof a1 / sizeof a1[0]), a1) == 0, "bake --mode adaptive failed");
   const char *grids[] = {"radiance", "ior", "density", "photon_count", "photon_weight",
                          "filter_radius"};
   for (size_t i = 0; i < sizeof grids / sizeof grids[0]; i++)
-    CHECK(has_grid(out, grids[i]), "%s has no grid %s", out, grids[i]);
+    REQUIRE(has_grid(out, grids[i]), "%s has no grid %s", out, grids[i]);
   expect_meta(out, "mode", "adaptive");
   expect_meta(out, "photon_count", "6000");
   expect_meta(out, "adaptive_pilot_photons", "4000");
@@ -385,10 +383,10 @@ static int test_cli(void) {
   vdbio_dense_t cnt, w, r;
   int found;
   memset(&err, 0, sizeof err);
-  CHECK(vdbio_read_dense(out, "photon_count", 0, &cnt, &err) == BK_OK, "%s", err.msg);
-  CHECK(vdbio_read_dense_like(out, "photon_weight", &cnt, &w, &found, &err) == BK_OK && found,
+  REQUIRE(vdbio_read_dense(out, "photon_count", 0, &cnt, &err) == BK_OK, "%s", err.msg);
+  REQUIRE(vdbio_read_dense_like(out, "photon_weight", &cnt, &w, &found, &err) == BK_OK && found,
         "%s", err.msg);
-  CHECK(vdbio_read_dense_like(out, "filter_radius", &cnt, &r, &found, &err) == BK_OK && found,
+  REQUIRE(vdbio_read_dense_like(out, "filter_radius", &cnt, &r, &found, &err) == BK_OK && found,
         "%s", err.msg);
   size_t n = (size_t)cnt.nx * cnt.ny * cnt.nz, counted = 0, bad = 0;
   /* w = 1/pdf with floor <= pdf <= floor + (1 - floor) * cells */
@@ -407,18 +405,18 @@ static int test_cli(void) {
   }
   printf("cli: %s: %zu voxels with photons, mean weights %.3f..%.3f, %zu impossible values\n",
          out, counted, (double)wmin, (double)wmax, bad);
-  CHECK(counted > 1000 && bad == 0, "%zu of %zu voxels hold impossible values", bad, counted);
-  CHECK(wmin < 0.9f && wmax > 1.5f, "mean weights %.3f..%.3f: the PDF did nothing", (double)wmin,
+  REQUIRE(counted > 1000 && bad == 0, "%zu of %zu voxels hold impossible values", bad, counted);
+  REQUIRE(wmin < 0.9f && wmax > 1.5f, "mean weights %.3f..%.3f: the PDF did nothing", (double)wmin,
         (double)wmax);
   vdbio_dense_free(&cnt);
   vdbio_dense_free(&w);
   vdbio_dense_free(&r);
   char *a2[] = {"bake", scene_path, "-o", out2, "--mode", "adaptive", "--resolution", "32",
                 "--photons", "6000", "--no-filter", "--force", "-q"};
-  CHECK(bake_main((int)(sizeof a2 / sizeof a2[0]), a2) == 0, "bake --no-filter failed");
+  REQUIRE(bake_main((int)(sizeof a2 / sizeof a2[0]), a2) == 0, "bake --no-filter failed");
   expect_meta(out2, "adaptive_filter", "off");
-  CHECK(!has_grid(out2, "filter_radius"), "filter_radius written without being asked");
-  CHECK(has_grid(out2, "photon_count") && has_grid(out2, "photon_weight"), "grids missing");
+  REQUIRE(!has_grid(out2, "filter_radius"), "filter_radius written without being asked");
+  REQUIRE(has_grid(out2, "photon_count") && has_grid(out2, "photon_weight"), "grids missing");
   return 0;
 }
 

@@ -18,7 +18,7 @@ static int test_beer_lambert(clh_context_t *cl) {
   pm_stats_t st;
   float *rad = tm_bake(cl, &s, &v, &st);
   tm_print_stats("beer-lambert", &st);
-  CHECK(st.missed_grid == 0 && st.left_grid == st.photons, "every photon should cross the slab");
+  REQUIRE(st.missed_grid == 0 && st.left_grid == st.photons, "every photon should cross the slab");
   double sum2 = 0.0, worst_voxel = 0.0;
   for (int k = 0; k < N; k++) {
     double z0 = k * h, z1 = (k + 1) * h;
@@ -41,7 +41,7 @@ static int test_beer_lambert(clh_context_t *cl) {
   double rms = sqrt(sum2 / N);
   printf("beer-lambert: RMS relative error of the layers %.3e (limit 1e-2), worst voxel %.3e\n",
          rms, worst_voxel);
-  CHECK(rms < 1e-2, "RMS error %.3e over 1%%", rms);
+  REQUIRE(rms < 1e-2, "RMS error %.3e over 1%%", rms);
   free(rad);
   tv_free(&v);
   return 0;
@@ -101,7 +101,7 @@ static int test_inverse_square(clh_context_t *cl, int spot) {
     if (r % 6 == 4) printf("  shell r=%2d voxels: measured/expected - 1 = %+.3e\n", r, rel);
   }
   printf("inverse-square%s: worst shell error %.3e (limit 2e-2)\n", spot ? " (spot)" : "", worst);
-  CHECK(worst < 2e-2, "shell error %.3e over 2%%", worst);
+  REQUIRE(worst < 2e-2, "shell error %.3e over 2%%", worst);
   free(rad);
   tv_free(&v);
   return 0;
@@ -144,8 +144,8 @@ static int test_straight(void) {
     s.integrator = mode == 3 ? INTEGRATOR_RK4 : INTEGRATOR_EULER;
     pm_setup_t su;
     bk_error_t err;
-    CHECK(pm_prepare(&s, &v, &su, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
-    CHECK(su.has_refraction == (mode > 0), "refraction flag");
+    REQUIRE(pm_prepare(&s, &v, &su, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+    REQUIRE(su.has_refraction == (mode > 0), "refraction flag");
     if (mode >= 2) pm_disable_octree(&su);
     double worst = 0.0;
     int rays = 0, most_points = 0;
@@ -171,9 +171,9 @@ static int test_straight(void) {
       if (sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) < 8 * h) continue;
       int count;
       pm_result r;
-      CHECK(pm_trace_ray(&su, o, dir, pts, MAXP, &count, &r, &err) == BK_OK, "trace: %s", err.msg);
-      CHECK(count <= MAXP, "path too long");
-      CHECK(r.fate == PM_FATE_LEFT, "ray %d: fate %u", rays, r.fate);
+      REQUIRE(pm_trace_ray(&su, o, dir, pts, MAXP, &count, &r, &err) == BK_OK, "trace: %s", err.msg);
+      REQUIRE(count <= MAXP, "path too long");
+      REQUIRE(r.fate == PM_FATE_LEFT, "ray %d: fate %u", rays, r.fate);
       worst = fmax(worst, path_deviation(pts, count, o, dir, h));
       most_points = count > most_points ? count : most_points;
       rays++;
@@ -181,7 +181,7 @@ static int test_straight(void) {
     printf("straight, %s: largest deviation %.3e voxel over %d rays (up to %d path points; "
            "limit %.0e)\n",
            names[mode], worst, rays, most_points, limits[mode]);
-    CHECK(worst < limits[mode], "%s: deviation %.3e voxel", names[mode], worst);
+    REQUIRE(worst < limits[mode], "%s: deviation %.3e voxel", names[mode], worst);
     pm_setup_free(&su);
     tv_free(&v);
   }
@@ -221,7 +221,7 @@ static int test_energy(clh_context_t *cl, int grid_sigma) {
   pm_stats_t st;
   float *rad = tm_bake(cl, &s, &v, &st);
   tm_print_stats("energy", &st);
-  CHECK(st.absorbed == 0 && st.step_limit == 0, "no photon should be absorbed or trapped");
+  REQUIRE(st.absorbed == 0 && st.step_limit == 0, "no photon should be absorbed or trapped");
   double got[3] = {0, 0, 0};
   const double V = (double)h * h * h;
   for (size_t i = 0; i < grid_count(&v.dims); i++)
@@ -230,7 +230,7 @@ static int test_energy(clh_context_t *cl, int grid_sigma) {
   /* the same photons again, on the host: ph_sample and the box */
   pm_setup_t su;
   bk_error_t err;
-  CHECK(pm_prepare(&s, &v, &su, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+  REQUIRE(pm_prepare(&s, &v, &su, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
   double want[3] = {0, 0, 0};
   uint64_t missed = 0;
   for (int l = 0; l < su.lights.count; l++) {
@@ -250,7 +250,7 @@ static int test_energy(clh_context_t *cl, int grid_sigma) {
       }
     }
   }
-  CHECK(missed == st.missed_grid, "missed photons: %llu on the host, %llu in the march",
+  REQUIRE(missed == st.missed_grid, "missed photons: %llu on the host, %llu in the march",
         (unsigned long long)missed, (unsigned long long)st.missed_grid);
   double worst = 0.0;
   for (int c = 0; c < 3; c++) {
@@ -259,7 +259,7 @@ static int test_energy(clh_context_t *cl, int grid_sigma) {
     printf("energy%s: channel %d: deposited %.9g W·m, expected %.9g W·m (%+.2e)\n",
            grid_sigma ? " (σ from the grid)" : "", c, got[c], want[c], rel);
   }
-  CHECK(worst < 1e-3, "energy balance off by %.3e", worst);
+  REQUIRE(worst < 1e-3, "energy balance off by %.3e", worst);
   pm_setup_free(&su);
   free(rad);
   tv_free(&v);
@@ -273,12 +273,12 @@ static int test_photons(void) {
   ph_share(w, 3, 10, counts);
   printf("photons: 10 shared by 1:2:3 -> %llu %llu %llu\n", (unsigned long long)counts[0],
          (unsigned long long)counts[1], (unsigned long long)counts[2]);
-  CHECK(counts[0] == 2 && counts[1] == 3 && counts[2] == 5, "largest remainders");
+  REQUIRE(counts[0] == 2 && counts[1] == 3 && counts[2] == 5, "largest remainders");
   const double w0[2] = {0, 5};
   ph_share(w0, 2, 7, counts);
-  CHECK(counts[0] == 0 && counts[1] == 7, "a dark light gets no photons");
+  REQUIRE(counts[0] == 0 && counts[1] == 7, "a dark light gets no photons");
 
-  CHECK(ph_radical_inverse2(0) == 0.0f && ph_radical_inverse2(1) == 0.5f &&
+  REQUIRE(ph_radical_inverse2(0) == 0.0f && ph_radical_inverse2(1) == 0.5f &&
             ph_radical_inverse2(2) == 0.25f && ph_radical_inverse2(3) == 0.75f &&
             ph_radical_inverse2(6) == 0.375f,
         "radical inverse base 2");
@@ -295,41 +295,41 @@ static int test_photons(void) {
   ts_init(&s, lights, 3, 100000);
   pm_setup_t a, b;
   bk_error_t err;
-  CHECK(pm_prepare(&s, &v, &a, NULL, NULL, &err) == BK_OK, "%s", err.msg);
+  REQUIRE(pm_prepare(&s, &v, &a, NULL, NULL, &err) == BK_OK, "%s", err.msg);
   double omega = 2.0 * M_PI * (1.0 - cos(20.0 * M_PI / 180.0));
   /* the directional rectangle: the box's projection across (1,1,1)/√3 */
   double want_power[3] = {6.0 * omega, 3.0 * 4.0 * M_PI, 0.0};
-  CHECK(a.lights.count == 3 && a.channels == 3, "three lights, three channels");
+  REQUIRE(a.lights.count == 3 && a.channels == 3, "three lights, three channels");
   uint64_t total = 0;
   for (int l = 0; l < 3; l++) {
     const ph_light *L = &a.lights.lights[l];
     double p = (double)L->count * (L->power[0] + L->power[1] + L->power[2]);
-    if (l < 2) CHECK(fabs(p / want_power[l] - 1.0) < 1e-5, "light %d power %g, want %g", l, p, want_power[l]);
+    if (l < 2) REQUIRE(fabs(p / want_power[l] - 1.0) < 1e-5, "light %d power %g, want %g", l, p, want_power[l]);
     total += L->count;
     bk_v3 spot_axis = v3(0.3f, 0.2f, 1.0f);
     spot_axis = v3_normalize(spot_axis);
     for (bk_uint k = 0; k < L->count; k++) {
       bk_v3 o, d;
       ph_sample(L, k, &o, &d);
-      CHECK(fabs(v3_length(d) - 1.0) < 1e-5, "unit directions");
-      if (l == 0) CHECK(v3_dot(d, spot_axis) >= cos(20.0 * M_PI / 180.0) - 1e-6, "inside the cone");
+      REQUIRE(fabs(v3_length(d) - 1.0) < 1e-5, "unit directions");
+      if (l == 0) REQUIRE(v3_dot(d, spot_axis) >= cos(20.0 * M_PI / 180.0) - 1e-6, "inside the cone");
       if (l == 2) {
         float t;
         /* the rectangle starts before the grid: a photon that hits it enters at t > 0 */
-        if (ph_enter_grid(a.params.grid, o, d, &t)) CHECK(t > 0.0f, "directional photons start outside");
+        if (ph_enter_grid(a.params.grid, o, d, &t)) REQUIRE(t > 0.0f, "directional photons start outside");
       }
     }
     printf("photons: light %d: %u photons of %.4g W (sum of RGB)\n", l, L->count,
            (double)(L->power[0] + L->power[1] + L->power[2]));
   }
-  CHECK(total == 100000, "shares add up to the photon count");
+  REQUIRE(total == 100000, "shares add up to the photon count");
   /* shares follow power: the counts' ratio is the powers' ratio */
   double r01 = (double)a.lights.lights[0].count / a.lights.lights[1].count;
-  CHECK(fabs(r01 / (want_power[0] / want_power[1]) - 1.0) < 1e-3, "share ratio %g", r01);
+  REQUIRE(fabs(r01 / (want_power[0] / want_power[1]) - 1.0) < 1e-3, "share ratio %g", r01);
   /* another seed: the same counts and powers, a different rotation */
   s.seed = 2;
-  CHECK(pm_prepare(&s, &v, &b, NULL, NULL, &err) == BK_OK, "%s", err.msg);
-  CHECK(b.lights.lights[0].count == a.lights.lights[0].count &&
+  REQUIRE(pm_prepare(&s, &v, &b, NULL, NULL, &err) == BK_OK, "%s", err.msg);
+  REQUIRE(b.lights.lights[0].count == a.lights.lights[0].count &&
             (b.lights.lights[0].rot_u != a.lights.lights[0].rot_u ||
              b.lights.lights[0].rot_v != a.lights.lights[0].rot_v),
         "the seed rotates the point set");

@@ -46,7 +46,7 @@ static double ball_lens_error(clh_context_t *cl, int res, integrator_t integ, do
       best = k;
     }
   }
-  CHECK(best >= 0 && best + 1 < res, "no light on the axis");
+  REQUIRE(best >= 0 && best + 1 < res, "no light on the axis");
   double z = (best + 0.5) * h;
   /* the peak between voxels, from a parabola through the brightest three */
   float lm = rad[3 * grid_index(&v.dims, axis, axis, best - 1)],
@@ -72,9 +72,9 @@ static int test_ball_lens(clh_context_t *cl) {
              names[m], res[r], res[r] / 4, f, err[m][r], err[m][r] / (res[r] / 4.0), peak, ms);
     }
   for (int m = 0; m < 2; m++) {
-    CHECK(fabs(err[m][2]) <= 2.0, "%s at 256: focus %.1f voxels off (limit 2)", names[m], err[m][2]);
+    REQUIRE(fabs(err[m][2]) <= 2.0, "%s at 256: focus %.1f voxels off (limit 2)", names[m], err[m][2]);
     /* in units of the ball's diameter, the error falls as the grid is refined */
-    CHECK(fabs(err[m][2]) / 64.0 < fabs(err[m][0]) / 16.0 + 1e-9,
+    REQUIRE(fabs(err[m][2]) / 64.0 < fabs(err[m][0]) / 16.0 + 1e-9,
           "%s: error does not shrink from 64 to 256 voxels (%.3f D -> %.3f D)", names[m],
           fabs(err[m][0]) / 16.0, fabs(err[m][2]) / 64.0);
   }
@@ -110,10 +110,10 @@ static int test_grin(clh_context_t *cl, const char *dir) {
   s.resolution = GRIN_RES;
   s.ior_smoothing = 2.0f;
   grid_dims_t d;
-  CHECK(grid_dims_from_bounds(s.bounds_min, s.bounds_max, s.resolution, "test", &d, &err) == BK_OK,
+  REQUIRE(grid_dims_from_bounds(s.bounds_min, s.bounds_max, s.resolution, "test", &d, &err) == BK_OK,
         "%s", err.msg);
   float *field = malloc(grid_count(&d) * sizeof(float));
-  CHECK(field, "out of memory");
+  REQUIRE(field, "out of memory");
   for (int k = 0; k < d.nz; k++)
     for (int j = 0; j < d.ny; j++)
       for (int i = 0; i < d.nx; i++) {
@@ -122,7 +122,7 @@ static int test_grin(clh_context_t *cl, const char *dir) {
         field[grid_index(&d, i, j, k)] = (float)sqrt(GRIN_N0 * GRIN_N0 + GRIN_G * p[1]);
       }
   vdbio_grid_t g = {"ior", VDBIO_FLOAT, field, 0};
-  CHECK(vdbio_write(path, &d, &g, 1, NULL, 0, NULL, &err) == BK_OK, "vdbio_write: %s", err.msg);
+  REQUIRE(vdbio_write(path, &d, &g, 1, NULL, 0, NULL, &err) == BK_OK, "vdbio_write: %s", err.msg);
   free(field);
   s.ior_vdb.present = 1;
   snprintf(s.ior_vdb.file, sizeof s.ior_vdb.file, "%s", path);
@@ -130,9 +130,9 @@ static int test_grin(clh_context_t *cl, const char *dir) {
   snprintf(s.ior_vdb.where, sizeof s.ior_vdb.where, "test: medium.ior_vdb");
 
   volume_t v;
-  CHECK(vox_build(&s, &v, NULL, &err) == BK_OK, "vox_build: %s", err.msg);
+  REQUIRE(vox_build(&s, &v, NULL, &err) == BK_OK, "vox_build: %s", err.msg);
   remove(path);
-  CHECK(v.has_refraction, "the ior_vdb field should make n vary");
+  REQUIRE(v.has_refraction, "the ior_vdb field should make n vary");
   const float h = v.dims.voxel_size;
   const char *names[2] = {"Euler", "RK4"};
 
@@ -142,15 +142,15 @@ static int test_grin(clh_context_t *cl, const char *dir) {
     if (!cl) {
       /* the central rays, traced point by point */
       pm_setup_t su;
-      CHECK(pm_prepare(&s, &v, &su, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+      REQUIRE(pm_prepare(&s, &v, &su, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
       enum { MAXP = 8192 };
       static float pts[3 * MAXP];
       for (int b = 0; b < 3; b++) {
         const float o[3] = {-0.005f, (float)y0s[b], zmid}, dirv[3] = {1, 0, 0};
         int count;
         pm_result r;
-        CHECK(pm_trace_ray(&su, o, dirv, pts, MAXP, &count, &r, &err) == BK_OK, "%s", err.msg);
-        CHECK(count <= MAXP && r.fate == PM_FATE_LEFT, "ray %d: %d points, fate %u", b, count,
+        REQUIRE(pm_trace_ray(&su, o, dirv, pts, MAXP, &count, &r, &err) == BK_OK, "%s", err.msg);
+        REQUIRE(count <= MAXP && r.fate == PM_FATE_LEFT, "ray %d: %d points, fate %u", b, count,
               r.fate);
         for (int p = 1; p < count; p++)
           worst_path = fmax(worst_path, fabs(pts[3 * p + 1] - grin_y(y0s[b], pts[3 * p])) / h);
@@ -161,7 +161,7 @@ static int test_grin(clh_context_t *cl, const char *dir) {
       pm_setup_free(&su);
       printf("grin %-5s traced paths: largest distance from the parabola %.2e voxel (limit 1)\n",
              names[m], worst_path);
-      CHECK(worst_path < 1.0, "%s: path %.3f voxels off the parabola", names[m], worst_path);
+      REQUIRE(worst_path < 1.0, "%s: path %.3f voxels off the parabola", names[m], worst_path);
     }
     /* the beams' deposits: the centroid of each beam in every x slice */
     pm_stats_t st;
@@ -189,8 +189,8 @@ static int test_grin(clh_context_t *cl, const char *dir) {
     printf("grin %-5s beams (%s): largest centroid distance from the parabola %.3f voxel over %d "
            "slices (limit 1)\n",
            names[m], cl ? "OpenCL" : "host", worst_beam, slices);
-    CHECK(slices >= 3 * v.dims.nx - 3, "beams missing from %d slices", 3 * v.dims.nx - slices);
-    CHECK(worst_beam < 1.0, "%s: beam %.3f voxels off the parabola", names[m], worst_beam);
+    REQUIRE(slices >= 3 * v.dims.nx - 3, "beams missing from %d slices", 3 * v.dims.nx - slices);
+    REQUIRE(worst_beam < 1.0, "%s: beam %.3f voxels off the parabola", names[m], worst_beam);
     free(rad);
   }
   vox_free(&v);

@@ -22,7 +22,7 @@ static int test_precision(clh_context_t *cl) {
   if (cl) {
     bk_error_t err;
     memset(&err, 0, sizeof err);
-    CHECK(pm_deposit_repeat_cl(cl, value, 10000, 10000, &sum, &err) == BK_OK, "%s", err.msg);
+    REQUIRE(pm_deposit_repeat_cl(cl, value, 10000, 10000, &sum, &err) == BK_OK, "%s", err.msg);
   } else {
     sum = pm_deposit_repeat_host(value, (uint64_t)N);
   }
@@ -36,7 +36,7 @@ static int test_precision(clh_context_t *cl) {
          "exact %.10g, relative error %.2e (limit 1e-5) [%.0f ms]; a float sum gives %.6g (%.1e)\n",
          cl ? "OpenCL atom_add" : "host", (double)value, S, got, exact, rel, ms, (double)f,
          (double)f / exact - 1.0);
-  CHECK(fabs(rel) < 1e-5, "fixed-point sum off by %.3e", rel);
+  REQUIRE(fabs(rel) < 1e-5, "fixed-point sum off by %.3e", rel);
   return 0;
 }
 
@@ -70,7 +70,7 @@ static int test_host_vs_device(void) {
     double l1 = 0.0, ref = 0.0, worst = 0.0, peak = 0.0, tot[2][3] = {{0}};
     size_t n3 = 3 * grid_count(&v.dims);
     for (size_t i = 0; i < n3; i++) {
-      CHECK(isfinite(a[i]) && isfinite(b[i]), "non-finite radiance");
+      REQUIRE(isfinite(a[i]) && isfinite(b[i]), "non-finite radiance");
       l1 += fabs((double)a[i] - b[i]);
       ref += fabs((double)a[i]);
       peak = fmax(peak, a[i]);
@@ -91,9 +91,9 @@ static int test_host_vs_device(void) {
     /* the same float math on both sides; what is left is libm against the
      * device's exp/sqrt/sin/cos in the last bits, which may move a grazing
      * photon into the neighbouring voxel */
-    CHECK(l1 / ref < 1e-4, "%s: L1 difference %.3e", names[m], l1 / ref);
-    CHECK(dtot < 1e-5, "%s: totals differ by %.3e", names[m], dtot);
-    CHECK(sh.missed_grid == sd.missed_grid && sh.step_limit == sd.step_limit,
+    REQUIRE(l1 / ref < 1e-4, "%s: L1 difference %.3e", names[m], l1 / ref);
+    REQUIRE(dtot < 1e-5, "%s: totals differ by %.3e", names[m], dtot);
+    REQUIRE(sh.missed_grid == sd.missed_grid && sh.step_limit == sd.step_limit,
           "%s: photon fates differ", names[m]);
     free(a);
     free(b);
@@ -105,7 +105,7 @@ static int test_host_vs_device(void) {
 /* Every radiance value finite and >= 0. */
 static void check_finite(const float *rad, size_t n3, const char *what) {
   for (size_t i = 0; i < n3; i++)
-    CHECK(isfinite(rad[i]) && rad[i] >= 0.0f, "%s: radiance[%zu] = %g", what, i, (double)rad[i]);
+    REQUIRE(isfinite(rad[i]) && rad[i] >= 0.0f, "%s: radiance[%zu] = %g", what, i, (double)rad[i]);
 }
 
 static int test_extremes(clh_context_t *cl) {
@@ -138,8 +138,8 @@ static int test_extremes(clh_context_t *cl) {
           printf("extremes %s: %llu left, %llu absorbed, %llu step limit, %llu steps\n", what,
                  (unsigned long long)st.left_grid, (unsigned long long)st.absorbed,
                  (unsigned long long)st.step_limit, (unsigned long long)st.steps);
-          if (sig[c] > 0.0f) CHECK(st.absorbed > 0, "%s: nothing absorbed", what);
-          else CHECK(st.absorbed == 0, "%s: absorbed in a clear medium", what);
+          if (sig[c] > 0.0f) REQUIRE(st.absorbed > 0, "%s: nothing absorbed", what);
+          else REQUIRE(st.absorbed == 0, "%s: absorbed in a clear medium", what);
           free(rad);
           tv_free(&v);
         }
@@ -171,27 +171,27 @@ static int test_extremes(clh_context_t *cl) {
            "steps [%.0f ms]\n",
            (double)steps[q], (unsigned long long)st.photons, (unsigned long long)st.left_grid,
            (unsigned long long)st.step_limit, (unsigned long long)st.steps, ms);
-    CHECK(st.step_limit > st.photons / 4, "too few photons trapped: %llu",
+    REQUIRE(st.step_limit > st.photons / 4, "too few photons trapped: %llu",
           (unsigned long long)st.step_limit);
     if (!cl) {
       /* one trapped photon, traced: which limit stopped it */
       pm_setup_t su;
       bk_error_t err;
-      CHECK(pm_prepare(&s, &v, &su, NULL, NULL, &err) == BK_OK, "%s", err.msg);
+      REQUIRE(pm_prepare(&s, &v, &su, NULL, NULL, &err) == BK_OK, "%s", err.msg);
       int found = 0;
       for (uint32_t i = 0; i < su.lights.photons && !found; i++) {
         static float pts[3 * 16];
         int count;
         pm_result r;
-        CHECK(pm_trace_photon(&su, i, pts, 16, &count, &r, &err) == BK_OK, "%s", err.msg);
+        REQUIRE(pm_trace_photon(&su, i, pts, 16, &count, &r, &err) == BK_OK, "%s", err.msg);
         if (r.fate != PM_FATE_STEP_LIMIT) continue;
         found = 1;
         printf("  trapped photon %u: %u steps (PM_MAX_STEPS %d), path %.0f voxels (cap %.0f)\n", i,
                r.steps, PM_MAX_STEPS, (double)r.path, (double)su.params.path_cap);
-        if (q) CHECK(r.steps == PM_MAX_STEPS, "expected the step limit, got %u steps", r.steps);
-        else CHECK(r.path >= su.params.path_cap, "expected the path cap");
+        if (q) REQUIRE(r.steps == PM_MAX_STEPS, "expected the step limit, got %u steps", r.steps);
+        else REQUIRE(r.path >= su.params.path_cap, "expected the path cap");
       }
-      CHECK(found, "no trapped photon found");
+      REQUIRE(found, "no trapped photon found");
       pm_setup_free(&su);
     }
     free(rad);
@@ -242,7 +242,7 @@ static int test_extremes_512(void) {
          "march %.0f ms, all %.0f ms\n",
          (unsigned long long)st.photons, (unsigned long long)st.left_grid,
          (unsigned long long)st.steps, sum, st.ms_octree, st.ms_march, ms);
-  CHECK(st.left_grid == st.photons - st.missed_grid && sum > 0.0, "512^3: photons lost");
+  REQUIRE(st.left_grid == st.photons - st.missed_grid && sum > 0.0, "512^3: photons lost");
   free(rad);
   tv_free(&v);
   return 0;

@@ -10,8 +10,6 @@
 #include "march.h"
 #include "test_util.h"
 
-#define CHECK TU_REQUIRE_MSG
-
 /* A volume of nx*ny*nz cubes of side h with its corner at origin, filled
  * with n and the given coefficients (per metre). */
 static inline void tv_alloc(volume_t *v, int nx, int ny, int nz, float h, float ox, float oy,
@@ -24,7 +22,7 @@ static inline void tv_alloc(volume_t *v, int nx, int ny, int nz, float h, float 
   v->ior = calloc(n, sizeof(float));
   v->sigma_s = malloc(3 * n * sizeof(float));
   v->sigma_a = malloc(3 * n * sizeof(float));
-  CHECK(v->ior && v->sigma_s && v->sigma_a, "out of memory for a %dx%dx%d volume", nx, ny, nz);
+  REQUIRE(v->ior && v->sigma_s && v->sigma_a, "out of memory for a %dx%dx%d volume", nx, ny, nz);
 }
 
 static inline void tv_fill(volume_t *v, float n, const float ss[3], const float sa[3]) {
@@ -96,16 +94,11 @@ static inline void tv_ball(volume_t *v, const float c[3], float r, float n_obj, 
 }
 
 static inline void ts_init(scene_t *s, scene_light_t *lights, int nlights, long long photons) {
-  memset(s, 0, sizeof *s);
+  scene_defaults(s); /* seed 1, step 0.5, Euler, as a scene file without them */
   snprintf(s->path, sizeof s->path, "test-scene.json");
   s->lights = lights;
   s->light_count = nlights;
   s->photon_count = photons;
-  s->seed = 1;
-  s->step = 0.5f;
-  s->integrator = INTEGRATOR_EULER;
-  s->ior_smoothing = 2.0f;
-  s->medium_ior = 1.0f;
 }
 
 static inline scene_light_t tl_directional(float dx, float dy, float dz, float e) {
@@ -142,11 +135,11 @@ static clh_context_t tm_cl_ctx;
 static int tm_cl_ready;
 static inline clh_context_t *tm_path(const char *name) {
   if (!name || strcmp(name, "host") == 0) return NULL;
-  CHECK(strcmp(name, "cl") == 0, "path must be host or cl, got %s", name);
+  REQUIRE(strcmp(name, "cl") == 0, "path must be host or cl, got %s", name);
   if (!tm_cl_ready) {
     bk_error_t err;
     memset(&err, 0, sizeof err);
-    CHECK(clh_init(&tm_cl_ctx, NULL, &err) == BK_OK, "clh_init: %s", err.msg);
+    REQUIRE(clh_init(&tm_cl_ctx, NULL, &err) == BK_OK, "clh_init: %s", err.msg);
     tm_cl_ready = 1;
   }
   return &tm_cl_ctx;
@@ -158,10 +151,10 @@ static inline float *tm_bake(clh_context_t *cl, const scene_t *s, const volume_t
   bk_error_t err;
   memset(&err, 0, sizeof err);
   float *rad = calloc(3 * grid_count(&v->dims), sizeof(float));
-  CHECK(rad, "out of memory");
+  REQUIRE(rad, "out of memory");
   int rc = pm_bake(cl, s, v, rad, stats, NULL, &err);
-  CHECK(rc == BK_OK, "pm_bake: %s", err.msg);
-  CHECK(stats->photons == stats->missed_grid + stats->left_grid + stats->absorbed + stats->step_limit,
+  REQUIRE(rc == BK_OK, "pm_bake: %s", err.msg);
+  REQUIRE(stats->photons == stats->missed_grid + stats->left_grid + stats->absorbed + stats->step_limit,
         "photon fates do not add up");
   return rad;
 }

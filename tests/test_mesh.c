@@ -13,9 +13,6 @@
 #include "mesh_io.h"
 #include "test_util.h"
 
-#define CHECK TU_CHECK_PLAIN
-#define CHECK_NEAR TU_CHECK_NEAR
-
 /* Reads `path`; checks the counts and that every vertex of `expect` (n of
  * them) is present. */
 static void expect_mesh(const char *path, int vertices, int triangles, const float *expect, int n) {
@@ -29,17 +26,17 @@ static void expect_mesh(const char *path, int vertices, int triangles, const flo
   }
   printf("%s: %d vertices, %d triangles\n", strrchr(path, '/') + 1, m.vertex_count,
          m.triangle_count);
-  CHECK(m.vertex_count == vertices);
-  CHECK(m.triangle_count == triangles);
+  EXPECT(m.vertex_count == vertices);
+  EXPECT(m.triangle_count == triangles);
   for (int i = 0; i < n; i++) {
     int found = 0;
     for (int v = 0; v < m.vertex_count && !found; v++)
       found = m.positions[3 * v] == expect[3 * i] && m.positions[3 * v + 1] == expect[3 * i + 1] &&
               m.positions[3 * v + 2] == expect[3 * i + 2];
-    CHECK(found);
+    EXPECT(found);
   }
   for (int t = 0; t < 3 * m.triangle_count; t++)
-    CHECK(m.indices[t] >= 0 && m.indices[t] < m.vertex_count);
+    EXPECT(m.indices[t] >= 0 && m.indices[t] < m.vertex_count);
   mesh_io_free(&m);
 }
 
@@ -53,12 +50,12 @@ static void case_io(void) {
   mesh_tris_t m = {pos, 4, (int *)TETRA_F, 4};
   bk_error_t err;
   snprintf(p, sizeof p, "%s/roundtrip.obj", tu_dir);
-  CHECK(mesh_io_write_obj(p, &m, &err) == BK_OK);
+  EXPECT(mesh_io_write_obj(p, &m, &err) == BK_OK);
   mesh_tris_t back;
   if (mesh_io_read(p, &back, &err) == BK_OK) {
-    CHECK(back.vertex_count == 4 && back.triangle_count == 4);
-    CHECK(back.vertex_count == 4 && memcmp(back.positions, pos, sizeof pos) == 0);
-    CHECK(back.triangle_count == 4 && memcmp(back.indices, TETRA_F, sizeof TETRA_F) == 0);
+    EXPECT(back.vertex_count == 4 && back.triangle_count == 4);
+    EXPECT(back.vertex_count == 4 && memcmp(back.positions, pos, sizeof pos) == 0);
+    EXPECT(back.triangle_count == 4 && memcmp(back.indices, TETRA_F, sizeof TETRA_F) == 0);
     mesh_io_free(&back);
   } else {
     fprintf(stderr, "%s\n", err.msg);
@@ -119,15 +116,15 @@ static void check_counts(const char *what, const mesh_tris_t *m, int degenerate,
                          int loops, int nonmanifold, const char *summary_has) {
   mesh_report_t r;
   bk_error_t err;
-  CHECK(mesh_check(m, &r, &err) == BK_OK);
+  EXPECT(mesh_check(m, &r, &err) == BK_OK);
   char summary[256];
   mesh_check_summary(&r, summary, sizeof summary);
   printf("%-28s %s\n", what, summary);
-  CHECK(r.degenerate_faces == degenerate);
-  CHECK(r.boundary_edges == boundary);
-  CHECK(r.boundary_loops == loops);
-  CHECK(r.nonmanifold_edges == nonmanifold);
-  CHECK(strstr(summary, summary_has) != NULL);
+  EXPECT(r.degenerate_faces == degenerate);
+  EXPECT(r.boundary_edges == boundary);
+  EXPECT(r.boundary_loops == loops);
+  EXPECT(r.nonmanifold_edges == nonmanifold);
+  EXPECT(strstr(summary, summary_has) != NULL);
   mesh_check_log(what, &r);
 }
 
@@ -206,7 +203,7 @@ static void expect_transform(const float in[3], const float scale[3], const floa
          "(%.6f, %.6f, %.6f)\n",
          in[0], in[1], in[2], scale[0], scale[1], scale[2], rot[0], rot[1], rot[2], tr[0], tr[1],
          tr[2], out[0], out[1], out[2]);
-  for (int a = 0; a < 3; a++) CHECK_NEAR(out[a], want[a], 1e-6);
+  for (int a = 0; a < 3; a++) EXPECT_NEAR(out[a], want[a], 1e-6);
 }
 
 static void case_transform(void) {
@@ -226,7 +223,7 @@ static void case_transform(void) {
   /* a rotation keeps lengths */
   float p[3] = {0.3f, -1.2f, 0.7f}, out[3];
   transform_point(p, one, (float[3]){17, -43, 121}, zero, out);
-  CHECK_NEAR(sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]),
+  EXPECT_NEAR(sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]),
              sqrt(0.09 + 1.44 + 0.49), 1e-6);
 }
 

@@ -19,9 +19,6 @@
 #include "scene.h"
 #include "test_util.h"
 
-#define CHECK TU_CHECK_PLAIN
-#define CHECK_NEAR TU_CHECK_NEAR
-
 /* Writes DIR/NAME and returns its path (static buffer). */
 static const char *write_scene(const char *name, const char *text) {
   static char path[1024];
@@ -49,10 +46,10 @@ static void expect_error(const char *name, const char *text, const char *const *
   const char *path = write_scene(name, text);
   int rc = scene_load(path, &s, &err);
   printf("%s -> rc %d: %s\n", name, rc, err.msg);
-  CHECK(rc == BK_ERR_INPUT);
-  CHECK(err.code == BK_ERR_INPUT);
+  EXPECT(rc == BK_ERR_INPUT);
+  EXPECT(err.code == BK_ERR_INPUT);
   for (; *want; want++) check_has(err.msg, *want);
-  CHECK(s.objects == NULL && s.lights == NULL); /* nothing left allocated */
+  EXPECT(s.objects == NULL && s.lights == NULL); /* nothing left allocated */
   scene_free(&s);                               /* and freeing again is safe */
 }
 #define EXPECT_ERROR(name, text, ...) \
@@ -112,46 +109,46 @@ static void case_full(void) {
     free(warn);
     return;
   }
-  CHECK(warn[0] == 0); /* every key of the contract is known */
-  CHECK(s.bounds_min[0] == -1 && s.bounds_max[2] == 1 && s.resolution == 128);
-  CHECK_NEAR(s.ior_smoothing, 2.0, 0);
+  EXPECT(warn[0] == 0); /* every key of the contract is known */
+  EXPECT(s.bounds_min[0] == -1 && s.bounds_max[2] == 1 && s.resolution == 128);
+  EXPECT_NEAR(s.ior_smoothing, 2.0, 0);
   snprintf(want, sizeof want, "%s/full.json:2:62: grid.resolution", tu_dir);
-  CHECK(strcmp(s.where_resolution, want) == 0);
-  CHECK_NEAR(s.medium_sigma_s[1], 0.5, 0);
-  CHECK_NEAR(s.medium_sigma_a[2], 0.02, 1e-9);
-  CHECK(s.density_vdb.present && s.ior_vdb.present);
+  EXPECT(strcmp(s.where_resolution, want) == 0);
+  EXPECT_NEAR(s.medium_sigma_s[1], 0.5, 0);
+  EXPECT_NEAR(s.medium_sigma_a[2], 0.02, 1e-9);
+  EXPECT(s.density_vdb.present && s.ior_vdb.present);
   snprintf(want, sizeof want, "%s/smoke.vdb", tu_dir);
-  CHECK(strcmp(s.density_vdb.file, want) == 0);
-  CHECK(strcmp(s.density_vdb.grid, "density") == 0 && strcmp(s.ior_vdb.grid, "ior") == 0);
+  EXPECT(strcmp(s.density_vdb.file, want) == 0);
+  EXPECT(strcmp(s.density_vdb.grid, "density") == 0 && strcmp(s.ior_vdb.grid, "ior") == 0);
   check_has(s.ior_vdb.where, "full.json:5:41: medium.ior_vdb.file");
-  CHECK(s.object_count == 1);
+  EXPECT(s.object_count == 1);
   snprintf(want, sizeof want, "%s/meshes/armadillo.obj", tu_dir);
-  CHECK(strcmp(s.objects[0].mesh, want) == 0);
+  EXPECT(strcmp(s.objects[0].mesh, want) == 0);
   check_has(s.objects[0].where, "full.json:6:26: objects[0].mesh");
-  CHECK_NEAR(s.objects[0].ior, 1.5, 0);
-  CHECK_NEAR(s.objects[0].scale[0], 0.01, 1e-9);
-  CHECK_NEAR(s.objects[0].scale[2], 0.01, 1e-9); /* a number scales all axes */
-  CHECK_NEAR(s.objects[0].rotate_deg[1], 180, 0);
-  CHECK(s.light_count == 3);
-  CHECK(s.lights[0].type == LIGHT_SPOT && s.lights[1].type == LIGHT_DIRECTIONAL &&
+  EXPECT_NEAR(s.objects[0].ior, 1.5, 0);
+  EXPECT_NEAR(s.objects[0].scale[0], 0.01, 1e-9);
+  EXPECT_NEAR(s.objects[0].scale[2], 0.01, 1e-9); /* a number scales all axes */
+  EXPECT_NEAR(s.objects[0].rotate_deg[1], 180, 0);
+  EXPECT(s.light_count == 3);
+  EXPECT(s.lights[0].type == LIGHT_SPOT && s.lights[1].type == LIGHT_DIRECTIONAL &&
         s.lights[2].type == LIGHT_POINT);
-  CHECK_NEAR(s.lights[0].angle_deg, 20, 0);
-  CHECK_NEAR(s.lights[0].direction[1], -1, 0);
-  CHECK_NEAR(s.lights[0].intensity[2], 10, 0);
-  CHECK_NEAR(s.lights[1].irradiance[0], 1, 0);
-  CHECK_NEAR(s.lights[2].position[1], 2, 0);
-  CHECK(s.mode == MODE_REFERENCE && s.photon_count == 122000 && s.seed == 1);
-  CHECK(s.integrator == INTEGRATOR_EULER);
-  CHECK_NEAR(s.step, 0.5, 0);
-  CHECK(s.pilot == 4000 && s.gradient_threshold == SCENE_AUTO &&
+  EXPECT_NEAR(s.lights[0].angle_deg, 20, 0);
+  EXPECT_NEAR(s.lights[0].direction[1], -1, 0);
+  EXPECT_NEAR(s.lights[0].intensity[2], 10, 0);
+  EXPECT_NEAR(s.lights[1].irradiance[0], 1, 0);
+  EXPECT_NEAR(s.lights[2].position[1], 2, 0);
+  EXPECT(s.mode == MODE_REFERENCE && s.photon_count == 122000 && s.seed == 1);
+  EXPECT(s.integrator == INTEGRATOR_EULER);
+  EXPECT_NEAR(s.step, 0.5, 0);
+  EXPECT(s.pilot == 4000 && s.gradient_threshold == SCENE_AUTO &&
         s.luminance_threshold == SCENE_AUTO);
-  CHECK(s.camera.present && s.camera.width == 800 && s.camera.height == 600);
-  CHECK_NEAR(s.camera.position[2], -3.2, 1e-6);
-  CHECK_NEAR(s.camera.fov_deg, 40, 0);
-  CHECK(s.hash == bk_hash64(k_design_example, strlen(k_design_example), BK_HASH_SEED));
-  CHECK(strcmp(scene_light_type_name(s.lights[0].type), "spot") == 0);
-  CHECK(strcmp(scene_mode_name(MODE_ADAPTIVE), "adaptive") == 0);
-  CHECK(strcmp(scene_integrator_name(INTEGRATOR_RK4), "rk4") == 0);
+  EXPECT(s.camera.present && s.camera.width == 800 && s.camera.height == 600);
+  EXPECT_NEAR(s.camera.position[2], -3.2, 1e-6);
+  EXPECT_NEAR(s.camera.fov_deg, 40, 0);
+  EXPECT(s.hash == bk_hash64(k_design_example, strlen(k_design_example), BK_HASH_SEED));
+  EXPECT(strcmp(scene_light_type_name(s.lights[0].type), "spot") == 0);
+  EXPECT(strcmp(scene_mode_name(MODE_ADAPTIVE), "adaptive") == 0);
+  EXPECT(strcmp(scene_integrator_name(INTEGRATOR_RK4), "rk4") == 0);
   scene_free(&s);
   scene_free(&s);
   free(warn);
@@ -174,35 +171,35 @@ static void case_defaults(void) {
     free(warn);
     return;
   }
-  CHECK(warn[0] == 0);
-  CHECK(s.resolution == 64); /* 64.0 is an integer */
-  CHECK_NEAR(s.ior_smoothing, 2, 0);
-  CHECK_NEAR(s.medium_ior, 1, 0);
-  CHECK(s.medium_sigma_s[0] == 0 && s.medium_sigma_a[2] == 0);
-  CHECK(!s.density_vdb.present && !s.ior_vdb.present);
-  CHECK(s.object_count == 1);
-  CHECK(strcmp(s.objects[0].mesh, "/abs/ball.obj") == 0); /* absolute stays as is */
-  CHECK_NEAR(s.objects[0].ior, 1.5, 0);
-  CHECK_NEAR(s.objects[0].sigma_s[2], 0.25, 0);
-  CHECK(s.objects[0].sigma_a[0] == 0);
-  CHECK(s.objects[0].scale[0] == 1 && s.objects[0].scale[1] == 2 && s.objects[0].scale[2] == 3);
-  CHECK(s.objects[0].translate[0] == 0 && s.objects[0].rotate_deg[2] == 0);
-  CHECK(s.light_count == 1);
-  CHECK_NEAR(s.lights[0].direction[0], 0.6, 1e-7);
-  CHECK_NEAR(s.lights[0].direction[1], 0.0, 0);
-  CHECK_NEAR(s.lights[0].direction[2], -0.8, 1e-7);
-  CHECK_NEAR(s.lights[0].irradiance[1], 2, 0);
-  CHECK(s.mode == MODE_ADAPTIVE && s.integrator == INTEGRATOR_RK4);
-  CHECK(s.photon_count == 1000000 && s.seed == 1);
-  CHECK_NEAR(s.step, 0.5, 0);
-  CHECK(s.pilot == 4000);
-  CHECK_NEAR(s.gradient_threshold, 0.5, 0);
-  CHECK(s.luminance_threshold == SCENE_AUTO);
-  CHECK_NEAR(s.alpha, 1, 0);
-  CHECK(!s.camera.present);
-  CHECK(s.camera.up[1] == 1 && s.camera.fov_deg == 40 && s.camera.width == 800 &&
+  EXPECT(warn[0] == 0);
+  EXPECT(s.resolution == 64); /* 64.0 is an integer */
+  EXPECT_NEAR(s.ior_smoothing, 2, 0);
+  EXPECT_NEAR(s.medium_ior, 1, 0);
+  EXPECT(s.medium_sigma_s[0] == 0 && s.medium_sigma_a[2] == 0);
+  EXPECT(!s.density_vdb.present && !s.ior_vdb.present);
+  EXPECT(s.object_count == 1);
+  EXPECT(strcmp(s.objects[0].mesh, "/abs/ball.obj") == 0); /* absolute stays as is */
+  EXPECT_NEAR(s.objects[0].ior, 1.5, 0);
+  EXPECT_NEAR(s.objects[0].sigma_s[2], 0.25, 0);
+  EXPECT(s.objects[0].sigma_a[0] == 0);
+  EXPECT(s.objects[0].scale[0] == 1 && s.objects[0].scale[1] == 2 && s.objects[0].scale[2] == 3);
+  EXPECT(s.objects[0].translate[0] == 0 && s.objects[0].rotate_deg[2] == 0);
+  EXPECT(s.light_count == 1);
+  EXPECT_NEAR(s.lights[0].direction[0], 0.6, 1e-7);
+  EXPECT_NEAR(s.lights[0].direction[1], 0.0, 0);
+  EXPECT_NEAR(s.lights[0].direction[2], -0.8, 1e-7);
+  EXPECT_NEAR(s.lights[0].irradiance[1], 2, 0);
+  EXPECT(s.mode == MODE_ADAPTIVE && s.integrator == INTEGRATOR_RK4);
+  EXPECT(s.photon_count == 1000000 && s.seed == 1);
+  EXPECT_NEAR(s.step, 0.5, 0);
+  EXPECT(s.pilot == 4000);
+  EXPECT_NEAR(s.gradient_threshold, 0.5, 0);
+  EXPECT(s.luminance_threshold == SCENE_AUTO);
+  EXPECT_NEAR(s.alpha, 1, 0);
+  EXPECT(!s.camera.present);
+  EXPECT(s.camera.up[1] == 1 && s.camera.fov_deg == 40 && s.camera.width == 800 &&
         s.camera.height == 600);
-  CHECK(s.background[0] == 0 && s.background[1] == 0 && s.background[2] == 0);
+  EXPECT(s.background[0] == 0 && s.background[1] == 0 && s.background[2] == 0);
   scene_free(&s);
   free(warn);
 }
@@ -281,12 +278,12 @@ static void case_deep_nesting(void) {
   for (int i = 0; i < JSON_MAX_DEPTH; i++) text[n++] = ']';
   bk_error_t err = {0};
   json_value_t *v = json_parse(text, (size_t)n, "deep64", &err);
-  CHECK(v != NULL);
+  EXPECT(v != NULL);
   json_free(v);
   n = 0;
   for (int i = 0; i <= JSON_MAX_DEPTH; i++) text[n++] = '[';
   for (int i = 0; i <= JSON_MAX_DEPTH; i++) text[n++] = ']';
-  CHECK(json_parse(text, (size_t)n, "deep65", &err) == NULL);
+  EXPECT(json_parse(text, (size_t)n, "deep65", &err) == NULL);
   check_has(err.msg, "deep65:1:65: ");
 }
 
@@ -297,29 +294,29 @@ static void case_json_strings(void) {
                      "  \"list\": [true, false, null, -0.5e2, 0, \"\\u20AC\"] }";
   bk_error_t err = {0};
   json_value_t *root = json_parse(text, strlen(text), "strings", &err);
-  CHECK(root != NULL);
+  EXPECT(root != NULL);
   if (!root) {
     fprintf(stderr, "%s\n", err.msg);
     return;
   }
   const json_member_t *m = json_object_member(root, "\xc3\xa9t\xc3\xa9");
-  CHECK(m && m->line == 1 && m->col == 2);
+  EXPECT(m && m->line == 1 && m->col == 2);
   /* {"été": "a -> the value starts at character 9, byte 11 */
-  CHECK(m && m->value->line == 1 && m->value->col == 9);
+  EXPECT(m && m->value->line == 1 && m->value->col == 9);
   const char *want = "a\xc3\xa9\xf0\x9f\x98\x80\n\t\"\\/";
-  CHECK(m && m->value->string_len == strlen(want) && strcmp(m->value->string, want) == 0);
+  EXPECT(m && m->value->string_len == strlen(want) && strcmp(m->value->string, want) == 0);
   const json_value_t *list = json_object_get(root, "list");
-  CHECK(list && list->type == JSON_ARRAY && list->count == 6 && list->line == 2 &&
+  EXPECT(list && list->type == JSON_ARRAY && list->count == 6 && list->line == 2 &&
         list->col == 11);
   if (list && list->count == 6) {
-    CHECK(list->items[0]->type == JSON_BOOL && list->items[0]->boolean == 1);
-    CHECK(list->items[1]->type == JSON_BOOL && list->items[1]->boolean == 0);
-    CHECK(list->items[2]->type == JSON_NULL && list->items[2]->col == 25);
-    CHECK(list->items[3]->type == JSON_NUMBER && list->items[3]->number == -50.0);
-    CHECK(strcmp(list->items[3]->string, "-0.5e2") == 0);
-    CHECK(strcmp(list->items[5]->string, "\xe2\x82\xac") == 0);
+    EXPECT(list->items[0]->type == JSON_BOOL && list->items[0]->boolean == 1);
+    EXPECT(list->items[1]->type == JSON_BOOL && list->items[1]->boolean == 0);
+    EXPECT(list->items[2]->type == JSON_NULL && list->items[2]->col == 25);
+    EXPECT(list->items[3]->type == JSON_NUMBER && list->items[3]->number == -50.0);
+    EXPECT(strcmp(list->items[3]->string, "-0.5e2") == 0);
+    EXPECT(strcmp(list->items[5]->string, "\xe2\x82\xac") == 0);
   }
-  CHECK(json_object_get(root, "missing") == NULL);
+  EXPECT(json_object_get(root, "missing") == NULL);
   json_free(root);
 
   static const struct {
@@ -343,7 +340,7 @@ static void case_json_strings(void) {
     bk_error_t e = {0};
     json_value_t *v = json_parse(bad[i].text, strlen(bad[i].text), "bad", &e);
     printf("%s -> %s\n", bad[i].text, e.msg);
-    CHECK(v == NULL && e.code == BK_ERR_INPUT);
+    EXPECT(v == NULL && e.code == BK_ERR_INPUT);
     check_has(e.msg, bad[i].want);
     json_free(v);
   }
@@ -397,10 +394,10 @@ static void case_resolution_negative(void) {
   /* large resolutions are grid_check_memory's business, not the loader's */
   scene_t s;
   char *warn = NULL;
-  CHECK(load_ok("resolution_large.json",
+  EXPECT(load_ok("resolution_large.json",
                 "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 100000 } }", &s,
                 &warn) == BK_OK);
-  CHECK(s.resolution == 100000);
+  EXPECT(s.resolution == 100000);
   scene_free(&s);
   free(warn);
 }
@@ -461,7 +458,7 @@ static void case_unknown_key(void) {
                    "                \"angle_deg\": 30 } ],\n"
                    "  \"colour\": [1, 0, 0] }\n",
                    &s, &warn);
-  CHECK(rc == BK_OK);
+  EXPECT(rc == BK_OK);
   if (rc) {
     free(warn);
     return;
@@ -471,7 +468,7 @@ static void case_unknown_key(void) {
                   "\"ior_smoothing\"?)");
   check_has(warn, "unknown.json:4:17: lights[0].angle_deg: not used by a point light, ignored");
   check_has(warn, "unknown.json:5:3: colour: unknown key, ignored");
-  CHECK(s.resolution == 16 && s.ior_smoothing == 2.0f && s.light_count == 1);
+  EXPECT(s.resolution == 16 && s.ior_smoothing == 2.0f && s.light_count == 1);
   scene_free(&s);
   free(warn);
 }

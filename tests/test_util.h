@@ -1,17 +1,12 @@
 /* test_util.h: the check macros and file helpers the tests share.
  *
- * In: a condition (and for most styles a printf-style explanation). Out: on
- * failure one line on stderr naming file:line, then either a count in
- * tu_failures (the test goes on and main returns non-zero) or exit(1). The
- * styles differ only in the words of that line, kept as each test had them:
- *   TU_EXPECT(cond, fmt, ...)       "FAIL file:line: cond: msg", counted
- *   TU_REQUIRE(cond, fmt, ...)      "FAIL file:line: cond: msg", exit(1)
- *   TU_EXPECT_MSG(cond, fmt, ...)   "FAIL file:line: msg", counted
- *   TU_REQUIRE_MSG(cond, fmt, ...)  "FAIL file:line: msg", exit(1)
- *   TU_CHECK_PLAIN(cond)            "file:line: check failed: cond", counted
- *   TU_CHECK_NEAR(a, b, tol)        "file:line: a = x, expected y (tol t)", counted
- * A test aliases the one it uses with an object-like macro
- * (`#define CHECK TU_EXPECT`), so that #cond is the text as written.
+ * One vocabulary for every test:
+ *   EXPECT(cond)  EXPECT(cond, fmt, ...)    on failure a line, counted in
+ *                                           tu_failures (main returns non-zero)
+ *   REQUIRE(cond) REQUIRE(cond, fmt, ...)   on failure a line, then exit(1)
+ *   EXPECT_NEAR(a, b, tol)                  |a - b| <= tol, counted
+ * The line reads "FAIL file:line: cond: explanation" (or "... a = x,
+ * expected y (tol t)"); fmt must be a string literal.
  * Also: tu_path/tu_write_text for files under tu_dir, and tu_rel_l2, the
  * relative L2 error sqrt(sum (x - t)^2 / sum t^2). */
 #ifndef TEST_UTIL_H
@@ -21,6 +16,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 static int tu_failures __attribute__((unused));
 /* directory the test writes its files into (under the build directory) */
@@ -30,43 +26,31 @@ static inline void tu_fail(int fatal, const char *file, int line, const char *co
                            const char *fmt, ...) __attribute__((format(printf, 5, 6)));
 static inline void tu_fail(int fatal, const char *file, int line, const char *cond,
                            const char *fmt, ...) {
-  if (cond)
-    fprintf(stderr, "FAIL %s:%d: %s: ", file, line, cond);
-  else
-    fprintf(stderr, "FAIL %s:%d: ", file, line);
-  va_list ap;
-  va_start(ap, fmt);
-  vfprintf(stderr, fmt, ap);
-  va_end(ap);
+  fprintf(stderr, "FAIL %s:%d: %s", file, line, cond);
+  if (strcmp(fmt, ": ") != 0) { /* an explanation follows the separator */
+    va_list ap;
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+  }
   fputc('\n', stderr);
   if (fatal) exit(1);
   tu_failures++;
 }
 
-#define TU_EXPECT(cond, ...) \
-  do { if (!(cond)) tu_fail(0, __FILE__, __LINE__, #cond, __VA_ARGS__); } while (0)
-#define TU_REQUIRE(cond, ...) \
-  do { if (!(cond)) tu_fail(1, __FILE__, __LINE__, #cond, __VA_ARGS__); } while (0)
-#define TU_EXPECT_MSG(cond, ...) \
-  do { if (!(cond)) tu_fail(0, __FILE__, __LINE__, NULL, __VA_ARGS__); } while (0)
-#define TU_REQUIRE_MSG(cond, ...) \
-  do { if (!(cond)) tu_fail(1, __FILE__, __LINE__, NULL, __VA_ARGS__); } while (0)
-
-#define TU_CHECK_PLAIN(cond)                                                   \
-  do {                                                                         \
-    if (!(cond)) {                                                             \
-      fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-      tu_failures++;                                                           \
-    }                                                                          \
-  } while (0)
-#define TU_CHECK_NEAR(a, b, tol)                                                        \
-  do {                                                                                  \
-    double a_ = (a), b_ = (b);                                                          \
-    if (!(fabs(a_ - b_) <= (tol))) {                                                    \
-      fprintf(stderr, "%s:%d: %s = %.9g, expected %.9g (tol %g)\n", __FILE__, __LINE__, \
-              #a, a_, b_, (double)(tol));                                               \
-      tu_failures++;                                                                    \
-    }                                                                                   \
+/* the separator ": " is glued to the format, so the explanation may be left out */
+#define EXPECT(cond, ...) \
+  do { if (!(cond)) tu_fail(0, __FILE__, __LINE__, #cond, ": " __VA_ARGS__); } while (0)
+#define REQUIRE(cond, ...) \
+  do { if (!(cond)) tu_fail(1, __FILE__, __LINE__, #cond, ": " __VA_ARGS__); } while (0)
+#define EXPECT_NEAR(a, b, tol)                                                               \
+  do {                                                                                     \
+    double a_ = (a), b_ = (b);                                                             \
+    if (!(fabs(a_ - b_) <= (tol))) {                                                       \
+      fprintf(stderr, "FAIL %s:%d: %s = %.9g, expected %.9g (tol %g)\n", __FILE__, __LINE__, \
+              #a, a_, b_, (double)(tol));                                                  \
+      tu_failures++;                                                                       \
+    }                                                                                      \
   } while (0)
 
 /* tu_dir/name into path (len bytes). */

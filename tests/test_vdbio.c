@@ -28,8 +28,6 @@
 
 #include "test_util.h"
 
-#define CHECK TU_EXPECT_MSG
-
 static const grid_dims_t KNOWN = {12, 10, 8, 0.25f, {-1.5f, 0.75f, 2.0f}};
 
 static double known_density(const double w[3]) {
@@ -112,27 +110,27 @@ static void check_known(const char *path, double tol) {
   /* dense, padded by one voxel: the active box of "density" starts at i = 2 */
   vdbio_dense_t den;
   int rc = vdbio_read_dense(path, "density", 1, &den, &err);
-  CHECK(rc == BK_OK, "read_dense density: %s", err.msg);
+  EXPECT(rc == BK_OK, "read_dense density: %s", err.msg);
   if (rc == BK_OK) {
-    CHECK(den.nx == d->nx - 2 + 2 && den.ny == d->ny + 2 && den.nz == d->nz + 2 &&
+    EXPECT(den.nx == d->nx - 2 + 2 && den.ny == d->ny + 2 && den.nz == d->nz + 2 &&
               den.channels == 1,
           "dense box %dx%dx%d ch %d, expected %dx%dx%d ch 1", den.nx, den.ny, den.nz, den.channels,
           d->nx, d->ny + 2, d->nz + 2);
-    CHECK(den.uniform_scale && fabs(den.voxel_size - 0.25) < 1e-9, "uniform %d voxel %g",
+    EXPECT(den.uniform_scale && fabs(den.voxel_size - 0.25) < 1e-9, "uniform %d voxel %g",
           den.uniform_scale, den.voxel_size);
     /* dense (0,0,0) is our voxel (1,-1,-1) */
     double w0[3];
     centre_d(d, 1, -1, -1, w0);
     for (int r = 0; r < 3; r++) {
-      CHECK(fabs(den.index_to_world[r][3] - w0[r]) < 1e-6, "index_to_world t[%d] %g != %g", r,
+      EXPECT(fabs(den.index_to_world[r][3] - w0[r]) < 1e-6, "index_to_world t[%d] %g != %g", r,
             den.index_to_world[r][3], w0[r]);
       for (int c = 0; c < 3; c++) {
-        CHECK(fabs(den.index_to_world[r][c] - (r == c ? 0.25 : 0.0)) < 1e-9,
+        EXPECT(fabs(den.index_to_world[r][c] - (r == c ? 0.25 : 0.0)) < 1e-9,
               "index_to_world[%d][%d] = %g", r, c, den.index_to_world[r][c]);
-        CHECK(fabs(den.world_to_index[r][c] - (r == c ? 4.0 : 0.0)) < 1e-9,
+        EXPECT(fabs(den.world_to_index[r][c] - (r == c ? 4.0 : 0.0)) < 1e-9,
               "world_to_index[%d][%d] = %g", r, c, den.world_to_index[r][c]);
       }
-      CHECK(fabs(den.world_to_index[r][3] + 4.0 * w0[r]) < 1e-6, "world_to_index t[%d] %g", r,
+      EXPECT(fabs(den.world_to_index[r][3] + 4.0 * w0[r]) < 1e-6, "world_to_index t[%d] %g", r,
             den.world_to_index[r][3]);
     }
     double worst = 0.0;
@@ -151,7 +149,7 @@ static void check_known(const char *path, double tol) {
           if (e > worst)
             worst = e;
         }
-    CHECK(worst <= tol, "read_dense density: worst relative error %.3g > %.3g", worst, tol);
+    EXPECT(worst <= tol, "read_dense density: worst relative error %.3g > %.3g", worst, tol);
     printf("  read_dense density %dx%dx%d: worst relative error %.3g\n", den.nx, den.ny, den.nz,
            worst);
 
@@ -160,10 +158,10 @@ static void check_known(const char *path, double tol) {
     vdbio_dense_t rad;
     int found = -1;
     rc = vdbio_read_dense_like(path, "radiance", &den, &rad, &found, &err);
-    CHECK(rc == BK_OK && found == 1, "read_dense_like radiance: rc %d found %d %s", rc, found,
+    EXPECT(rc == BK_OK && found == 1, "read_dense_like radiance: rc %d found %d %s", rc, found,
           err.msg);
     if (rc == BK_OK && found) {
-      CHECK(rad.channels == 3 && rad.nx == den.nx && rad.ny == den.ny && rad.nz == den.nz,
+      EXPECT(rad.channels == 3 && rad.nx == den.nx && rad.ny == den.ny && rad.nz == den.nz,
             "dense_like box");
       worst = 0.0;
       for (int c = 0; c < rad.nz; c++)
@@ -183,28 +181,28 @@ static void check_known(const char *path, double tol) {
                 worst = e;
             }
           }
-      CHECK(worst <= tol, "read_dense_like radiance: worst relative error %.3g", worst);
+      EXPECT(worst <= tol, "read_dense_like radiance: worst relative error %.3g", worst);
       printf("  read_dense_like radiance: worst relative error %.3g\n", worst);
       vdbio_dense_free(&rad);
     }
     rc = vdbio_read_dense_like(path, "no_such_grid", &den, &rad, &found, &err);
-    CHECK(rc == BK_OK && found == 0 && rad.data == NULL, "absent grid: rc %d found %d", rc, found);
+    EXPECT(rc == BK_OK && found == 0 && rad.data == NULL, "absent grid: rc %d found %d", rc, found);
     vdbio_dense_free(&den);
   }
 
   /* the Vec3 grid densely: whole grid active, box = our grid */
   vdbio_dense_t vd;
   rc = vdbio_read_dense(path, "radiance", 0, &vd, &err);
-  CHECK(rc == BK_OK, "read_dense radiance: %s", err.msg);
+  EXPECT(rc == BK_OK, "read_dense radiance: %s", err.msg);
   if (rc == BK_OK) {
-    CHECK(vd.nx == d->nx && vd.ny == d->ny && vd.nz == d->nz && vd.channels == 3,
+    EXPECT(vd.nx == d->nx && vd.ny == d->ny && vd.nz == d->nz && vd.channels == 3,
           "radiance box %dx%dx%d", vd.nx, vd.ny, vd.nz);
     double w[3], g[3];
     centre_d(d, 5, 3, 6, w); /* one voxel by hand: (i,j,k) -> data[i + nx*(j + ny*k)] */
     known_radiance(w, g);
     const float *p = vd.data + grid_index(d, 5, 3, 6) * 3;
     for (int c = 0; c < 3; c++)
-      CHECK(fabs(p[c] - g[c]) <= tol * (1.0 + fabs(g[c])), "radiance(5,3,6)[%d] = %g, want %g", c,
+      EXPECT(fabs(p[c] - g[c]) <= tol * (1.0 + fabs(g[c])), "radiance(5,3,6)[%d] = %g, want %g", c,
             p[c], g[c]);
     vdbio_dense_free(&vd);
   }
@@ -212,14 +210,14 @@ static void check_known(const char *path, double tol) {
   /* resampled at the voxel centres of the same grid: the stored values */
   float *same = calloc(grid_count(d), sizeof(float)), *ref = known_density_data();
   rc = vdbio_resample_float(path, "density", d, same, "test.same", &err);
-  CHECK(rc == BK_OK, "resample same: %s", err.msg);
+  EXPECT(rc == BK_OK, "resample same: %s", err.msg);
   double worst = 0.0;
   for (size_t n = 0; n < grid_count(d); n++) {
     double e = fabs(same[n] - ref[n]) / (1.0 + fabs(ref[n]));
     if (e > worst)
       worst = e;
   }
-  CHECK(worst <= tol, "resample at own centres: worst %.3g", worst);
+  EXPECT(worst <= tol, "resample at own centres: worst %.3g", worst);
   printf("  resample_float at own voxel centres: worst relative error %.3g\n", worst);
   free(same);
   free(ref);
@@ -229,7 +227,7 @@ static void check_known(const char *path, double tol) {
   grid_dims_t fine = {30, 30, 30, 0.1f, {-1.93f, 0.41f, 1.57f}};
   float *out = calloc(grid_count(&fine), sizeof(float));
   rc = vdbio_resample_float(path, "density", &fine, out, "test.fine", &err);
-  CHECK(rc == BK_OK, "resample fine: %s", err.msg);
+  EXPECT(rc == BK_OK, "resample fine: %s", err.msg);
   double lo[3], hi[3];
   centre_d(d, 2, 0, 0, lo);
   centre_d(d, d->nx - 1, d->ny - 1, d->nz - 1, hi);
@@ -261,8 +259,8 @@ static void check_known(const char *path, double tol) {
         if (e > worst)
           worst = e;
       }
-  CHECK(inside > 1000 && outside > 1000, "fine grid: %d inside, %d outside", inside, outside);
-  CHECK(worst <= tol, "resample fine: worst relative error %.3g", worst);
+  EXPECT(inside > 1000 && outside > 1000, "fine grid: %d inside, %d outside", inside, outside);
+  EXPECT(worst <= tol, "resample fine: worst relative error %.3g", worst);
   printf("  resample_float on a shifted 0.1 grid: %d points inside, %d outside, worst %.3g\n",
          inside, outside, worst);
   free(out);
@@ -278,22 +276,22 @@ static int roundtrip(const char *dir) {
 
   vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0};
   int rc = write_known(path, &zip, &err);
-  CHECK(rc == BK_OK, "write: %s", err.msg);
+  EXPECT(rc == BK_OK, "write: %s", err.msg);
   if (rc)
     return 1;
-  CHECK(count_temp_files(dir) == 0, "a temporary file survived in %s", dir);
+  EXPECT(count_temp_files(dir) == 0, "a temporary file survived in %s", dir);
   printf("zip, full float (%ld bytes):\n", file_size(path));
   check_known(path, 1e-6);
 
   char **names = NULL, **types = NULL;
   int count = 0;
   rc = vdbio_list_grids(path, &names, &types, &count, &err);
-  CHECK(rc == BK_OK && count == 2, "list_grids: rc %d count %d %s", rc, count, err.msg);
+  EXPECT(rc == BK_OK && count == 2, "list_grids: rc %d count %d %s", rc, count, err.msg);
   for (int g = 0; rc == BK_OK && g < count; g++) {
     printf("  grid %s (%s)\n", names[g], types[g]);
     int dens = !strcmp(names[g], "density"), radi = !strcmp(names[g], "radiance");
-    CHECK(dens || radi, "unexpected grid %s", names[g]);
-    CHECK(!strcmp(types[g], dens ? "float" : "vec3s"), "grid %s has type %s", names[g], types[g]);
+    EXPECT(dens || radi, "unexpected grid %s", names[g]);
+    EXPECT(!strcmp(types[g], dens ? "float" : "vec3s"), "grid %s has type %s", names[g], types[g]);
   }
   if (rc == BK_OK)
     vdbio_free_names(names, types, count);
@@ -309,7 +307,7 @@ static int roundtrip(const char *dir) {
     rc = vdbio_read_meta(path, metas[m].key, buf, sizeof buf, &err);
     int ok = rc == BK_OK && (metas[m].prefix ? !strncmp(buf, metas[m].want, strlen(metas[m].want))
                                              : !strcmp(buf, metas[m].want));
-    CHECK(ok, "meta %s = \"%s\", want \"%s\"", metas[m].key, buf, metas[m].want);
+    EXPECT(ok, "meta %s = \"%s\", want \"%s\"", metas[m].key, buf, metas[m].want);
     printf("  meta %s = \"%s\"\n", metas[m].key, buf);
   }
 
@@ -328,14 +326,14 @@ static int roundtrip(const char *dir) {
   snprintf(bigh, sizeof bigh, "%s/vdbio_big_half.vdb", dir);
   vdbio_grid_t g1 = {"density", VDBIO_FLOAT, f, 0};
   vdbio_write_opts_t hopt = {VDBIO_COMPRESS_ZIP, 1};
-  CHECK(vdbio_write(bigf, &big, &g1, 1, NULL, 0, &zip, &err) == BK_OK, "big full: %s", err.msg);
-  CHECK(vdbio_write(bigh, &big, &g1, 1, NULL, 0, &hopt, &err) == BK_OK, "big half: %s", err.msg);
+  EXPECT(vdbio_write(bigf, &big, &g1, 1, NULL, 0, &zip, &err) == BK_OK, "big full: %s", err.msg);
+  EXPECT(vdbio_write(bigh, &big, &g1, 1, NULL, 0, &hopt, &err) == BK_OK, "big half: %s", err.msg);
   long sf = file_size(bigf), sh = file_size(bigh);
   printf("48^3 smooth float grid, zip: full %ld bytes, half %ld bytes (%.2f)\n", sf, sh,
          (double)sh / (double)sf);
-  CHECK(sh > 0 && sh < 0.75 * sf, "half float file %ld is not smaller than 0.75 x %ld", sh, sf);
+  EXPECT(sh > 0 && sh < 0.75 * sf, "half float file %ld is not smaller than 0.75 x %ld", sh, sf);
   float *back = calloc(grid_count(&big), sizeof(float));
-  CHECK(vdbio_resample_float(bigh, "density", &big, back, "test.half", &err) == BK_OK, "%s",
+  EXPECT(vdbio_resample_float(bigh, "density", &big, back, "test.half", &err) == BK_OK, "%s",
         err.msg);
   double worst = 0.0;
   for (size_t n = 0; n < grid_count(&big); n++) {
@@ -344,32 +342,32 @@ static int roundtrip(const char *dir) {
       worst = e;
   }
   printf("  half read back: worst relative error %.3g (half ulp 2^-11 = 4.9e-4)\n", worst);
-  CHECK(worst > 0.0 && worst <= 4.9e-4, "half float read back: worst relative error %.3g", worst);
+  EXPECT(worst > 0.0 && worst <= 4.9e-4, "half float read back: worst relative error %.3g", worst);
   free(back);
   free(f);
 
   /* the small file in half, uncompressed and blosc: same values */
-  CHECK(write_known(half, &hopt, &err) == BK_OK, "write half: %s", err.msg);
+  EXPECT(write_known(half, &hopt, &err) == BK_OK, "write half: %s", err.msg);
   printf("zip, half float (%ld bytes):\n", file_size(half));
   check_known(half, 1e-3);
   vdbio_write_opts_t nopt = {VDBIO_COMPRESS_NONE, 0}, bopt = {VDBIO_COMPRESS_BLOSC, 0};
-  CHECK(write_known(none, &nopt, &err) == BK_OK, "write none: %s", err.msg);
+  EXPECT(write_known(none, &nopt, &err) == BK_OK, "write none: %s", err.msg);
   printf("uncompressed (%ld bytes):\n", file_size(none));
   check_known(none, 1e-6);
-  CHECK(write_known(blosc, &bopt, &err) == BK_OK, "write blosc: %s", err.msg);
+  EXPECT(write_known(blosc, &bopt, &err) == BK_OK, "write blosc: %s", err.msg);
   printf("blosc (%ld bytes):\n", file_size(blosc));
   check_known(blosc, 1e-6);
-  CHECK(count_temp_files(dir) == 0, "a temporary file survived in %s", dir);
+  EXPECT(count_temp_files(dir) == 0, "a temporary file survived in %s", dir);
 
   /* an empty grid reads as one voxel of background */
   float *zero = calloc(grid_count(&KNOWN), sizeof(float));
   vdbio_grid_t gz = {"empty", VDBIO_FLOAT, zero, 0};
   char empty[4096];
   snprintf(empty, sizeof empty, "%s/vdbio_empty.vdb", dir);
-  CHECK(vdbio_write(empty, &KNOWN, &gz, 1, NULL, 0, NULL, &err) == BK_OK, "empty: %s", err.msg);
+  EXPECT(vdbio_write(empty, &KNOWN, &gz, 1, NULL, 0, NULL, &err) == BK_OK, "empty: %s", err.msg);
   vdbio_dense_t ed;
   rc = vdbio_read_dense(empty, "empty", 2, &ed, &err);
-  CHECK(rc == BK_OK && ed.nx == 1 && ed.ny == 1 && ed.nz == 1 && ed.data[0] == 0.0f,
+  EXPECT(rc == BK_OK && ed.nx == 1 && ed.ny == 1 && ed.nz == 1 && ed.data[0] == 0.0f,
         "empty grid: rc %d %dx%dx%d %s", rc, ed.nx, ed.ny, ed.nz, err.msg);
   if (rc == BK_OK)
     vdbio_dense_free(&ed);
@@ -380,10 +378,10 @@ static int roundtrip(const char *dir) {
 /* Expects rc == BK_ERR_INPUT and the message to name `name`. */
 static void expect_input_error(int rc, const bk_error_t *err, const char *name, const char *what,
                                const char *also) {
-  CHECK(rc == BK_ERR_INPUT, "%s: rc %d, expected BK_ERR_INPUT (%s)", what, rc, err->msg);
-  CHECK(strstr(err->msg, name) != NULL, "%s: message does not name %s: %s", what, name, err->msg);
+  EXPECT(rc == BK_ERR_INPUT, "%s: rc %d, expected BK_ERR_INPUT (%s)", what, rc, err->msg);
+  EXPECT(strstr(err->msg, name) != NULL, "%s: message does not name %s: %s", what, name, err->msg);
   if (also)
-    CHECK(strstr(err->msg, also) != NULL, "%s: message lacks \"%s\": %s", what, also, err->msg);
+    EXPECT(strstr(err->msg, also) != NULL, "%s: message lacks \"%s\": %s", what, also, err->msg);
   printf("  %s -> %d: %s\n", what, rc, err->msg);
 }
 
@@ -420,14 +418,14 @@ static int errors(const char *dir) {
   for (int c = 0; c < 3; c++) {
     vdbio_write_opts_t opt = {comps[c], 0};
     snprintf(path, sizeof path, "%s/vdbio_errors_%d.vdb", dir, c);
-    CHECK(write_known(path, &opt, &err) == BK_OK, "write: %s", err.msg);
+    EXPECT(write_known(path, &opt, &err) == BK_OK, "write: %s", err.msg);
     long size = file_size(path);
     /* inside the header, inside each grid, one byte short */
     const long cuts[] = {40, size / 50, size * 3 / 10, size * 6 / 10, size * 9 / 10, size - 1};
     for (size_t n = 0; n < sizeof cuts / sizeof cuts[0]; n++) {
       long len = cuts[n];
       snprintf(bad, sizeof bad, "%s/vdbio_truncated_%d_%ld.vdb", dir, c, len);
-      CHECK(copy_prefix(path, bad, len) == 0, "copy %s", bad);
+      EXPECT(copy_prefix(path, bad, len) == 0, "copy %s", bad);
       char what[128];
       snprintf(what, sizeof what, "compression %d truncated to %ld of %ld bytes, resample", c, len,
                size);
@@ -439,7 +437,7 @@ static int errors(const char *dir) {
       err.msg[0] = 0;
       rc = vdbio_read_dense(bad, "radiance", 0, &dd, &err);
       expect_input_error(rc, &err, bad, what, NULL);
-      CHECK(dd.data == NULL, "no data after a failed read");
+      EXPECT(dd.data == NULL, "no data after a failed read");
     }
   }
   snprintf(path, sizeof path, "%s/vdbio_errors_0.vdb", dir);
@@ -478,18 +476,18 @@ static int errors(const char *dir) {
   snprintf(bad, sizeof bad, "%s/no_such_dir/out.vdb", dir);
   vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0};
   rc = write_known(bad, &zip, &err);
-  CHECK(rc != BK_OK && strstr(err.msg, bad), "missing directory: rc %d %s", rc, err.msg);
-  CHECK(access(bad, F_OK) != 0, "a file appeared at %s", bad);
+  EXPECT(rc != BK_OK && strstr(err.msg, bad), "missing directory: rc %d %s", rc, err.msg);
+  EXPECT(access(bad, F_OK) != 0, "a file appeared at %s", bad);
   printf("  missing output directory -> %d: %s\n", rc, err.msg);
 
   /* the rename fails (the final name is a directory): error, temp removed */
   snprintf(bad, sizeof bad, "%s/vdbio_is_a_dir.vdb", dir);
   mkdir(bad, 0755);
   rc = write_known(bad, &zip, &err);
-  CHECK(rc == BK_ERR_RUNTIME && strstr(err.msg, bad), "rename onto a directory: rc %d %s", rc,
+  EXPECT(rc == BK_ERR_RUNTIME && strstr(err.msg, bad), "rename onto a directory: rc %d %s", rc,
         err.msg);
   printf("  output path is a directory -> %d: %s\n", rc, err.msg);
-  CHECK(count_temp_files(dir) == 0, "a temporary file survived a failed write in %s", dir);
+  EXPECT(count_temp_files(dir) == 0, "a temporary file survived a failed write in %s", dir);
   rmdir(bad);
 
   free(out);
@@ -508,7 +506,7 @@ static int foreign(const char *path) {
   char **names = NULL, **types = NULL;
   int count = 0;
   rc = vdbio_list_grids(path, &names, &types, &count, &err);
-  CHECK(rc == BK_OK && count == 5, "list_grids: rc %d count %d %s", rc, count, err.msg);
+  EXPECT(rc == BK_OK && count == 5, "list_grids: rc %d count %d %s", rc, count, err.msg);
   const char *want_types[][2] = {{"dens_d", "double"},
                                  {"vel_d", "vec3d"},
                                  {"count_i", "int32"},
@@ -518,14 +516,14 @@ static int foreign(const char *path) {
     int hit = 0;
     for (int g = 0; g < count; g++)
       hit |= !strcmp(names[g], want_types[w][0]) && !strcmp(types[g], want_types[w][1]);
-    CHECK(hit, "grid %s (%s) not listed", want_types[w][0], want_types[w][1]);
+    EXPECT(hit, "grid %s (%s) not listed", want_types[w][0], want_types[w][1]);
   }
   if (rc == BK_OK)
     vdbio_free_names(names, types, count);
 
   /* double and Vec3d are converted; index (0,0,0) sits at (1,2,3), voxel 0.5 */
   rc = vdbio_read_dense(path, "dens_d", 0, &d, &err);
-  CHECK(rc == BK_OK && d.nx == 4 && d.ny == 4 && d.nz == 4 && d.channels == 1,
+  EXPECT(rc == BK_OK && d.nx == 4 && d.ny == 4 && d.nz == 4 && d.channels == 1,
         "dens_d: rc %d %dx%dx%d %s", rc, d.nx, d.ny, d.nz, err.msg);
   if (rc == BK_OK) {
     double worst = 0.0;
@@ -533,26 +531,26 @@ static int foreign(const char *path) {
       for (int j = 0; j < 4; j++)
         for (int i = 0; i < 4; i++)
           worst = fmax(worst, fabs(d.data[i + 4 * (j + 4 * k)] - foreign_value(i, j, k)));
-    CHECK(worst == 0.0, "dens_d values: worst error %g", worst);
-    CHECK(d.uniform_scale && d.voxel_size == 0.5 && d.index_to_world[0][3] == 1.0 &&
+    EXPECT(worst == 0.0, "dens_d values: worst error %g", worst);
+    EXPECT(d.uniform_scale && d.voxel_size == 0.5 && d.index_to_world[0][3] == 1.0 &&
               d.index_to_world[1][3] == 2.0 && d.index_to_world[2][3] == 3.0,
           "dens_d transform");
     vdbio_dense_free(&d);
   }
   rc = vdbio_read_dense(path, "vel_d", 1, &d, &err);
-  CHECK(rc == BK_OK && d.nx == 6 && d.channels == 3, "vel_d: rc %d nx %d ch %d %s", rc, d.nx,
+  EXPECT(rc == BK_OK && d.nx == 6 && d.channels == 3, "vel_d: rc %d nx %d ch %d %s", rc, d.nx,
         d.channels, err.msg);
   if (rc == BK_OK) {
     const float *p = d.data + (2 + 6 * (3 + 6 * 4)) * 3; /* padded: dense (2,3,4) is (1,2,3) */
-    CHECK(p[0] == 1.5f && p[1] == 2.5f && p[2] == 3.5f, "vel_d(1,2,3) = %g %g %g", p[0], p[1],
+    EXPECT(p[0] == 1.5f && p[1] == 2.5f && p[2] == 3.5f, "vel_d(1,2,3) = %g %g %g", p[0], p[1],
           p[2]);
-    CHECK(d.data[0] == 0.0f, "vel_d padding is background");
+    EXPECT(d.data[0] == 0.0f, "vel_d padding is background");
     vdbio_dense_free(&d);
   }
 
   /* a rotated, non-uniform affine map: world = (1 - j, 2 + 0.5 i, 3 + 2 k) */
   rc = vdbio_read_dense(path, "rotated", 0, &like, &err);
-  CHECK(rc == BK_OK, "rotated: %s", err.msg);
+  EXPECT(rc == BK_OK, "rotated: %s", err.msg);
   if (rc == BK_OK) {
     const double m[3][4] = {{0, -1, 0, 1}, {0.5, 0, 0, 2}, {0, 0, 2, 3}};
     double worst = 0.0;
@@ -567,8 +565,8 @@ static int foreign(const char *path) {
           v += like.world_to_index[a][c] * like.index_to_world[c][b];
         worst = fmax(worst, fabs(v - (a == b)));
       }
-    CHECK(worst < 1e-12, "rotated matrices: worst error %g", worst);
-    CHECK(!like.uniform_scale && like.voxel_size == 0.5, "rotated: uniform %d voxel %g",
+    EXPECT(worst < 1e-12, "rotated matrices: worst error %g", worst);
+    EXPECT(!like.uniform_scale && like.voxel_size == 0.5, "rotated: uniform %d voxel %g",
           like.uniform_scale, like.voxel_size);
     printf("  rotated: index_to_world rows (%g %g %g %g) (%g %g %g %g) (%g %g %g %g), voxel %g\n",
            like.index_to_world[0][0], like.index_to_world[0][1], like.index_to_world[0][2],
@@ -579,7 +577,7 @@ static int foreign(const char *path) {
     /* dens_d through world space into the rotated box: rotated index (i,j,k)
      * is dens_d index (-2j, i, 4k), on dens_d's voxels only for j = k = 0 */
     rc = vdbio_read_dense_like(path, "dens_d", &like, &r, &found, &err);
-    CHECK(rc == BK_OK && found == 1 && r.channels == 1, "dens_d like rotated: %s", err.msg);
+    EXPECT(rc == BK_OK && found == 1 && r.channels == 1, "dens_d like rotated: %s", err.msg);
     if (rc == BK_OK) {
       worst = 0.0;
       for (int k = 0; k < 4; k++)
@@ -588,7 +586,7 @@ static int foreign(const char *path) {
             double want = (j == 0 && k == 0) ? foreign_value(0, i, 0) : 0.0;
             worst = fmax(worst, fabs(r.data[i + 4 * (j + 4 * k)] - want));
           }
-      CHECK(worst < 1e-4, "dens_d like rotated: worst error %g", worst);
+      EXPECT(worst < 1e-4, "dens_d like rotated: worst error %g", worst);
       vdbio_dense_free(&r);
     }
     vdbio_dense_free(&like);
@@ -599,7 +597,7 @@ static int foreign(const char *path) {
   grid_dims_t g = {20, 20, 40, 0.2f, {-2.5f, 1.5f, 2.5f}};
   float *out = calloc(grid_count(&g), sizeof(float));
   rc = vdbio_resample_float(path, "rotated", &g, out, "test.rotated", &err);
-  CHECK(rc == BK_OK, "resample rotated: %s", err.msg);
+  EXPECT(rc == BK_OK, "resample rotated: %s", err.msg);
   int inside = 0;
   double worst = 0.0;
   for (int k = 0; rc == BK_OK && k < g.nz; k++)
@@ -614,12 +612,12 @@ static int foreign(const char *path) {
         double want = foreign_value(ii, jj, kk);
         worst = fmax(worst, fabs(out[grid_index(&g, i, j, k)] - want) / want);
       }
-  CHECK(inside > 500 && worst < 1e-5, "resample rotated: %d inside, worst relative %g", inside,
+  EXPECT(inside > 500 && worst < 1e-5, "resample rotated: %d inside, worst relative %g", inside,
         worst);
   printf("  resample_float rotated: %d points inside, worst relative error %.3g\n", inside, worst);
   /* a double grid is accepted by resample_float */
   rc = vdbio_resample_float(path, "dens_d", &g, out, "test.double", &err);
-  CHECK(rc == BK_OK, "resample double: %s", err.msg);
+  EXPECT(rc == BK_OK, "resample double: %s", err.msg);
   free(out);
 
   /* refusals: an int grid, a frustum transform */

@@ -14,40 +14,38 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
-#include "frames.h"
+#include "base/common.h"
+#include "base/frames.h"
 #include "kernels/view.h"
 #include "png_io.h"
 #include "view.h"
 #include "test_util.h"
 
-#define CHECK TU_EXPECT_MSG
-
 static void expect_expand(const char *pat, int frame, const char *want) {
   char out[256];
   bk_error_t err;
   int rc = frames_expand(pat, frame, out, sizeof out, &err);
-  CHECK(rc == BK_OK && !strcmp(out, want), "expand(%s, %d) = %s, want %s", pat, frame,
+  EXPECT(rc == BK_OK && !strcmp(out, want), "expand(%s, %d) = %s, want %s", pat, frame,
         rc ? err.msg : out, want);
 }
 
 static void test_frames(void) {
   frames_range_t r;
   bk_error_t err;
-  CHECK(frames_parse("7", "--frames", &r, &err) == BK_OK && r.first == 7 && r.last == 7 &&
+  EXPECT(frames_parse("7", "--frames", &r, &err) == BK_OK && r.first == 7 && r.last == 7 &&
             r.step == 1 && frames_count(&r) == 1, "single frame");
-  CHECK(frames_parse("1-100", "--frames", &r, &err) == BK_OK && frames_count(&r) == 100, "1-100");
-  CHECK(frames_parse("1-100x2", "--frames", &r, &err) == BK_OK && frames_count(&r) == 50 &&
+  EXPECT(frames_parse("1-100", "--frames", &r, &err) == BK_OK && frames_count(&r) == 100, "1-100");
+  EXPECT(frames_parse("1-100x2", "--frames", &r, &err) == BK_OK && frames_count(&r) == 50 &&
             frames_at(&r, 49) == 99, "1-100x2: %d frames, last %d", frames_count(&r),
         frames_at(&r, frames_count(&r) - 1));
-  CHECK(frames_parse("-10--1x3", "--frames", &r, &err) == BK_OK && r.first == -10 &&
+  EXPECT(frames_parse("-10--1x3", "--frames", &r, &err) == BK_OK && r.first == -10 &&
             r.last == -1 && frames_count(&r) == 4 && frames_at(&r, 3) == -1, "negative range");
   const char *bad[] = {"", "a", "1-", "-", "5-1", "1-10x0", "1-10x-2", "1-10y2", " 1-2", "1-2 ",
                        "1-99999999", "1.5", "1-10x", "99999999999"};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     err.msg[0] = 0;
     int rc = frames_parse(bad[i], "--frames", &r, &err);
-    CHECK(rc == BK_ERR_INPUT && strstr(err.msg, "--frames"), "'%s' should be refused (rc %d: %s)",
+    EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "--frames"), "'%s' should be refused (rc %d: %s)",
           bad[i], rc, err.msg);
   }
   expect_expand("a.####.vdb", 42, "a.0042.vdb");
@@ -59,23 +57,23 @@ static void test_frames(void) {
   expect_expand("a.####.vdb", -3, "a.-003.vdb");
   expect_expand("$FPS/$FF.vdb", 3, "$FPS/$FF.vdb"); /* other Houdini variables stay */
   expect_expand("plain.vdb", 3, "plain.vdb");
-  CHECK(frames_has_pattern("x.####.exr") && frames_has_pattern("x.$F4.exr") &&
+  EXPECT(frames_has_pattern("x.####.exr") && frames_has_pattern("x.$F4.exr") &&
             frames_has_pattern("x$F.exr") && !frames_has_pattern("x.exr") &&
             !frames_has_pattern("$FPS.exr"), "has_pattern");
   char small[8];
-  CHECK(frames_expand("abcd_####.exr", 1, small, sizeof small, &err) == BK_ERR_INPUT,
+  EXPECT(frames_expand("abcd_####.exr", 1, small, sizeof small, &err) == BK_ERR_INPUT,
         "too long must fail");
 }
 
 static void test_srgb(void) {
-  CHECK(png_srgb_oetf(0.0f) == 0.0f && png_srgb_oetf(1.0f) == 1.0f &&
+  EXPECT(png_srgb_oetf(0.0f) == 0.0f && png_srgb_oetf(1.0f) == 1.0f &&
             png_srgb_oetf(-1.0f) == 0.0f && png_srgb_oetf(7.0f) == 1.0f,
         "ends");
-  CHECK(fabsf(png_srgb_oetf(0.0031308f) - 0.0404500f) < 1e-5f, "break point: %g",
+  EXPECT(fabsf(png_srgb_oetf(0.0031308f) - 0.0404500f) < 1e-5f, "break point: %g",
         png_srgb_oetf(0.0031308f));
-  CHECK(fabsf(png_srgb_oetf(0.18f) - 0.4613561f) < 1e-5f, "mid grey: %g", png_srgb_oetf(0.18f));
-  CHECK(fabsf(png_srgb_oetf(0.5f) - 0.7353570f) < 1e-5f, "half: %g", png_srgb_oetf(0.5f));
-  CHECK(fabsf(png_srgb_oetf(0.001f) - 0.01292f) < 1e-6f, "linear part");
+  EXPECT(fabsf(png_srgb_oetf(0.18f) - 0.4613561f) < 1e-5f, "mid grey: %g", png_srgb_oetf(0.18f));
+  EXPECT(fabsf(png_srgb_oetf(0.5f) - 0.7353570f) < 1e-5f, "half: %g", png_srgb_oetf(0.5f));
+  EXPECT(fabsf(png_srgb_oetf(0.001f) - 0.01292f) < 1e-6f, "linear part");
 }
 
 /* Camera at the origin of voxel space looking +z, up +y. */
@@ -95,23 +93,23 @@ static view_params_t cam_params(float fov_deg, int w, int h) {
 static void test_camera(void) {
   view_params_t p = cam_params(40.0f, 81, 61);
   bk_v3 d = view_camera_dir(&p, 40.5f, 30.5f);
-  CHECK(fabsf(d.x) < 1e-6f && fabsf(d.y) < 1e-6f && fabsf(d.z - 1.0f) < 1e-6f, "centre pixel");
+  EXPECT(fabsf(d.x) < 1e-6f && fabsf(d.y) < 1e-6f && fabsf(d.z - 1.0f) < 1e-6f, "centre pixel");
   /* the top edge of the image is at the vertical half-angle */
   d = view_camera_dir(&p, 40.5f, 0.0f);
   float ang = atan2f(d.y, d.z) * 180.0f / 3.14159265f;
-  CHECK(fabsf(ang - 20.0f) < 1e-3f && fabsf(d.x) < 1e-6f, "top edge at %g deg", ang);
+  EXPECT(fabsf(ang - 20.0f) < 1e-3f && fabsf(d.x) < 1e-6f, "top edge at %g deg", ang);
   /* the right edge: horizontal half-angle atan(tan(20°)·aspect), towards -x */
   d = view_camera_dir(&p, 81.0f, 30.5f);
   float want = atanf(tanf(20.0f * 3.14159265f / 180.0f) * 81.0f / 61.0f) * 180.0f / 3.14159265f;
   ang = atan2f(-d.x, d.z) * 180.0f / 3.14159265f;
-  CHECK(fabsf(ang - want) < 1e-3f, "right edge at %g deg, want %g", ang, want);
+  EXPECT(fabsf(ang - want) < 1e-3f, "right edge at %g deg, want %g", ang, want);
   float t0, t1;
-  CHECK(view_box_hit(v3(-1, 0.5f, 0.5f), v3(1, 0, 0), v3(2, 1, 1), &t0, &t1) &&
+  EXPECT(view_box_hit(v3(-1, 0.5f, 0.5f), v3(1, 0, 0), v3(2, 1, 1), &t0, &t1) &&
             fabsf(t0 - 1) < 1e-6f && fabsf(t1 - 3) < 1e-6f, "box hit %g %g", t0, t1);
-  CHECK(!view_box_hit(v3(-1, 1.5f, 0.5f), v3(1, 0, 0), v3(2, 1, 1), &t0, &t1), "box miss");
-  CHECK(view_box_hit(v3(0.5f, 0.5f, 0.5f), v3(0, 0, -1), v3(2, 1, 1), &t0, &t1) && t0 == 0.0f &&
+  EXPECT(!view_box_hit(v3(-1, 1.5f, 0.5f), v3(1, 0, 0), v3(2, 1, 1), &t0, &t1), "box miss");
+  EXPECT(view_box_hit(v3(0.5f, 0.5f, 0.5f), v3(0, 0, -1), v3(2, 1, 1), &t0, &t1) && t0 == 0.0f &&
             fabsf(t1 - 0.5f) < 1e-6f, "inside start");
-  CHECK(fabsf(view_seg_weight(0.0f) - 1.0f) < 1e-7f &&
+  EXPECT(fabsf(view_seg_weight(0.0f) - 1.0f) < 1e-7f &&
             fabsf(view_seg_weight(0.029f) - (1.0f - expf(-0.029f)) / 0.029f) < 1e-6f &&
             fabsf(view_seg_weight(1e-5f) - (1.0f - 0.5e-5f)) < 1e-7f &&
             fabsf(view_seg_weight(2.0f) - (1.0f - expf(-2.0f)) / 2.0f) < 1e-6f,
@@ -174,7 +172,7 @@ static void test_march(void) {
                   : ((b & 1) + (b >> 1 & 1) + (b >> 2)) % 2 ? (var[vi].bricks & ~CHECKER) : 0;
     if (var[vi].flat) {
       view_flat_field(N, N, N, ng, flat, scratch);
-      CHECK(flat[0] == VIEW_FLAT_MAX && flat[N * N * N / 2] == VIEW_FLAT_MAX,
+      EXPECT(flat[0] == VIEW_FLAT_MAX && flat[N * N * N / 2] == VIEW_FLAT_MAX,
             "constant n: flat distances %d %d, want %d", flat[0], flat[N * N * N / 2],
             VIEW_FLAT_MAX);
     } else {
@@ -196,16 +194,16 @@ static void test_march(void) {
       for (int c = 0; c < 3; c++) {
         float T = expf(-sigt[c] * D);
         float want = sigs[c] * Lb[c] * (1.0f - T) / sigt[c] + T * bg[c];
-        CHECK(fabsf(rgba[c] - want) <= 1e-4f * fabsf(want) + 1e-6f,
+        EXPECT(fabsf(rgba[c] - want) <= 1e-4f * fabsf(want) + 1e-6f,
               "variant %zu pixel (%d,%d) ch %d: %g want %g (D %g voxels, %u steps)", vi, px[k],
               py[k], c, rgba[c], want, D, steps);
       }
-      if (k == 0) CHECK(fabsf(D - N) < 1e-4f, "centre ray crosses %g voxels", D);
+      if (k == 0) EXPECT(fabsf(D - N) < 1e-4f, "centre ray crosses %g voxels", D);
       if (k == 0 && (var[vi].bricks & VIEW_BRICK_MEDIUM_CONST) && !(var[vi].bricks & CHECKER))
-        CHECK(steps <= 4,
+        EXPECT(steps <= 4,
               "variant %zu: constant bricks should be crossed in one step each, took %u", vi,
               steps);
-      if (k == 2) CHECK(D == 0.0f && rgba[3] == 0.0f, "corner ray should miss");
+      if (k == 2) EXPECT(D == 0.0f && rgba[3] == 0.0f, "corner ray should miss");
     }
     /* from inside, on the brick face y = 8, leaving it at a grazing angle:
      * brick-crossing steps must not stall on the face */
@@ -221,7 +219,7 @@ static void test_march(void) {
       float T = expf(-sigt[c] * D);
       float want = sigs[c] * Lb[c] * (1.0f - T) / sigt[c] + T * p.background.x * (c == 0) +
                    T * p.background.y * (c == 1);
-      CHECK(fabsf(rgba[c] - want) <= 1e-4f * want + 1e-6f && steps < 40,
+      EXPECT(fabsf(rgba[c] - want) <= 1e-4f * want + 1e-6f && steps < 40,
             "variant %zu grazing ray ch %d: %g want %g (D %g, %u steps)", vi, c, rgba[c], want, D,
             steps);
     }
@@ -256,11 +254,11 @@ static void test_flat(void) {
         int got = flat[i + NX * (j + NY * k)];
         nonzero += want == 0;
         if (got != want && bad++ < 5)
-          CHECK(0, "flat (%d,%d,%d) = %d, want %d", i, j, k, got, want);
+          EXPECT(0, "flat (%d,%d,%d) = %d, want %d", i, j, k, got, want);
       }
   /* six around the interior voxel; the corner itself (one-sided) and three more */
-  CHECK(nonzero == 6 + 4, "%d voxels with nonzero grad n, want 10", nonzero);
-  CHECK(bad == 0, "%d flat distances wrong", bad);
+  EXPECT(nonzero == 6 + 4, "%d voxels with nonzero grad n, want 10", nonzero);
+  EXPECT(bad == 0, "%d flat distances wrong", bad);
 }
 
 /* n(u) = sqrt(n0² + 2 a u_y) on a 64³ grid; march from u0 until x passes 56. */
@@ -288,7 +286,7 @@ static float ray_error(int integrator, float h) {
   }
   float t = (x.x - u0.x) / v0.x;
   float y = u0.y + v0.y * t + 0.5f * a * t * t;
-  CHECK(fabsf(x.z - 32.0f) < 1e-4f, "ray left its plane: z = %g", x.z);
+  EXPECT(fabsf(x.z - 32.0f) < 1e-4f, "ray left its plane: z = %g", x.z);
   return fabsf(x.y - y);
 }
 
@@ -298,9 +296,9 @@ static void test_rays(void) {
   printf(
       "parabola: |y error| after ~52 voxels: rk4 %.5f, euler %.5f (h 0.5), euler %.5f (h 0.125)\n",
       e_rk4, e_euler, e_euler_fine);
-  CHECK(e_rk4 < 0.002f, "rk4 error %g voxels", e_rk4);
-  CHECK(e_euler < 0.15f, "euler error %g voxels", e_euler);
-  CHECK(e_euler_fine < 0.5f * e_euler, "euler should converge: %g -> %g", e_euler, e_euler_fine);
+  EXPECT(e_rk4 < 0.002f, "rk4 error %g voxels", e_rk4);
+  EXPECT(e_euler < 0.15f, "euler error %g voxels", e_euler);
+  EXPECT(e_euler_fine < 0.5f * e_euler, "euler should converge: %g -> %g", e_euler, e_euler_fine);
 }
 
 int main(int argc, char **argv) {

@@ -27,9 +27,6 @@
 #include "voxelize.h"
 #include "test_util.h"
 
-#define CHECK TU_CHECK_PLAIN
-#define CHECK_NEAR TU_CHECK_NEAR
-
 static const double PI = 3.14159265358979323846;
 
 /* --- meshes -------------------------------------------------------------------- */
@@ -167,7 +164,7 @@ static double winding_number(const mesh_tris_t *m, const double p[3]) {
 }
 
 static void scene_init(scene_t *s, float lo, float hi, int resolution, float smoothing) {
-  memset(s, 0, sizeof *s);
+  scene_defaults(s);
   snprintf(s->path, sizeof s->path, "%s/hand-made-scene", tu_dir);
   for (int a = 0; a < 3; a++) {
     s->bounds_min[a] = lo;
@@ -176,15 +173,13 @@ static void scene_init(scene_t *s, float lo, float hi, int resolution, float smo
   s->resolution = resolution;
   s->ior_smoothing = smoothing;
   snprintf(s->where_resolution, sizeof s->where_resolution, "test.json:3:5: grid.resolution");
-  s->medium_ior = 1.0f;
 }
 
 static void object_init(scene_object_t *o, const char *mesh, float ior) {
-  memset(o, 0, sizeof *o);
+  scene_object_defaults(o);
   snprintf(o->mesh, sizeof o->mesh, "%s", mesh);
   snprintf(o->where, sizeof o->where, "test.json:9:12: objects[0].mesh");
   o->ior = ior;
-  for (int a = 0; a < 3; a++) o->scale[a] = 1.0f;
 }
 
 static int write_mesh(const char *name, const mesh_tris_t *m, char *path, size_t len) {
@@ -256,15 +251,15 @@ static void case_sphere(void) {
            "sum of w = %.6f (%.3f%% from the polyhedron)\n",
            res[ri], count_vol, 100.0 * err_sphere[ri], 100.0 * err_poly[ri], smooth_vol,
            100.0 * (smooth_vol - poly) / poly);
-    CHECK(v.has_refraction);
-    CHECK_NEAR(v.n_min, 1.0, 0.0);
-    CHECK_NEAR(v.n_max, 1.5, 0.0);
-    CHECK(v.homogeneous && v.grey); /* all sigma zero */
+    EXPECT(v.has_refraction);
+    EXPECT_NEAR(v.n_min, 1.0, 0.0);
+    EXPECT_NEAR(v.n_max, 1.5, 0.0);
+    EXPECT(v.homogeneous && v.grey); /* all sigma zero */
     vox_free(&v);
   }
-  CHECK(err_sphere[1] < 0.015);
-  CHECK(err_sphere[1] < err_sphere[0]);
-  CHECK(err_poly[1] < err_poly[0]);
+  EXPECT(err_sphere[1] < 0.015);
+  EXPECT(err_sphere[1] < err_sphere[0]);
+  EXPECT(err_poly[1] < err_poly[0]);
   mesh_io_free(&m);
 }
 
@@ -308,17 +303,17 @@ static void case_profile(void) {
           if (fabs(w - w_expect) > worst) worst = fabs(w - w_expect);
           if (w > 0.0 && w < 1.0) transition++;
           /* sigma follows the same weight */
-          CHECK_NEAR(v.sigma_a[3 * idx + 2], 0.75 * w, 1e-5);
+          EXPECT_NEAR(v.sigma_a[3 * idx + 2], 0.75 * w, 1e-5);
         }
     printf("smoothing %.1f voxels: worst |w - w(d_sphere)| = %.5f (tolerance %.5f from r - r_in = "
            "%.4f voxels), %zu voxels in transition\n",
            s_vox, worst, tol_w, slack, transition);
-    CHECK(worst <= tol_w);
+    EXPECT(worst <= tol_w);
     /* the transition shell is s voxels thick around a sphere of R voxels */
     double R = SPHERE_R / vs, shell = 4.0 / 3.0 * PI *
                                       (pow(R + 0.5 * s_vox, 3.0) - pow(R - 0.5 * s_vox, 3.0));
-    CHECK(fabs((double)transition - shell) < 0.05 * shell);
-    CHECK(!v.homogeneous && !v.grey);
+    EXPECT(fabs((double)transition - shell) < 0.05 * shell);
+    EXPECT(!v.homogeneous && !v.grey);
     vox_free(&v);
   }
   mesh_io_free(&m);
@@ -371,12 +366,12 @@ static void case_smoothing(void) {
            "(expect ~%.0f); largest step %.4f (bound %.4f); volume error %.3f%%\n",
            s_vox, bad, n_out, n_in, line, 2.0 * s_vox, max_step, step_bound,
            100.0 * (count_vol - exact) / exact);
-    CHECK(bad == 0);
-    CHECK(line >= (int)floor(2.0 * s_vox) - 2 && line <= (int)ceil(2.0 * s_vox) + 2);
-    CHECK(max_step <= step_bound);
-    CHECK(fabs(count_vol - exact) / exact < 0.03);
-    CHECK_NEAR(v.n_min, n_out, 0.0);
-    CHECK_NEAR(v.n_max, n_in, 0.0);
+    EXPECT(bad == 0);
+    EXPECT(line >= (int)floor(2.0 * s_vox) - 2 && line <= (int)ceil(2.0 * s_vox) + 2);
+    EXPECT(max_step <= step_bound);
+    EXPECT(fabs(count_vol - exact) / exact < 0.03);
+    EXPECT_NEAR(v.n_min, n_out, 0.0);
+    EXPECT_NEAR(v.n_max, n_in, 0.0);
     vox_free(&v);
   }
   mesh_io_free(&m);
@@ -425,11 +420,11 @@ static void case_bunny(const char *mesh_path) {
     return;
   }
   mesh_report_t rep;
-  CHECK(mesh_check(&m, &rep, &err) == BK_OK);
+  EXPECT(mesh_check(&m, &rep, &err) == BK_OK);
   char summary[256];
   mesh_check_summary(&rep, summary, sizeof summary);
   printf("bunny: %s\n", summary);
-  CHECK(rep.boundary_edges > 0 && rep.boundary_loops > 0); /* it is open: the test means something */
+  EXPECT(rep.boundary_edges > 0 && rep.boundary_loops > 0); /* it is open: the test means something */
 
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int i = 0; i < m.vertex_count; i++)
@@ -463,7 +458,7 @@ static void case_bunny(const char *mesh_path) {
   inside_volume(&v, 1.0f, 1.5f, &count_vol, &smooth_vol);
   printf("bunny at %dx%dx%d: inside volume %.4e (%.2f%% from the closed hull), sum of w %.4e\n",
          v.dims.nx, v.dims.ny, v.dims.nz, count_vol, 100.0 * (count_vol - hull) / hull, smooth_vol);
-  CHECK(fabs(count_vol - hull) / hull < 0.03);
+  EXPECT(fabs(count_vol - hull) / hull < 0.03);
 
   /* a point known inside: the body's centroid, confirmed by the winding number */
   double centroid[3] = {0, 0, 0}, vol6 = 0.0;
@@ -489,8 +484,8 @@ static void case_bunny(const char *mesh_path) {
   float n_centre = v.ior[grid_index(&v.dims, ci, cj, ck)];
   printf("bunny centroid (%.4f, %.4f, %.4f): winding number %.4f, n = %g\n", centroid[0],
          centroid[1], centroid[2], wn, n_centre);
-  CHECK(wn > 0.9);
-  CHECK(n_centre == 1.5f);
+  EXPECT(wn > 0.9);
+  EXPECT(n_centre == 1.5f);
 
   /* voxel centres drawn with a fixed LCG: the inside flag must match the
    * winding number wherever that is clearly 0 or 1 */
@@ -514,9 +509,9 @@ static void case_bunny(const char *mesh_path) {
   }
   printf("bunny: %d sampled voxel centres, %d inside, %d disagree with the winding number\n",
          tested, inside_samples, disagree);
-  CHECK(tested >= 280);
-  CHECK(inside_samples >= 20);
-  CHECK(disagree <= 2);
+  EXPECT(tested >= 280);
+  EXPECT(inside_samples >= 20);
+  EXPECT(disagree <= 2);
   vox_free(&v);
   mesh_io_free(&m);
 }
@@ -574,11 +569,11 @@ static void case_objects(void) {
       }
   printf("nested spheres: %zu inner, %zu shell, %zu outside voxels checked, %zu wrong\n", in_inner,
          in_shell, outside, bad);
-  CHECK(in_inner > 1000 && in_shell > 10000 && outside > 10000);
-  CHECK(bad == 0);
-  CHECK(!v.homogeneous && !v.grey && v.has_refraction);
-  CHECK_NEAR(v.n_min, 1.0, 0.0);
-  CHECK_NEAR(v.n_max, 1.5, 0.0);
+  EXPECT(in_inner > 1000 && in_shell > 10000 && outside > 10000);
+  EXPECT(bad == 0);
+  EXPECT(!v.homogeneous && !v.grey && v.has_refraction);
+  EXPECT_NEAR(v.n_min, 1.0, 0.0);
+  EXPECT_NEAR(v.n_max, 1.5, 0.0);
   vox_free(&v);
   mesh_io_free(&outer);
   mesh_io_free(&unit);
@@ -613,7 +608,7 @@ static void case_ties(void) {
     s.objects = &o;
     s.object_count = 1;
     if (!build(&s, &v)) continue;
-    CHECK(v.dims.nx == 33 && v.dims.voxel_size == 1.0f / 16.0f);
+    EXPECT(v.dims.nx == 33 && v.dims.voxel_size == 1.0f / 16.0f);
     size_t wrong = 0, inside = 0, expect_inside = 0, on_surface = 0;
     for (int k = 0; k < v.dims.nz; k++)
       for (int j = 0; j < v.dims.ny; j++)
@@ -634,8 +629,8 @@ static void case_ties(void) {
         }
     printf("%s: %zu voxels strictly inside (expected %zu), %zu on the surface, %zu wrong\n",
            names[mi], inside, expect_inside, on_surface, wrong);
-    CHECK(wrong == 0);
-    CHECK(inside == expect_inside);
+    EXPECT(wrong == 0);
+    EXPECT(inside == expect_inside);
     vox_free(&v);
   }
 }
@@ -674,8 +669,8 @@ static void case_open(void) {
   double lattice = pow(per_axis, 3.0) * pow(2.0 / 48.0, 3.0);
   printf("cube: closed %.6f, without its bottom %.6f, voxel centres inside %.6f\n", vol[0], vol[1],
          lattice);
-  CHECK(vol[0] == vol[1]);
-  CHECK(fabs(vol[0] - lattice) < 1e-6 * lattice); /* voxel_size is a float */
+  EXPECT(vol[0] == vol[1]);
+  EXPECT(fabs(vol[0] - lattice) < 1e-6 * lattice); /* voxel_size is a float */
 
   /* an icosphere centred on the grid's +x face: half of it is in the grid */
   double c[3] = {1.0, 0.0123, -0.0311};
@@ -694,13 +689,13 @@ static void case_open(void) {
     inside_volume(&v, 1.0f, 1.5f, &count_vol, &smooth);
     printf("sphere cut by the grid's face: %.6f inside, half the polyhedron %.6f (%.3f%%)\n",
            count_vol, half, 100.0 * (count_vol - half) / half);
-    CHECK(fabs(count_vol - half) / half < 0.01);
+    EXPECT(fabs(count_vol - half) / half < 0.01);
     vox_free(&v);
   }
   /* one entirely outside is ignored with a warning */
   for (int a = 0; a < 3; a++) o.translate[a] = 5.0f;
   if (build(&s, &v)) {
-    CHECK(!v.has_refraction && v.n_max == 1.0f);
+    EXPECT(!v.has_refraction && v.n_max == 1.0f);
     vox_free(&v);
   }
   mesh_io_free(&m);
@@ -717,14 +712,14 @@ static void case_medium(void) {
     s.medium_sigma_a[ch] = 0.02f;
   }
   if (build(&s, &v)) {
-    CHECK(!v.has_refraction && v.homogeneous && v.grey);
-    CHECK_NEAR(v.n_min, 1.33f, 0.0);
-    CHECK_NEAR(v.n_max, 1.33f, 0.0);
+    EXPECT(!v.has_refraction && v.homogeneous && v.grey);
+    EXPECT_NEAR(v.n_min, 1.33f, 0.0);
+    EXPECT_NEAR(v.n_max, 1.33f, 0.0);
     vox_free(&v);
   }
   s.medium_sigma_a[1] = 0.03f;
   if (build(&s, &v)) {
-    CHECK(v.homogeneous && !v.grey);
+    EXPECT(v.homogeneous && !v.grey);
     vox_free(&v);
   }
 
@@ -734,7 +729,7 @@ static void case_medium(void) {
   grid_dims_t d;
   bk_error_t err;
   scene_init(&s, -1.0f, 1.0f, 24, 2.0f);
-  CHECK(grid_dims_from_bounds(s.bounds_min, s.bounds_max, 24, "t", &d, &err) == BK_OK);
+  EXPECT(grid_dims_from_bounds(s.bounds_min, s.bounds_max, 24, "t", &d, &err) == BK_OK);
   size_t count = grid_count(&d);
   float *ior = calloc(count, sizeof *ior), *rho = calloc(count, sizeof *rho);
   for (int k = 0; k < d.nz; k++)
@@ -749,8 +744,8 @@ static void case_medium(void) {
   tu_path(p_ior, sizeof p_ior, "field_ior.vdb");
   tu_path(p_rho, sizeof p_rho, "field_density.vdb");
   vdbio_write_opts_t opts = {VDBIO_COMPRESS_NONE, 0};
-  CHECK(vdbio_write(p_ior, &d, &g_ior, 1, NULL, 0, &opts, &err) == BK_OK);
-  CHECK(vdbio_write(p_rho, &d, &g_rho, 1, NULL, 0, &opts, &err) == BK_OK);
+  EXPECT(vdbio_write(p_ior, &d, &g_ior, 1, NULL, 0, &opts, &err) == BK_OK);
+  EXPECT(vdbio_write(p_rho, &d, &g_rho, 1, NULL, 0, &opts, &err) == BK_OK);
   s.ior_vdb.present = 1;
   snprintf(s.ior_vdb.file, sizeof s.ior_vdb.file, "%s", p_ior);
   snprintf(s.ior_vdb.grid, sizeof s.ior_vdb.grid, "ior");
@@ -775,18 +770,18 @@ static void case_medium(void) {
     }
     printf("medium from VDB: worst |n - written| %.2e, worst |sigma - sigma*density| %.2e\n",
            worst_n, worst_s);
-    CHECK(worst_n < 1e-5);
-    CHECK(worst_s < 1e-5);
-    CHECK(v.has_refraction && !v.homogeneous && !v.grey);
-    CHECK_NEAR(v.n_min, 1.0, 0.0);
-    CHECK_NEAR(v.n_max, 1.0 + 0.01 * (d.nz - 1), 1e-6);
+    EXPECT(worst_n < 1e-5);
+    EXPECT(worst_s < 1e-5);
+    EXPECT(v.has_refraction && !v.homogeneous && !v.grey);
+    EXPECT_NEAR(v.n_min, 1.0, 0.0);
+    EXPECT_NEAR(v.n_max, 1.0 + 0.01 * (d.nz - 1), 1e-6);
     vox_free(&v);
   }
   /* a grid that is not there names the key */
   snprintf(s.density_vdb.grid, sizeof s.density_vdb.grid, "smoke");
   int rc = vox_build(&s, &v, NULL, &err);
   printf("missing density grid: %s\n", err.msg);
-  CHECK(rc == BK_ERR_INPUT && strstr(err.msg, "medium.density_vdb") && strstr(err.msg, "smoke"));
+  EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "medium.density_vdb") && strstr(err.msg, "smoke"));
   free(ior);
   free(rho);
 }
@@ -798,12 +793,12 @@ static void expect_refusal(const char *path, const char *problem) {
   bk_error_t err;
   int rc = mesh_io_read(path, &m, &err);
   printf("%-22s -> %s\n", strrchr(path, '/') + 1, rc == BK_OK ? "(accepted)" : err.msg);
-  CHECK(rc == BK_ERR_INPUT);
+  EXPECT(rc == BK_ERR_INPUT);
   if (rc == BK_OK) {
     mesh_io_free(&m);
     return;
   }
-  CHECK(strstr(err.msg, path) != NULL);
+  EXPECT(strstr(err.msg, path) != NULL);
   if (!strstr(err.msg, problem)) {
     fprintf(stderr, "  expected \"%s\" in the message\n", problem);
     tu_failures++;
@@ -816,10 +811,10 @@ static void expect_refusal(const char *path, const char *problem) {
   s.objects = &o;
   s.object_count = 1;
   rc = vox_build(&s, &v, NULL, &err);
-  CHECK(rc == BK_ERR_INPUT);
-  CHECK(strstr(err.msg, "test.json:9:12: objects[0].mesh") != NULL);
-  CHECK(strstr(err.msg, path) != NULL && strstr(err.msg, problem) != NULL);
-  CHECK(v.ior == NULL);
+  EXPECT(rc == BK_ERR_INPUT);
+  EXPECT(strstr(err.msg, "test.json:9:12: objects[0].mesh") != NULL);
+  EXPECT(strstr(err.msg, path) != NULL && strstr(err.msg, problem) != NULL);
+  EXPECT(v.ior == NULL);
 }
 
 static void case_bad_input(void) {
@@ -904,7 +899,7 @@ static void case_bad_input(void) {
   scene_init(&s, -1.0f, 1.0f, 16000, 2.0f);
   int rc = vox_build(&s, &v, NULL, &err);
   printf("huge grid -> %s\n", err.msg);
-  CHECK(rc == BK_ERR_INPUT && strstr(err.msg, "grid.resolution") && v.ior == NULL);
+  EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "grid.resolution") && v.ior == NULL);
 }
 
 int main(int argc, char **argv) {

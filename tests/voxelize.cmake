@@ -1,6 +1,5 @@
 # Voxelization tests (vox_*): meshes, topology checks and the voxelize stage
-# against analytic answers. Also the bench_voxelize program, which is a
-# benchmark run by scripts/bench_voxelize, not a test.
+# against analytic answers.
 add_executable(test_voxelize ${BAKER_TEST_DIR}/test_voxelize.c)
 target_link_libraries(test_voxelize PRIVATE bakercore)
 add_executable(test_mesh ${BAKER_TEST_DIR}/test_mesh.c)
@@ -16,6 +15,3 @@ add_test(NAME vox_bunny COMMAND test_voxelize bunny ${VOX_TEST_DIR}/bunny
 foreach(case io check transform)
   add_test(NAME vox_mesh_${case} COMMAND test_mesh ${case} ${VOX_TEST_DIR}/mesh_${case})
 endforeach()
-
-add_executable(bench_voxelize ${CMAKE_SOURCE_DIR}/scripts/bench_voxelize.c)
-target_link_libraries(bench_voxelize PRIVATE bakercore)

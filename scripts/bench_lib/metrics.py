@@ -52,7 +52,7 @@ def grid_names(path):
 
 
 def dims_from_meta(meta):
-    """Grid dimensions as baker/grid.h derives them: `grid_resolution` voxels
+    """Grid dimensions as base/grid.h derives them: `grid_resolution` voxels
     along the longest side of `grid_bounds`, round(extent / voxel) elsewhere."""
     bounds = meta["grid_bounds"].replace("[", " ").replace("]", " ").replace(",", " ").split()
     lo = np.array([float(x) for x in bounds[:3]])

@@ -3,7 +3,7 @@
 In: a command line. Out: a dict with the exit status, wall time, the child's
 peak resident memory (ru_maxrss from wait4 in a small launcher process, KiB
 on Linux: the baker process alone), the load average before and after, and the parsed
-timing table ("stage  ms  note" rows, bk_timings_print in baker/common.c),
+timing table ("stage  ms  note" rows, bk_timings_print in base/common.c),
 the photon summary line of `baker bake` and the ray-step note of `baker view`.
 A run that fails, crashes or times out is recorded (status "failed" or
 "timeout", the tail of its stderr) and never raises.

@@ -1,5 +1,5 @@
 /* frames.c: frame ranges ("A-BxS") and frame patterns (####, $F4) in paths. */
-#include "frames.h"
+#include "base/frames.h"
 
 #include <ctype.h>
 #include <errno.h>

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Tests of the benchmark harness (tests/bench.cmake).
+"""Tests of the benchmark harness (scripts/bench.cmake).
 
   bench_check.py metrics SCRIPTS_DIR
       scripts/bench_lib on closed forms: trilinear resampling reproduces a

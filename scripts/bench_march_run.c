@@ -1,4 +1,4 @@
-/* test_march_bench.c: the march benchmark behind scripts/bench_march (not a
+/* bench_march_run.c: the march benchmark behind scripts/bench_march (not a
  * test: it asserts nothing about time). The slides' sphere scene: a ball of
  * n = 1.5 (radius 0.5, 2-voxel smoothing) in fog (σs 0.5, σa 0.05 per m)
  * over [-1,1]^3 under a spot light (25°, from 1.8 m above), 122 000 photons.
@@ -13,7 +13,7 @@
  * Usage: bench_march_run [RES] [PHOTONS] [euler|rk4] [RUNS] [host,cl,noct] */
 #include <unistd.h>
 
-#include "test_march_util.h"
+#include "tests/test_march_util.h"
 
 typedef struct best {
   double octree, generate, build, march, readout;
@@ -30,14 +30,14 @@ static best_t run(clh_context_t *cl, const scene_t *s, const volume_t *v, int oc
     pm_setup_t su;
     pm_stats_t st;
     memset(&st, 0, sizeof st);
-    CHECK(pm_prepare(s, v, &su, NULL, &st, &err) == BK_OK, "pm_prepare: %s", err.msg);
+    REQUIRE(pm_prepare(s, v, &su, NULL, &st, &err) == BK_OK, "pm_prepare: %s", err.msg);
     if (!octree) pm_disable_octree(&su);
     uint64_t *acc = calloc(su.voxels * su.channels, sizeof(uint64_t));
     float *rad = malloc(su.voxels * 3 * sizeof(float));
-    CHECK(acc && rad, "out of memory");
+    REQUIRE(acc && rad, "out of memory");
     double t1 = bk_now_ms();
     int rc = cl ? pm_run_cl(cl, &su, acc, &st, &err) : pm_run_host(&su, acc, &st, &err);
-    CHECK(rc == BK_OK, "march: %s", err.msg);
+    REQUIRE(rc == BK_OK, "march: %s", err.msg);
     double t2 = bk_now_ms();
     pm_to_radiance(&su, acc, rad);
     double t3 = bk_now_ms();
@@ -92,7 +92,7 @@ int main(int argc, char **argv) {
   clh_context_t cl;
   bk_error_t err;
   memset(&err, 0, sizeof err);
-  CHECK(clh_init(&cl, NULL, &err) == BK_OK, "clh_init: %s", err.msg);
+  REQUIRE(clh_init(&cl, NULL, &err) == BK_OK, "clh_init: %s", err.msg);
   printf("sphere n=1.5 in fog, spot light, %d^3, %lld photons, %s, step %.2f voxel, best of %d; "
          "%ld online cores; OpenCL: %s, %u compute units\n",
          res, photons, rk4 ? "RK4" : "Euler", s.step, runs, sysconf(_SC_NPROCESSORS_ONLN),

@@ -1,6 +1,6 @@
 /* common.c: errors, logging, progress, timings, safe sizes, atomic output. */
 #define _POSIX_C_SOURCE 200809L
-#include "common.h"
+#include "base/common.h"
 
 #include <errno.h>
 #include <fcntl.h>

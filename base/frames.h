@@ -13,7 +13,7 @@
 #ifndef BAKER_FRAMES_H
 #define BAKER_FRAMES_H
 
-#include "common.h"
+#include "base/common.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -1,4 +1,4 @@
-/* test_adaptive_bench.c: the benchmark behind scripts/bench_adaptive (not a
+/* bench_adaptive_run.c: the benchmark behind scripts/bench_adaptive (not a
  * test: timings depend on the machine and its load). For one scene:
  *  1. a converged bake, reference mode, CONV x N photons (cached in
  *     CACHE_DIR, keyed by the scene file's hash, the resolution and the
@@ -33,7 +33,7 @@
 
 #include "adaptive.h"
 #include "voxelize.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 
 #define MAX_POINTS 16
 

@@ -1,6 +1,6 @@
 /* grid.c: grid dimensions from scene bounds, and the memory check that runs
  * before any grid is allocated. */
-#include "grid.h"
+#include "base/grid.h"
 
 #include <math.h>
 

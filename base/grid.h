@@ -9,7 +9,7 @@
 #ifndef BAKER_GRID_H
 #define BAKER_GRID_H
 
-#include "common.h"
+#include "base/common.h"
 
 #ifdef __cplusplus
 extern "C" {
