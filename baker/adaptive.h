@@ -168,7 +168,7 @@ int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
 int ad_pdf_from_weights(const double *weights, int nx, int ny, float floor_fraction,
                         float *table, float *cell_pdf, bk_error_t *err);
 
-/* Reconstruction filter on the host (threads over z slices), the reference
+/* Reconstruction filter on the host (z slices on every core), the reference
  * the OpenCL path is tested against. radiance: `channels` (1 or 3) floats
  * per voxel (1: a grey value, its own luminance); count, mean_weight: one
  * float per voxel (mean of w = 1/pdf, see above); alpha >= 0; noise_k: the
@@ -188,16 +188,6 @@ int ad_filter_host(const grid_dims_t *d, int channels, const float *radiance, co
 int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const float *radiance,
                  const float *count, const float *mean_weight, float alpha, float noise_k,
                  int levels, float *out_radiance, float *out_radius, bk_error_t *err);
-
-/* For a pipeline that keeps the grids on the device: enqueues the filter on
- * existing buffers (rgb, out_rgb: channels floats per voxel; count,
- * mean_weight, out_radius: float per voxel; out_radius may be NULL) and
- * waits. levels >= 1. `program` is kernels/filter.cl from clh_build with
- * -DAD_CH=channels -DAD_QMAX=levels, or NULL to build it here. */
-int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_t *d,
-                         int channels, cl_mem rgb, cl_mem count, cl_mem mean_weight, float alpha,
-                         float noise_k, int levels, cl_mem out_rgb, cl_mem out_radius,
-                         bk_error_t *err);
 
 /* --- the whole stage --------------------------------------------------------- */
 

@@ -5,16 +5,12 @@
 #include "adaptive.h"
 
 #include <math.h>
-#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "adaptive_internal.h"
 #include "iorgrad.h"
-
-/* Host filter threads: the CPU cores, at most this many. */
-#define AD_MAX_THREADS 64
 
 /* The 1D Gaussian weights (kernels/adaptive.h): row q (level), column |d|. */
 #define AD_WEIGHT_COUNT (AD_WROW * AD_WROW)
@@ -26,10 +22,13 @@ static void filter_weights(float *w) {
   }
 }
 
-/* The checks both filter entry points make: the grid, the channel count,
- * alpha, and levels in min_levels..AD_FILTER_MAX_LEVEL (half voxels). */
-static int check_filter_params(const grid_dims_t *d, int channels, float alpha, int levels,
-                               int min_levels, size_t *voxels, bk_error_t *err) {
+/* The filter's arguments: the grid, the channel count, alpha, levels in
+ * 0..AD_FILTER_MAX_LEVEL (half voxels), the arrays, and the size of the
+ * means (`levels` grids of `channels` floats). */
+static int check_filter_args(const grid_dims_t *d, int channels, const float *radiance,
+                             const float *count, const float *mean_weight, float alpha,
+                             int levels, const float *out_radiance, size_t *voxels,
+                             bk_error_t *err) {
   int rc = ad_grid_voxels(d, 3 * sizeof(float), "adaptive filter", voxels, err);
   if (rc != BK_OK) return rc;
   if (channels != 1 && channels != 3)
@@ -37,19 +36,10 @@ static int check_filter_params(const grid_dims_t *d, int channels, float alpha, 
   if (!(alpha >= 0.0f) || isinf(alpha))
     return bk_fail(err, BK_ERR_INPUT, "adaptive.alpha: expected a finite number >= 0, got %g",
                    (double)alpha);
-  if (levels < min_levels || levels > AD_FILTER_MAX_LEVEL)
+  if (levels < 0 || levels > AD_FILTER_MAX_LEVEL)
     return bk_fail(err, BK_ERR_INPUT,
-                   "adaptive filter: largest radius %g voxels: expected %g..%g in half voxels",
-                   0.5 * levels, 0.5 * min_levels, 0.5 * AD_FILTER_MAX_LEVEL);
-  return BK_OK;
-}
-
-static int check_filter_args(const grid_dims_t *d, int channels, const float *radiance,
-                             const float *count, const float *mean_weight, float alpha,
-                             int levels, const float *out_radiance, size_t *voxels,
-                             bk_error_t *err) {
-  int rc = check_filter_params(d, channels, alpha, levels, 0, voxels, err);
-  if (rc != BK_OK) return rc;
+                   "adaptive filter: largest radius %g voxels: expected 0..%g in half voxels",
+                   0.5 * levels, 0.5 * AD_FILTER_MAX_LEVEL);
   if (!radiance || !count || !mean_weight || !out_radiance)
     return bk_fail(err, BK_ERR_RUNTIME, "adaptive filter: missing input or output array");
   if (out_radiance == radiance)
@@ -63,41 +53,45 @@ static int check_filter_args(const grid_dims_t *d, int channels, const float *ra
   return BK_OK;
 }
 
-/* The host filter: a pass over z slices first, first + step, ... with its
- * own scratch (AD_SLICE_SCRATCH). */
-typedef struct filter_job {
+/* One pass of the host filter over a range of z slices, with scratch for
+ * one slice (AD_SLICE_SCRATCH) per range. Every slice writes its scratch
+ * before reading it, so the result does not depend on how pm_parallel cuts
+ * the slices. */
+typedef struct filter_pass {
   int pass; /* 0: means into M, 1: differences and the choice */
   const float *f, *count, *mean_weight, *weights;
-  float *M, *scratch;
+  float *M; /* M, then DQ (kernels/adaptive.h) */
   bk_grid g;
   int C, Q;
   float alpha, noise_k;
   float *out, *radius;
-  int first, step;
-} filter_job_t;
+  size_t scratch_floats;
+  atomic_int no_memory; /* a range that could not get its scratch */
+} filter_pass_t;
 
-static void *filter_slices(void *arg) {
-  const filter_job_t *job = arg;
-  for (int k = job->first; k < job->g.nz; k += job->step) {
-    const bk_long dq = (bk_long)job->g.nx * job->g.ny * job->g.nz * job->C * job->Q;
-    if (job->pass == 0)
-      ad_means_slice(job->f, job->weights, job->scratch, job->M, job->M + dq, job->g, k, job->Q,
-                     job->C);
-    else
-      ad_select_slice(job->f, job->M, job->M + dq, job->count, job->mean_weight, job->scratch,
-                      job->g, k, job->alpha, job->noise_k, job->Q, job->C, job->out, job->radius);
+static void filter_slices(void *arg, size_t lo, size_t hi) {
+  filter_pass_t *p = arg;
+  float *scratch = calloc(p->scratch_floats, sizeof(float));
+  if (!scratch) {
+    atomic_store(&p->no_memory, 1);
+    return;
   }
-  return NULL;
+  const bk_long dq = (bk_long)p->g.nx * p->g.ny * p->g.nz * p->C * p->Q;
+  for (int k = (int)lo; k < (int)hi; k++) {
+    if (p->pass == 0)
+      ad_means_slice(p->f, p->weights, scratch, p->M, p->M + dq, p->g, k, p->Q, p->C);
+    else
+      ad_select_slice(p->f, p->M, p->M + dq, p->count, p->mean_weight, scratch, p->g, k,
+                      p->alpha, p->noise_k, p->Q, p->C, p->out, p->radius);
+  }
+  free(scratch);
 }
 
 int ad_filter_host(const grid_dims_t *d, int channels, const float *radiance, const float *count,
                    const float *mean_weight, float alpha, float noise_k, int levels,
                    float *out_radiance, float *out_radius, bk_error_t *err) {
-  size_t voxels;
+  size_t voxels, scratch_bytes;
   float weights[AD_WEIGHT_COUNT];
-  filter_job_t jobs[AD_MAX_THREADS];
-  pthread_t tid[AD_MAX_THREADS];
-  float *scratch = NULL, *M = NULL;
   int rc = check_filter_args(d, channels, radiance, count, mean_weight, alpha, levels,
                              out_radiance, &voxels, err);
   if (rc != BK_OK) return rc;
@@ -107,69 +101,42 @@ int ad_filter_host(const grid_dims_t *d, int channels, const float *radiance, co
     return BK_OK;
   }
   filter_weights(weights);
-  long cpus = sysconf(_SC_NPROCESSORS_ONLN);
-  int threads = cpus < 1 ? 1 : cpus > AD_MAX_THREADS ? AD_MAX_THREADS : (int)cpus;
-  if (threads > d->nz) threads = d->nz;
-  const size_t per = (size_t)AD_SLICE_SCRATCH(d->nx, d->ny, channels, levels);
-  scratch = bk_calloc((size_t)threads, per * sizeof(float), "filter scratch", err);
-  M = bk_calloc(voxels, (size_t)AD_MEANS_FLOATS(channels, levels) * sizeof(float), "filter means",
-                err);
-  if (!scratch || !M) {
-    rc = BK_ERR_RUNTIME;
-    goto error;
+  filter_pass_t p = {0, radiance, count, mean_weight, weights, NULL, ig_kernel_grid(d), channels,
+                     levels, alpha, noise_k, out_radiance, out_radius,
+                     (size_t)AD_SLICE_SCRATCH(d->nx, d->ny, channels, levels), 0};
+  if (!bk_mul_size(p.scratch_floats, sizeof(float), &scratch_bytes))
+    return bk_fail(err, BK_ERR_RUNTIME, "filter scratch: size overflows (%zu floats)",
+                   p.scratch_floats);
+  p.M = bk_calloc(voxels, (size_t)AD_MEANS_FLOATS(channels, levels) * sizeof(float),
+                  "filter means", err);
+  if (!p.M) return BK_ERR_RUNTIME;
+  /* pass 1 reads the means of neighbouring slices: every slice of pass 0 first */
+  for (p.pass = 0; p.pass < 2 && !atomic_load(&p.no_memory); p.pass++)
+    pm_parallel((size_t)d->nz, 1, filter_slices, &p);
+  free(p.M);
+  if (atomic_load(&p.no_memory)) {
+    char b[32];
+    return bk_fail(err, BK_ERR_RUNTIME, "filter scratch: out of memory allocating %s",
+                   bk_format_bytes((double)scratch_bytes, b, sizeof b));
   }
-  for (int pass = 0; pass < 2; pass++) {
-    for (int t = 0; t < threads; t++) {
-      filter_job_t *job = &jobs[t];
-      job->pass = pass;
-      job->f = radiance;
-      job->count = count;
-      job->mean_weight = mean_weight;
-      job->weights = weights;
-      job->M = M;
-      job->scratch = scratch + (size_t)t * per;
-      job->g = ig_kernel_grid(d);
-      job->C = channels;
-      job->Q = levels;
-      job->alpha = alpha;
-      job->noise_k = noise_k;
-      job->out = out_radiance;
-      job->radius = out_radius;
-      job->first = t;
-      job->step = threads;
-    }
-    /* thread 0 is this one; a thread that cannot start leaves its slices to
-     * the caller's thread, so the result never depends on the thread count */
-    int started = 0;
-    for (int t = 1; t < threads; t++) {
-      if (pthread_create(&tid[t], NULL, filter_slices, &jobs[t]) != 0) break;
-      started = t;
-    }
-    filter_slices(&jobs[0]);
-    for (int t = 1; t <= started; t++) pthread_join(tid[t], NULL);
-    for (int t = started + 1; t < threads; t++) filter_slices(&jobs[t]);
-  }
-  rc = BK_OK;
-error:
-  free(scratch);
-  free(M);
-  return rc;
+  return BK_OK;
 }
 
-int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_t *d,
-                         int channels, cl_mem rgb, cl_mem count, cl_mem mean_weight, float alpha,
-                         float noise_k, int levels, cl_mem out_rgb, cl_mem out_radius,
-                         bk_error_t *err) {
-  cl_program own = NULL;
+/* The filter on device buffers (rgb, out_rgb: channels floats per voxel;
+ * count, mean_weight, out_radius: a float per voxel, out_radius may be NULL):
+ * builds kernels/filter.cl for these channels and levels (>= 1), enqueues its
+ * two launches and waits. */
+static int filter_cl_buffers(clh_context_t *cl, const grid_dims_t *d, size_t voxels, int channels,
+                             cl_mem rgb, cl_mem count, cl_mem mean_weight, float alpha,
+                             float noise_k, int levels, cl_mem out_rgb, cl_mem out_radius,
+                             bk_error_t *err) {
+  cl_program program = NULL;
   cl_kernel km = NULL, ks = NULL;
   cl_mem w_buf = NULL, s_buf = NULL, m_buf = NULL;
   cl_int cerr = CL_SUCCESS;
   float weights[AD_WEIGHT_COUNT];
   char opts[64], b1[32], b2[32];
-  size_t voxels;
-  int rc = check_filter_params(d, channels, alpha, levels, 1, &voxels, err);
-  if (rc != BK_OK) return rc;
-  rc = BK_ERR_RUNTIME;
+  int rc = BK_ERR_RUNTIME;
   /* work-items, each with a slice of scratch: a few per core on a CPU, one
    * per slice elsewhere */
   size_t items = cl->is_cpu ? (size_t)4 * (cl->compute_units ? cl->compute_units : 1) : (size_t)d->nz;
@@ -187,11 +154,8 @@ int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_
             0.5 * levels, cl->device_name, bk_format_bytes((double)cl->max_alloc, b2, sizeof b2));
     goto error;
   }
-  if (!program) {
-    snprintf(opts, sizeof opts, "-DAD_CH=%d -DAD_QMAX=%d", channels, levels);
-    if (clh_build(cl, "filter.cl", opts, &own, err) != BK_OK) goto error;
-    program = own;
-  }
+  snprintf(opts, sizeof opts, "-DAD_CH=%d -DAD_QMAX=%d", channels, levels);
+  if (clh_build(cl, "filter.cl", opts, &program, err) != BK_OK) goto error;
   filter_weights(weights);
   w_buf = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof weights,
                          weights, &cerr);
@@ -235,7 +199,7 @@ error:
   if (w_buf) clReleaseMemObject(w_buf);
   if (s_buf) clReleaseMemObject(s_buf);
   if (m_buf) clReleaseMemObject(m_buf);
-  if (own) clReleaseProgram(own);
+  if (program) clReleaseProgram(program);
   return rc;
 }
 
@@ -268,8 +232,8 @@ int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const fl
     rad = clCreateBuffer(cl->context, outf, one_bytes, cl->is_cpu ? out_radius : NULL, &cerr);
     CLH_CHECK(cerr, err, error);
   }
-  if (ad_filter_cl_buffers(cl, NULL, d, channels, rgb, cnt, wm, alpha, noise_k, levels, out, rad,
-                           err) != BK_OK)
+  if (filter_cl_buffers(cl, d, voxels, channels, rgb, cnt, wm, alpha, noise_k, levels, out, rad,
+                        err) != BK_OK)
     goto error;
   if (cl->is_cpu) {
     /* make the host arrays current (no copy on PoCL) */
