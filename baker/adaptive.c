@@ -19,7 +19,9 @@ void ad_bake_defaults(ad_bake_opts_t *o) {
   o->importance = AD_IMPORTANCE_GRADIENT;
 }
 
-int ad_pilot_shift(const grid_dims_t *d, int pilot_cells) {
+/* The pilot grid's coarsening: cells of 2^shift voxels a side, the fewest
+ * that bring the longest axis to pilot_cells cells. */
+static int pilot_shift(const grid_dims_t *d, int pilot_cells) {
   int longest = d->nx > d->ny ? d->nx : d->ny;
   if (d->nz > longest) longest = d->nz;
   int s = 0;
@@ -163,7 +165,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   if (!tables) goto error;
 
   /* phase 1: the pilot, on coarse cells over the full-resolution field */
-  const int shift = ad_pilot_shift(d, opt->pilot_cells);
+  const int shift = pilot_shift(d, opt->pilot_cells);
   const grid_dims_t cd = coarse_dims(d, shift);
   const size_t CV = grid_count(&cd);
   stats->coarse_shift = shift;
@@ -220,8 +222,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
       for (int q = 0; q < pilot.lights.count; q++)
         if (pilot.lights.scene_index[q] == base.lights.scene_index[l]) p = q;
       if (p >= 0) {
-        rc = ad_build_pdf_weighted(masks + (size_t)p * CV, sel, vw, CV, opt->floor_fraction,
-                                   &pdf, err);
+        rc = ad_build_pdf(masks + (size_t)p * CV, sel, vw, CV, opt->floor_fraction, &pdf, err);
       } else {
         memset(&pdf, 0, sizeof pdf);
         double zero[AD_CELLS] = {0};

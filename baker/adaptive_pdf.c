@@ -201,31 +201,6 @@ static int thresholds_from_fields(const grid_dims_t *d, const float *pilot_radia
   return BK_OK;
 }
 
-int ad_auto_thresholds(const grid_dims_t *d, const float *pilot_radiance, const float *scattering,
-                       int smooth_radius, float *grad_thr, float *lum_thr,
-                       ad_select_stats_t *stats, bk_error_t *err) {
-  size_t voxels;
-  float *lum = NULL, *grad = NULL;
-  int rc = ad_grid_voxels(d, 3 * sizeof(float), "adaptive thresholds", &voxels, err);
-  if (rc != BK_OK) return rc;
-  rc = BK_ERR_RUNTIME;
-  lum = bk_calloc(voxels, sizeof(float), "adaptive pilot luminance", err);
-  grad = bk_calloc(voxels, sizeof(float), "adaptive pilot gradient", err);
-  if (!lum || !grad) goto error;
-  rc = ad_pilot_fields(d, pilot_radiance, smooth_radius, lum, grad, err);
-  if (rc != BK_OK) goto error;
-  rc = thresholds_from_fields(d, pilot_radiance, scattering, lum, grad, grad_thr, lum_thr, stats,
-                              err);
-  if (rc == BK_OK && stats) {
-    stats->gradient_threshold = *grad_thr;
-    stats->luminance_threshold = *lum_thr;
-  }
-error:
-  free(lum);
-  free(grad);
-  return rc;
-}
-
 /* --- selection ---------------------------------------------------------------- */
 
 int ad_select_voxels(const grid_dims_t *d, const float *pilot_radiance, const float *scattering,
@@ -337,14 +312,8 @@ int ad_pdf_from_weights(const double *weights, int nx, int ny, float floor_fract
   return BK_OK;
 }
 
-int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, size_t voxels,
-                 float floor_fraction, ad_pdf_t *pdf, bk_error_t *err) {
-  return ad_build_pdf_weighted(origin_masks, selected, NULL, voxels, floor_fraction, pdf, err);
-}
-
-int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
-                          const float *voxel_weight, size_t voxels, float floor_fraction,
-                          ad_pdf_t *pdf, bk_error_t *err) {
+int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, const float *voxel_weight,
+                 size_t voxels, float floor_fraction, ad_pdf_t *pdf, bk_error_t *err) {
   if (!pdf) return bk_fail(err, BK_ERR_RUNTIME, "adaptive pdf: missing output");
   memset(pdf, 0, sizeof *pdf);
   if (voxels > 0 && (!origin_masks || !selected))

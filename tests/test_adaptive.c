@@ -241,7 +241,7 @@ static int test_pdf(void) {
     }
   }
   const float f = 0.25f;
-  CHECK(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  CHECK(ad_build_pdf(masks, sel, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   CHECK(pdf.selected_reached == (size_t)nsel, "%zu selected with origins, expected %d",
         pdf.selected_reached, nsel);
   double imp = 0.0, integral = 0.0, lo = 1e9, hi = 0.0;
@@ -274,7 +274,7 @@ static int test_pdf(void) {
   masks[17] = ad_cell_bit(42);
   sel[17] = AD_SEL_SHADOW;
   sel[18] = AD_SEL_SHADOW; /* selected but never reached: no origin, no effect */
-  CHECK(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  CHECK(ad_build_pdf(masks, sel, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   CHECK(fabs(pdf.cell_pdf[42] - (f + (1.0f - f) * AD_CELLS)) < 1e-3, "hot cell %g",
         (double)pdf.cell_pdf[42]);
   CHECK(fabs(pdf.cell_pdf[0] - f) < 1e-6, "cold cell %g", (double)pdf.cell_pdf[0]);
@@ -284,14 +284,14 @@ static int test_pdf(void) {
 
   /* a voxel reached from every cell favours none; nothing selected: uniform */
   masks[17] = ~0ull;
-  CHECK(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  CHECK(ad_build_pdf(masks, sel, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   for (int c = 0; c < AD_CELLS; c++)
     CHECK(fabs(pdf.cell_pdf[c] - 1.0f) < 1e-5, "cell %d pdf %g, expected uniform", c,
           (double)pdf.cell_pdf[c]);
   memset(sel, 0, V);
-  CHECK(ad_build_pdf(masks, sel, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  CHECK(ad_build_pdf(masks, sel, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   CHECK(pdf.selected_reached == 0 && fabs(pdf.cell_pdf[5] - 1.0f) < 1e-6, "no selection");
-  CHECK(ad_build_pdf(masks, sel, V, 1.5f, &pdf, &err) == BK_ERR_INPUT, "floor 1.5 accepted");
+  CHECK(ad_build_pdf(masks, sel, NULL, V, 1.5f, &pdf, &err) == BK_ERR_INPUT, "floor 1.5 accepted");
   free(masks);
   free(sel);
   return tu_failures;
@@ -384,13 +384,6 @@ static int test_thresholds(void) {
   CHECK(smooth <= 0.01, "%.2f%% of the smooth voxels selected", 100 * smooth);
   CHECK(st.reached == V && st.considered == V, "reached %zu considered %zu", st.reached,
         st.considered);
-
-  /* the same with the threshold functions called on their own */
-  float g, l;
-  CHECK(ad_auto_thresholds(&d, rgb, NULL, AD_DEFAULT_SMOOTH_RADIUS, &g, &l, NULL, &err) == BK_OK,
-        "%s", err.msg);
-  CHECK(g == st.gradient_threshold && l == st.luminance_threshold, "auto %g %g vs %g %g",
-        (double)g, (double)l, (double)st.gradient_threshold, (double)st.luminance_threshold);
 
   /* scale invariance: 1000x the light gives 1000x the thresholds, the same voxels */
   make_pilot(rgb, 0.0, 1000.0);
@@ -498,7 +491,7 @@ static int test_chain(void) {
   ad_select_stats_t st;
   ad_pdf_t pdf;
   CHECK(ad_select_voxels(&d, pilot, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
-  CHECK(ad_build_pdf(masks, sel, V, AD_DEFAULT_FLOOR, &pdf, &err) == BK_OK, "%s", err.msg);
+  CHECK(ad_build_pdf(masks, sel, NULL, V, AD_DEFAULT_FLOOR, &pdf, &err) == BK_OK, "%s", err.msg);
   /* the cells over the two squares are the favoured ones */
   int hot = 0, hot_feature = 0;
   for (int c = 0; c < AD_CELLS; c++) {
