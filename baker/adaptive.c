@@ -123,24 +123,28 @@ static int run_march(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_s
   return cl ? pm_run_cl(cl, s, acc, st, err) : pm_run_host(s, acc, st, err);
 }
 
-int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
-            const ad_bake_opts_t *opt, float *radiance, float *photon_count, float *photon_weight,
-            float *filter_radius, ad_stats_t *stats, bk_timings_t *timings, bk_error_t *err) {
+/* One adaptive bake: the prepared setup and its two marches, and what the
+ * phases hand each other. */
+typedef struct ad_run {
+  clh_context_t *cl;
+  const scene_t *scene;
+  const volume_t *vol;
+  const ad_bake_opts_t *opt;
+  ad_stats_t *stats;
   pm_setup_t base, pilot, main;
-  ad_stats_t local;
-  ad_bake_opts_t defaults;
-  uint64_t *pacc = NULL, *masks = NULL, *acc = NULL;
-  float *prgb = NULL, *pscat = NULL, *tables = NULL, *count = NULL, *weight = NULL;
-  float *raw = NULL, *filtered = NULL, *vw = NULL;
-  uint8_t *sel = NULL;
-  double t0;
-  memset(&base, 0, sizeof base);
-  if (!stats) stats = &local;
-  memset(stats, 0, sizeof *stats);
-  if (!opt) {
-    ad_bake_defaults(&defaults);
-    opt = &defaults;
-  }
+  int levels;             /* the filter's largest level (half voxels) */
+  int have_pilot, shift;  /* pilot cells of 2^shift voxels */
+  grid_dims_t cd;         /* the pilot's coarse grid */
+  size_t cv;              /* its cells */
+  uint64_t *pacc, *masks; /* pilot accumulator and origin masks */
+  float *tables;          /* one PDF table per light (at least one) */
+  double pdf_min, pdf_max;
+  int filter_on;
+  double grey_k;          /* a grey march's radiance per counter, summed over RGB */
+  float *raw;             /* the weighted march's radiance before the filter */
+} ad_run_t;
+
+static int check_bake_inputs(const scene_t *scene, const ad_bake_opts_t *opt, bk_error_t *err) {
   if (scene->pilot < 0)
     return bk_fail(err, BK_ERR_INPUT, "%s: adaptive.pilot: expected a photon count >= 0, got %d",
                    scene->path, scene->pilot);
@@ -150,218 +154,302 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   if (!(opt->max_radius >= 0.0f && opt->max_radius <= 0.5f * AD_FILTER_MAX_LEVEL))
     return bk_fail(err, BK_ERR_INPUT, "adaptive filter: largest radius %g: expected 0..%g voxels",
                    (double)opt->max_radius, 0.5 * AD_FILTER_MAX_LEVEL);
-  const int levels = (int)(2.0f * opt->max_radius + 0.5f);
+  return BK_OK;
+}
 
-  int rc = pm_prepare(scene, vol, &base, NULL, &stats->march, err);
-  if (rc != BK_OK) return rc;
-  stats->ms_octree = stats->march.ms_octree;
-  stats->ms_generate = stats->march.ms_generate;
-  const grid_dims_t *d = &base.dims;
-  const size_t V = base.voxels;
-  const int nl = base.lights.count > 0 ? base.lights.count : 1;
-  const int TF = AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y);
-  rc = BK_ERR_RUNTIME;
-  tables = bk_calloc((size_t)nl, TF * sizeof(float), "adaptive PDF tables", err);
-  if (!tables) goto error;
-
-  /* phase 1: the pilot, on coarse cells over the full-resolution field */
-  const int shift = pilot_shift(d, opt->pilot_cells);
-  const grid_dims_t cd = coarse_dims(d, shift);
-  const size_t CV = grid_count(&cd);
-  stats->coarse_shift = shift;
+/* Phase 1: the pilot, on coarse cells over the full-resolution field. */
+static int pilot_phase(ad_run_t *r, bk_error_t *err) {
+  const scene_t *scene = r->scene;
+  ad_stats_t *stats = r->stats;
+  r->shift = pilot_shift(&r->base.dims, r->opt->pilot_cells);
+  r->cd = coarse_dims(&r->base.dims, r->shift);
+  r->cv = grid_count(&r->cd);
+  stats->coarse_shift = r->shift;
   stats->pilot_photons = scene->pilot;
-  t0 = bk_now_ms();
-  int have_pilot = scene->pilot > 0 && base.lights.count > 0;
-  if (have_pilot) {
-    rc = pm_derive(&base, scene, (uint64_t)scene->pilot, &pilot, err);
-    if (rc != BK_OK) goto error;
-    pm_use_pilot(&pilot, shift, NULL);
-    rc = BK_ERR_RUNTIME;
-    masks = bk_calloc(pm_mask_count(&pilot), sizeof(uint64_t), "adaptive origin masks", err);
-    pacc = bk_calloc(pm_acc_count(&pilot), sizeof(uint64_t), "adaptive pilot accumulator", err);
-    if (!masks || !pacc) goto error;
-    pilot.masks = masks;
-    rc = run_march(cl, &pilot, pacc, &stats->pilot, err);
-    if (rc != BK_OK) goto error;
+  double t0 = bk_now_ms();
+  r->have_pilot = scene->pilot > 0 && r->base.lights.count > 0;
+  if (r->have_pilot) {
+    int rc = pm_derive(&r->base, scene, (uint64_t)scene->pilot, &r->pilot, err);
+    if (rc != BK_OK) return rc;
+    pm_use_pilot(&r->pilot, r->shift, NULL);
+    r->masks = bk_calloc(pm_mask_count(&r->pilot), sizeof(uint64_t), "adaptive origin masks", err);
+    r->pacc = bk_calloc(pm_acc_count(&r->pilot), sizeof(uint64_t), "adaptive pilot accumulator",
+                        err);
+    if (!r->masks || !r->pacc) return BK_ERR_RUNTIME;
+    r->pilot.masks = r->masks;
+    rc = run_march(r->cl, &r->pilot, r->pacc, &stats->pilot, err);
+    if (rc != BK_OK) return rc;
   }
   stats->ms_pilot = bk_now_ms() - t0;
+  return BK_OK;
+}
 
-  /* the distribution: selection on the pilot, one PDF per light */
-  t0 = bk_now_ms();
-  double pdf_min = 1.0, pdf_max = 1.0;
-  if (have_pilot) {
-    rc = BK_ERR_RUNTIME;
-    prgb = bk_calloc(CV, 3 * sizeof(float), "adaptive pilot radiance", err);
-    pscat = bk_calloc(CV, sizeof(float), "adaptive pilot scattering", err);
-    sel = bk_calloc(CV, 1, "adaptive selection", err);
-    if (!prgb || !pscat || !sel) goto error;
-    coarse_fields(&pilot, pacc, vol, shift, prgb, pscat);
-    ad_select_opts_t so = {scene->gradient_threshold, scene->luminance_threshold,
-                           opt->smooth_radius};
-    rc = ad_select_voxels(&cd, prgb, pscat, &so, sel, &stats->select, err);
-    if (rc != BK_OK) goto error;
-    if (opt->importance != AD_IMPORTANCE_UNIT) {
-      rc = BK_ERR_RUNTIME;
-      vw = bk_calloc(CV, 2 * sizeof(float), "adaptive importance", err);
-      if (!vw) goto error;
-      rc = ad_pilot_fields(&cd, prgb, opt->smooth_radius, vw + CV, vw, err);
-      if (rc != BK_OK) goto error;
-      for (size_t v = 0; v < CV; v++) {
-        double x = opt->importance == AD_IMPORTANCE_LUMINANCE ? vw[CV + v] : vw[v];
-        vw[v] = (float)(opt->importance == AD_IMPORTANCE_GRADIENT_23 ? pow(x, 2.0 / 3.0) : x);
-      }
-    }
-    pdf_min = 1e30;
-    pdf_max = 0.0;
-    /* tables follow the main march's lights (base's: the same photon count);
-     * the pilot's may lack a faint light that got no pilot photon, which
-     * then keeps the uniform PDF */
-    for (int l = 0; l < base.lights.count; l++) {
-      ad_pdf_t pdf;
-      int p = -1;
-      for (int q = 0; q < pilot.lights.count; q++)
-        if (pilot.lights.scene_index[q] == base.lights.scene_index[l]) p = q;
-      if (p >= 0) {
-        rc = ad_build_pdf(masks + (size_t)p * CV, sel, vw, CV, opt->floor_fraction, &pdf, err);
-      } else {
-        memset(&pdf, 0, sizeof pdf);
-        double zero[AD_CELLS] = {0};
-        rc = ad_pdf_from_weights(zero, AD_CELLS_X, AD_CELLS_Y, 1.0f, pdf.table, pdf.cell_pdf, err);
-      }
-      if (rc != BK_OK) goto error;
-      memcpy(tables + (size_t)l * TF, pdf.table, TF * sizeof(float));
-      if (bk_verbosity >= 2) {
-        char line[AD_CELLS_X * 8 + 1];
-        bk_log(2, "adaptive: light %d: pdf per cell (rows b, columns a), %zu selected cells "
-                  "with origin data", l, pdf.selected_reached);
-        for (int y = 0; y < AD_CELLS_Y; y++) {
-          int at = 0;
-          for (int x = 0; x < AD_CELLS_X; x++)
-            at += snprintf(line + at, sizeof line - at, " %6.2f", (double)pdf.cell_pdf[x + AD_CELLS_X * y]);
-          bk_log(2, "  %s", line);
-        }
-      }
-      for (int c = 0; c < AD_CELLS; c++) {
-        pdf_min = fmin(pdf_min, pdf.cell_pdf[c]);
-        pdf_max = fmax(pdf_max, pdf.cell_pdf[c]);
-      }
-    }
+/* What each selected pilot cell spreads over its origins (NULL: 1 each, for
+ * AD_IMPORTANCE_UNIT), cv floats in *out, freed by the caller; prgb is the
+ * pilot radiance per cell. */
+static int pilot_importance(const ad_run_t *r, const float *prgb, float **out, bk_error_t *err) {
+  const size_t CV = r->cv;
+  const int importance = r->opt->importance;
+  *out = NULL;
+  if (importance == AD_IMPORTANCE_UNIT) return BK_OK;
+  float *vw = bk_calloc(CV, 2 * sizeof(float), "adaptive importance", err);
+  if (!vw) return BK_ERR_RUNTIME;
+  *out = vw;
+  int rc = ad_pilot_fields(&r->cd, prgb, r->opt->smooth_radius, vw + CV, vw, err);
+  if (rc != BK_OK) return rc;
+  for (size_t v = 0; v < CV; v++) {
+    double x = importance == AD_IMPORTANCE_LUMINANCE ? vw[CV + v] : vw[v];
+    vw[v] = (float)(importance == AD_IMPORTANCE_GRADIENT_23 ? pow(x, 2.0 / 3.0) : x);
+  }
+  return BK_OK;
+}
+
+/* Light l's table (of the main march's lights: base's, the same photon
+ * count) from the selection and the importance vw; the pilot's lights may
+ * lack a faint light that got no pilot photon, which then keeps the uniform
+ * PDF. Widens [pdf_min, pdf_max] to its cells. */
+static int light_pdf(ad_run_t *r, int l, const uint8_t *sel, const float *vw, bk_error_t *err) {
+  const int TF = AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y);
+  ad_pdf_t pdf;
+  int p = -1, rc;
+  for (int q = 0; q < r->pilot.lights.count; q++)
+    if (r->pilot.lights.scene_index[q] == r->base.lights.scene_index[l]) p = q;
+  if (p >= 0) {
+    rc = ad_build_pdf(r->masks + (size_t)p * r->cv, sel, vw, r->cv, r->opt->floor_fraction, &pdf,
+                      err);
   } else {
+    memset(&pdf, 0, sizeof pdf);
+    double zero[AD_CELLS] = {0};
+    rc = ad_pdf_from_weights(zero, AD_CELLS_X, AD_CELLS_Y, 1.0f, pdf.table, pdf.cell_pdf, err);
+  }
+  if (rc != BK_OK) return rc;
+  memcpy(r->tables + (size_t)l * TF, pdf.table, TF * sizeof(float));
+  if (bk_verbosity >= 2) {
+    char line[AD_CELLS_X * 8 + 1];
+    bk_log(2, "adaptive: light %d: pdf per cell (rows b, columns a), %zu selected cells "
+              "with origin data", l, pdf.selected_reached);
+    for (int y = 0; y < AD_CELLS_Y; y++) {
+      int at = 0;
+      for (int x = 0; x < AD_CELLS_X; x++)
+        at += snprintf(line + at, sizeof line - at, " %6.2f", (double)pdf.cell_pdf[x + AD_CELLS_X * y]);
+      bk_log(2, "  %s", line);
+    }
+  }
+  for (int c = 0; c < AD_CELLS; c++) {
+    r->pdf_min = fmin(r->pdf_min, pdf.cell_pdf[c]);
+    r->pdf_max = fmax(r->pdf_max, pdf.cell_pdf[c]);
+  }
+  return BK_OK;
+}
+
+/* The distribution: selection on the pilot, one PDF per light; without a
+ * pilot, uniform tables. */
+static int pdf_phase(ad_run_t *r, bk_error_t *err) {
+  const int TF = AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y);
+  const int nl = r->base.lights.count > 0 ? r->base.lights.count : 1;
+  float *prgb = NULL, *pscat = NULL, *vw = NULL;
+  uint8_t *sel = NULL;
+  int rc = BK_ERR_RUNTIME;
+  double t0 = bk_now_ms();
+  r->pdf_min = r->pdf_max = 1.0;
+  if (!r->have_pilot) {
     double zero[AD_CELLS] = {0};
     for (int l = 0; l < nl; l++) {
-      rc = ad_pdf_from_weights(zero, AD_CELLS_X, AD_CELLS_Y, 1.0f, tables + (size_t)l * TF, NULL,
-                               err);
+      rc = ad_pdf_from_weights(zero, AD_CELLS_X, AD_CELLS_Y, 1.0f, r->tables + (size_t)l * TF,
+                               NULL, err);
       if (rc != BK_OK) goto error;
     }
+    goto done;
   }
-  stats->pdf_min = (float)pdf_min;
-  stats->pdf_max = (float)pdf_max;
-  stats->ms_distribution = bk_now_ms() - t0;
+  prgb = bk_calloc(r->cv, 3 * sizeof(float), "adaptive pilot radiance", err);
+  pscat = bk_calloc(r->cv, sizeof(float), "adaptive pilot scattering", err);
+  sel = bk_calloc(r->cv, 1, "adaptive selection", err);
+  if (!prgb || !pscat || !sel) goto error;
+  coarse_fields(&r->pilot, r->pacc, r->vol, r->shift, prgb, pscat);
+  ad_select_opts_t so = {r->scene->gradient_threshold, r->scene->luminance_threshold,
+                         r->opt->smooth_radius};
+  rc = ad_select_voxels(&r->cd, prgb, pscat, &so, sel, &r->stats->select, err);
+  if (rc != BK_OK) goto error;
+  rc = pilot_importance(r, prgb, &vw, err);
+  if (rc != BK_OK) goto error;
+  r->pdf_min = 1e30;
+  r->pdf_max = 0.0;
+  for (int l = 0; l < r->base.lights.count; l++) {
+    rc = light_pdf(r, l, sel, vw, err);
+    if (rc != BK_OK) goto error;
+  }
+done:
+  r->stats->pdf_min = (float)r->pdf_min;
+  r->stats->pdf_max = (float)r->pdf_max;
+  r->stats->ms_distribution = bk_now_ms() - t0;
+  rc = BK_OK;
+error:
+  free(prgb);
+  free(pscat);
+  free(sel);
+  free(vw);
+  return rc;
+}
 
-  /* phase 2: warped Hammersley photons of weight 1/pdf */
-  t0 = bk_now_ms();
-  rc = pm_derive(&base, scene, (uint64_t)scene->photon_count, &main, err);
-  if (rc != BK_OK) goto error;
-  rc = pm_use_pdf(&main, tables, 1.0 / pdf_min, err);
-  if (rc != BK_OK) goto error;
+/* Phase 2: warped Hammersley photons of weight 1/pdf. Out: the photon count
+ * and mean weight per voxel, and the radiance (r->raw, the march's channels,
+ * when the filter follows; else `radiance`, RGB). */
+static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *weight,
+                          bk_error_t *err) {
+  ad_stats_t *stats = r->stats;
+  const size_t V = r->base.voxels;
+  double t0 = bk_now_ms();
+  int rc = pm_derive(&r->base, r->scene, (uint64_t)r->scene->photon_count, &r->main, err);
+  if (rc != BK_OK) return rc;
+  rc = pm_use_pdf(&r->main, r->tables, 1.0 / r->pdf_min, err);
+  if (rc != BK_OK) return rc;
   stats->ms_generate += bk_now_ms() - t0;
   t0 = bk_now_ms();
-  rc = BK_ERR_RUNTIME;
-  acc = bk_calloc(pm_acc_count(&main), sizeof(uint64_t), "adaptive accumulator", err);
-  count = photon_count ? photon_count : bk_calloc(V, sizeof(float), "photon count grid", err);
-  weight = photon_weight ? photon_weight : bk_calloc(V, sizeof(float), "photon weight grid", err);
-  if (!acc || !count || !weight) goto error;
-  if (main.lights.count > 0) {
-    rc = run_march(cl, &main, acc, &stats->march, err);
+  uint64_t *acc = bk_calloc(pm_acc_count(&r->main), sizeof(uint64_t), "adaptive accumulator", err);
+  if (!acc) return BK_ERR_RUNTIME;
+  if (r->main.lights.count > 0) {
+    rc = run_march(r->cl, &r->main, acc, &stats->march, err);
     if (rc != BK_OK) goto error;
   }
-  const int C = main.channels;
-  const int filter_on = opt->filter && scene->alpha > 0.0f && levels > 0;
+  const int C = r->main.channels;
+  r->filter_on = r->opt->filter && r->scene->alpha > 0.0f && r->levels > 0;
   /* grey: the filter works on the one channel the march carried (its
    * luminance is proportional), and colours the result after */
-  double grey_k = main.to_radiance[0] + main.to_radiance[1] + main.to_radiance[2];
-  if (filter_on) {
-    raw = bk_calloc(V, (size_t)C * sizeof(float), "adaptive raw radiance", err);
-    if (!raw) goto error;
+  r->grey_k = r->main.to_radiance[0] + r->main.to_radiance[1] + r->main.to_radiance[2];
+  rc = BK_ERR_RUNTIME;
+  if (r->filter_on) {
+    r->raw = bk_calloc(V, (size_t)C * sizeof(float), "adaptive raw radiance", err);
+    if (!r->raw) goto error;
     if (C == 1) {
-      scale_job_t job = {acc, NULL, raw, {(float)grey_k, 0.0f, 0.0f}};
+      scale_job_t job = {acc, NULL, r->raw, {(float)r->grey_k, 0.0f, 0.0f}};
       pm_parallel(V, PM_GRAIN, grey_range, &job);
     } else
-      pm_to_radiance(&main, acc, raw);
+      pm_to_radiance(&r->main, acc, r->raw);
   } else {
-    pm_to_radiance(&main, acc, radiance);
+    pm_to_radiance(&r->main, acc, radiance);
   }
-  pm_unpack_weights(&main, acc, count, weight);
-  free(acc);
-  acc = NULL;
+  pm_unpack_weights(&r->main, acc, count, weight);
   stats->ms_march = bk_now_ms() - t0;
+  rc = BK_OK;
+error:
+  free(acc);
+  return rc;
+}
 
-  /* reconstruction */
-  t0 = bk_now_ms();
-  stats->filtered = filter_on;
-  stats->max_radius = filter_on ? 0.5f * levels : 0.0f;
-  if (filter_on) {
+/* Reconstruction: the filter on r->raw into radiance (RGB), or nothing when
+ * it is off. */
+static int filter_phase(ad_run_t *r, float *radiance, const float *count, const float *weight,
+                        float *filter_radius, bk_error_t *err) {
+  const size_t V = r->base.voxels;
+  const int C = r->main.channels;
+  const float alpha = r->scene->alpha;
+  float *filtered = NULL;
+  int rc = BK_OK;
+  double t0 = bk_now_ms();
+  r->stats->filtered = r->filter_on;
+  r->stats->max_radius = r->filter_on ? 0.5f * r->levels : 0.0f;
+  if (r->filter_on) {
     filtered = C == 1 ? bk_calloc(V, sizeof(float), "adaptive filtered radiance", err) : radiance;
-    if (!filtered) goto error;
-    rc = cl ? ad_filter_cl(cl, d, C, raw, count, weight, scene->alpha, opt->noise_k, levels,
-                           filtered, filter_radius, err)
-            : ad_filter_host(d, C, raw, count, weight, scene->alpha, opt->noise_k, levels,
-                             filtered, filter_radius, err);
-    if (rc != BK_OK) goto error;
-    if (C == 1) {
+    if (!filtered) return BK_ERR_RUNTIME;
+    rc = r->cl ? ad_filter_cl(r->cl, &r->base.dims, C, r->raw, count, weight, alpha,
+                              r->opt->noise_k, r->levels, filtered, filter_radius, err)
+               : ad_filter_host(&r->base.dims, C, r->raw, count, weight, alpha, r->opt->noise_k,
+                                r->levels, filtered, filter_radius, err);
+    if (rc == BK_OK && C == 1) {
+      const double *k = r->main.to_radiance;
       scale_job_t job = {NULL, filtered, radiance,
-                         {(float)(main.to_radiance[0] / grey_k),
-                          (float)(main.to_radiance[1] / grey_k),
-                          (float)(main.to_radiance[2] / grey_k)}};
+                         {(float)(k[0] / r->grey_k), (float)(k[1] / r->grey_k),
+                          (float)(k[2] / r->grey_k)}};
       pm_parallel(V, PM_GRAIN, colour_range, &job);
     }
+    if (filtered != radiance) free(filtered);
   } else if (filter_radius) {
     memset(filter_radius, 0, V * sizeof(float));
   }
-  stats->ms_filter = bk_now_ms() - t0;
+  r->stats->ms_filter = bk_now_ms() - t0;
+  return rc;
+}
 
+/* The timing rows and the summary line. */
+static void report(const ad_run_t *r, bk_timings_t *timings) {
+  const ad_stats_t *stats = r->stats;
+  const int pilot = r->have_pilot ? r->scene->pilot : 0;
+  const char *where = r->cl ? "" : ", host C";
   if (timings) {
     bk_timings_add(timings, "octree", stats->ms_octree, "%s",
-                   base.has_refraction ? "constant-block pyramid of n, n/grad n field"
-                                       : "n constant: one straight DDA per photon");
+                   r->base.has_refraction ? "constant-block pyramid of n, n/grad n field"
+                                          : "n constant: one straight DDA per photon");
     bk_timings_add(timings, "pilot marching", stats->ms_pilot,
-                   "%d pilot photons, origin data on %dx%dx%d cells of %d^3 voxels",
-                   have_pilot ? scene->pilot : 0, cd.nx, cd.ny, cd.nz, 1 << shift);
+                   "%d pilot photons, origin data on %dx%dx%d cells of %d^3 voxels", pilot,
+                   r->cd.nx, r->cd.ny, r->cd.nz, 1 << r->shift);
     bk_timings_add(timings, "photon distribution", stats->ms_distribution,
-                   "%zu cells selected, pdf %.2f..%.2f", stats->select.selected, pdf_min, pdf_max);
+                   "%zu cells selected, pdf %.2f..%.2f", stats->select.selected, r->pdf_min,
+                   r->pdf_max);
     bk_timings_add(timings, "photon generation", stats->ms_generate,
-                   "%d light(s), in-kernel Hammersley warped by the PDF", base.lights.count);
+                   "%d light(s), in-kernel Hammersley warped by the PDF", r->base.lights.count);
     double sec = stats->ms_march > 0.0 ? stats->ms_march / 1000.0 : 1e-9;
     bk_timings_add(timings, "photon marching", stats->ms_march,
                    "%llu photons, %.0f M voxels/s%s", (unsigned long long)stats->march.photons,
-                   stats->march.voxels / sec * 1e-6, cl ? "" : ", host C");
-    if (filter_on)
+                   stats->march.voxels / sec * 1e-6, where);
+    if (r->filter_on)
       bk_timings_add(timings, "filtering", stats->ms_filter, "alpha %g, radius <= %g voxels%s",
-                     (double)scene->alpha, 0.5 * levels, cl ? "" : ", host C");
+                     (double)r->scene->alpha, 0.5 * r->levels, where);
     else
       bk_timings_add(timings, "filtering", stats->ms_filter, "off");
   }
   bk_log(2,
          "adaptive: pilot %d photons on %dx%dx%d cells, thresholds gradient %g /m, luminance %g; "
          "%zu of %zu cells selected; pdf %.3f..%.3f; %llu photons marched",
-         have_pilot ? scene->pilot : 0, cd.nx, cd.ny, cd.nz,
-         (double)stats->select.gradient_threshold, (double)stats->select.luminance_threshold,
-         stats->select.selected, stats->select.considered, pdf_min, pdf_max,
+         pilot, r->cd.nx, r->cd.ny, r->cd.nz, (double)stats->select.gradient_threshold,
+         (double)stats->select.luminance_threshold, stats->select.selected,
+         stats->select.considered, r->pdf_min, r->pdf_max,
          (unsigned long long)stats->march.photons);
+}
+
+int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
+            const ad_bake_opts_t *opt, float *radiance, float *photon_count, float *photon_weight,
+            float *filter_radius, ad_stats_t *stats, bk_timings_t *timings, bk_error_t *err) {
+  ad_run_t r;
+  ad_stats_t local;
+  ad_bake_opts_t defaults;
+  float *count = NULL, *weight = NULL;
+  if (!stats) stats = &local;
+  memset(stats, 0, sizeof *stats);
+  if (!opt) {
+    ad_bake_defaults(&defaults);
+    opt = &defaults;
+  }
+  int rc = check_bake_inputs(scene, opt, err);
+  if (rc != BK_OK) return rc;
+  r = (ad_run_t){.cl = cl, .scene = scene, .vol = vol, .opt = opt, .stats = stats,
+                 .levels = (int)(2.0f * opt->max_radius + 0.5f)};
+  rc = pm_prepare(scene, vol, &r.base, NULL, &stats->march, err);
+  if (rc != BK_OK) return rc;
+  stats->ms_octree = stats->march.ms_octree;
+  stats->ms_generate = stats->march.ms_generate;
+  const size_t V = r.base.voxels;
+  const int nl = r.base.lights.count > 0 ? r.base.lights.count : 1;
+  rc = BK_ERR_RUNTIME;
+  r.tables = bk_calloc((size_t)nl, AD_TABLE_FLOATS(AD_CELLS_X, AD_CELLS_Y) * sizeof(float),
+                       "adaptive PDF tables", err);
+  if (!r.tables) goto error;
+  if ((rc = pilot_phase(&r, err)) != BK_OK || (rc = pdf_phase(&r, err)) != BK_OK) goto error;
+  rc = BK_ERR_RUNTIME;
+  count = photon_count ? photon_count : bk_calloc(V, sizeof(float), "photon count grid", err);
+  weight = photon_weight ? photon_weight : bk_calloc(V, sizeof(float), "photon weight grid", err);
+  if (!count || !weight) goto error;
+  if ((rc = weighted_phase(&r, radiance, count, weight, err)) != BK_OK ||
+      (rc = filter_phase(&r, radiance, count, weight, filter_radius, err)) != BK_OK)
+    goto error;
+  report(&r, timings);
   rc = BK_OK;
 error:
-  free(pacc);
-  free(masks);
-  free(acc);
-  free(prgb);
-  free(pscat);
-  free(sel);
-  free(vw);
-  free(tables);
-  free(raw);
-  if (filtered != radiance) free(filtered);
+  free(r.pacc);
+  free(r.masks);
+  free(r.tables);
+  free(r.raw);
   if (count != photon_count) free(count);
   if (weight != photon_weight) free(weight);
-  pm_setup_free(&base);
+  pm_setup_free(&r.base);
   return rc;
 }
