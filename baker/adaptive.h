@@ -1,10 +1,12 @@
 /* adaptive.h: the adaptive pipeline (DESIGN.md §3 stage 6): a pilot march,
  * voxel selection and a sampling PDF per light (phase 1), a march of
  * photons drawn from that PDF with weights 1/(N pdf) (phase 2), and the
- * reconstruction filter. ad_bake runs it all; the march is baker/march.c's
- * (modes PM_MODE_PILOT and PM_MODE_WEIGHTED of kernels/march.h) on one
- * prepared setup, and the math shared with the kernels is in
- * kernels/adaptive.h (cells, origin masks, the PDF warp, the filter).
+ * reconstruction filter. The selection and PDFs are adaptive_pdf.c, the
+ * filter adaptive_filter.c, and ad_bake (adaptive.c) runs it all; the march
+ * is baker/march.c's (modes PM_MODE_PILOT and PM_MODE_WEIGHTED of
+ * kernels/march.h) on one prepared setup, and the math shared with the
+ * kernels is in kernels/adaptive.h (cells, origin masks, the PDF warp, the
+ * filter).
  *
  * What ad_bake does, per frame:
  *  1. Pilot march, uniform Hammersley points, `adaptive.pilot` photons (~4000)
