@@ -1,10 +1,12 @@
 /* adaptive.h: the adaptive pipeline (DESIGN.md §3 stage 6): a pilot march,
  * voxel selection and a sampling PDF per light (phase 1), a march of
  * photons drawn from that PDF with weights 1/(N pdf) (phase 2), and the
- * reconstruction filter. ad_bake runs it all; the march is baker/march.c's
- * (modes PM_MODE_ORIGINS and PM_MODE_TABLES of kernels/photon_march.h) on one
- * prepared setup, and the math shared with the kernels is in
- * kernels/adaptive_filter.h (cells, origin masks, the PDF warp, the filter).
+ * reconstruction filter. The selection and PDFs are adaptive_pdf.c, the
+ * filter adaptive_filter.c, and ad_bake (adaptive.c) runs it all; the march
+ * is baker/march.c's (modes PM_MODE_ORIGINS and PM_MODE_TABLES of
+ * kernels/photon_march.h) on one prepared setup, and the math shared with the
+ * kernels is in kernels/adaptive_filter.h (cells, origin masks, the PDF warp, the
+ * filter).
  *
  * What ad_bake does, per frame:
  *  1. Pilot march, uniform Hammersley points, `adaptive.pilot` photons (~4000)
@@ -18,9 +20,9 @@
  *     c = ld_cell_of(a, b) crossed the cell (ld_origin_mark).
  *  2. ad_select_voxels on the pilot cells: those whose luminance gradient
  *     exceeds a threshold (edges, caustics) or whose luminance is below one
- *     (shadows). Thresholds are explicit or automatic (ad_auto_thresholds,
- *     the rule is documented there).
- *  3. ad_build_pdf_weighted, per light: a 2D PDF over the light's 8x8 cells
+ *     (shadows). Thresholds are explicit or automatic (the rule is
+ *     documented at ad_select_voxels).
+ *  3. ad_build_pdf, per light: a 2D PDF over the light's 8x8 cells
  *     that favours the cells whose photons reached selected cells, each
  *     selected cell weighing by its pilot luminance gradient (by default,
  *     AD_IMPORTANCE_GRADIENT: an edge that is bright matters more to the
@@ -67,7 +69,7 @@
 extern "C" {
 #endif
 
-/* Automatic thresholds (ad_auto_thresholds; reasons in adaptive.c). */
+/* Automatic thresholds (ad_select_voxels; reasons in adaptive_pdf.c). */
 #define AD_AUTO_GRADIENT_PERCENTILE 0.90f /* at most the top 10% of reached voxels */
 #define AD_AUTO_GRADIENT_OUTLIER 4.0f     /* and at least 4 median gradients */
 #define AD_AUTO_SHADOW_FRACTION 0.1f      /* shadow: a decade below the median */
@@ -114,22 +116,17 @@ typedef struct ad_select_stats {
 int ad_pilot_fields(const grid_dims_t *d, const float *pilot_radiance, int smooth_radius,
                     float *lum, float *grad, bk_error_t *err);
 
-/* The automatic thresholds from the pilot's own statistics, over the
- * "reached" voxels (pilot radiance > 0) that matter (scattering[v] > 0 when
- * scattering is not NULL: radiance where nothing scatters is never seen):
+/* selected[v] = AD_SEL_GRADIENT when |∇Y| > gradient threshold, | AD_SEL_SHADOW
+ * when Y < luminance threshold (Y and |∇Y| from ad_pilot_fields), for the
+ * voxels that matter (scattering[v] > 0 when scattering is not NULL: radiance
+ * where nothing scatters is never seen); 0 elsewhere. A negative threshold in
+ * opt is automatic, from the pilot's own statistics over the "reached"
+ * voxels (pilot radiance > 0) that matter:
  *   gradient  = max(P90(|∇Y|), 4 * median(|∇Y|))
  *   luminance = 0.1 * median(Y)
- * (Y the smoothed pilot luminance). Both scale with the light, so no scene
- * needs tuning. With no reached voxel both are 0 and nothing is selected by
- * gradient. stats may be NULL. */
-int ad_auto_thresholds(const grid_dims_t *d, const float *pilot_radiance, const float *scattering,
-                       int smooth_radius, float *grad_thr, float *lum_thr,
-                       ad_select_stats_t *stats, bk_error_t *err);
-
-/* selected[v] = AD_SEL_GRADIENT when |∇Y| > gradient threshold, | AD_SEL_SHADOW
- * when Y < luminance threshold, for voxels that matter (scattering as above);
- * 0 elsewhere. Negative thresholds in opt are computed by ad_auto_thresholds.
- * stats (may be NULL) reports the thresholds used and the counts. */
+ * Both scale with the light, so no scene needs tuning. With no reached voxel
+ * both are 0 and nothing is selected by gradient. stats (may be NULL)
+ * reports the thresholds used and the counts. */
 int ad_select_voxels(const grid_dims_t *d, const float *pilot_radiance, const float *scattering,
                      const ad_select_opts_t *opt, uint8_t *selected, ad_select_stats_t *stats,
                      bk_error_t *err);
@@ -146,21 +143,15 @@ typedef struct ad_pdf {
 
 /* Builds the PDF of one light from its origin masks (`voxels` entries: the
  * light's block, origin + ld_origin_index(0, light, voxels)) and the
- * selection. Each selected voxel with mask m spreads an importance of 1 evenly
- * over the popcount(m) cells that reached it, so a voxel every cell reaches
- * favours none; then
+ * selection. Each selected voxel with mask m spreads an importance of
+ * voxel_weight[v] (voxel_weight NULL: 1) evenly over the popcount(m) cells
+ * that reached it, so a voxel every cell reaches favours none; then
  *   pdf(c) = floor + (1 - floor) * LD_CELLS * importance(c) / sum(importance)
  * a mixture with the uniform density (defensive sampling): pdf >= floor, so
  * weights stay <= 1/floor. No selected voxel with origin data: uniform.
  * floor_fraction must be in (0, 1]. */
-int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, size_t voxels,
-                 float floor_fraction, ad_pdf_t *pdf, bk_error_t *err);
-
-/* The same with a weight per voxel (NULL: 1 each) in place of the 1 each
- * selected voxel spreads. */
-int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
-                          const float *voxel_weight, size_t voxels, float floor_fraction,
-                          ad_pdf_t *pdf, bk_error_t *err);
+int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, const float *voxel_weight,
+                 size_t voxels, float floor_fraction, ad_pdf_t *pdf, bk_error_t *err);
 
 /* The general form: a table (LD_TABLE_FLOATS(nx, ny) floats) from
  * non-negative cell weights (nx * ny, row major, cell = col + nx * row), with
@@ -169,7 +160,7 @@ int ad_build_pdf_weighted(const uint64_t *origin_masks, const uint8_t *selected,
 int ad_pdf_from_weights(const double *weights, int nx, int ny, float floor_fraction,
                         float *table, float *cell_pdf, bk_error_t *err);
 
-/* Reconstruction filter on the host (threads over z slices), the reference
+/* Reconstruction filter on the host (z slices on every core), the reference
  * the OpenCL path is tested against. radiance: `channels` (1 or 3) floats
  * per voxel (1: a grey value, its own luminance); count, mean_weight: one
  * float per voxel (mean of w = 1/pdf, see above); alpha >= 0; noise_k: the
@@ -190,16 +181,6 @@ int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const fl
                  const float *count, const float *mean_weight, float alpha, float noise_k,
                  int levels, float *out_radiance, float *out_radius, bk_error_t *err);
 
-/* For a pipeline that keeps the grids on the device: enqueues the filter on
- * existing buffers (rgb, out_rgb: channels floats per voxel; count,
- * mean_weight, out_radius: float per voxel; out_radius may be NULL) and
- * waits. levels >= 1. `program` is kernels/filter.cl from clh_build with
- * -DAD_CH=channels -DAD_QMAX=levels, or NULL to build it here. */
-int ad_filter_cl_buffers(clh_context_t *cl, cl_program program, const grid_dims_t *d,
-                         int channels, cl_mem rgb, cl_mem count, cl_mem mean_weight, float alpha,
-                         float noise_k, int levels, cl_mem out_rgb, cl_mem out_radius,
-                         bk_error_t *err);
-
 /* --- the whole stage --------------------------------------------------------- */
 
 typedef struct ad_bake_opts {
@@ -212,9 +193,6 @@ typedef struct ad_bake_opts {
   int importance;       /* AD_IMPORTANCE_*: what a selected cell spreads over its origins */
 } ad_bake_opts_t;
 void ad_bake_defaults(ad_bake_opts_t *o);
-
-/* The pilot grid's coarsening: cells of 2^shift voxels a side. */
-int ad_pilot_shift(const grid_dims_t *d, int pilot_cells);
 
 typedef struct ad_stats {
   pm_stats_t pilot, march;   /* phase 1 and phase 2 photons */

@@ -2,8 +2,8 @@
  *
  * Each row names an integrator as the scene file and the command line do
  * (`photons.integrator`, `--integrator`), gives its integrator_t, and the
- * value of the kernels' INTEGRATOR flag that selects it (kernels/march.h,
- * kernels/view.h: 0 Euler, 1 RK4). A new integrator is one row here plus its
+ * value of the kernels' INTEGRATOR flag that selects it (kernels/photon_march.h,
+ * kernels/view_march.h: 0 Euler, 1 RK4). A new integrator is one row here plus its
  * step in the kernels. */
 #ifndef BAKER_INTEGRATORS_H
 #define BAKER_INTEGRATORS_H

@@ -390,7 +390,7 @@ static int test_cli(void) {
         "%s", err.msg);
   size_t n = (size_t)cnt.nx * cnt.ny * cnt.nz, counted = 0, bad = 0;
   /* w = 1/pdf with floor <= pdf <= floor + (1 - floor) * cells */
-  const float wlo = 0.999f / (AD_DEFAULT_FLOOR + (1.0f - AD_DEFAULT_FLOOR) * AD_CELLS);
+  const float wlo = 0.999f / (AD_DEFAULT_FLOOR + (1.0f - AD_DEFAULT_FLOOR) * LD_CELLS);
   const float whi = 1.001f / AD_DEFAULT_FLOOR;
   float wmin = 1e30f, wmax = 0.0f;
   for (size_t v = 0; v < n; v++) {

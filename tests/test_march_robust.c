@@ -146,7 +146,7 @@ static int test_extremes(clh_context_t *cl) {
 
   /* total internal reflection: a point light inside a ball of n = 4 (critical
    * angle 14.5°), off centre, traps most of its photons (RK4: the paper's
-   * Euler lets them leak, kernels/march.h); with a tiny step it is
+   * Euler lets them leak, kernels/photon_march.h); with a tiny step it is
    * PM_MAX_STEPS that stops them, with the default one the path cap */
   const float steps[2] = {0.5f, 0.005f};
   for (int q = 0; q < 2; q++) {

@@ -4,7 +4,7 @@
  *   srgb    the sRGB OETF at its break point and known values
  *   camera  pinhole directions: centre pixel = forward, corners at the
  *           vertical/horizontal half-angles
- *   march   kernels/view.h run on the host through a homogeneous cube equals
+ *   march   kernels/view_march.h run on the host through a homogeneous cube equals
  *           σs L̄ (1 − e^(−σt D))/σt for the analytic path length D (straight
  *           and curved code paths, grey and RGB, Euler and RK4)
  *   rays    in n² = n0² + 2 a y rays are parabolas x(t) = x0 + v0 t + ½ a ŷ t²
@@ -16,7 +16,7 @@
 
 #include "base/common.h"
 #include "base/frames.h"
-#include "kernels/view.h"
+#include "kernels/view_march.h"
 #include "png_io.h"
 #include "view.h"
 #include "test_util.h"
