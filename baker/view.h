@@ -1,4 +1,4 @@
-/* view.h: the viewing pass, `baker view IN.vdb -o OUT.exr`.
+/* view.h: the viewing pass, `baker view IN.vdb -o OUT.exr`, and its command.
  *
  * In: a baked VDB (or any VDB with the same grids and a similarity transform)
  * and a pinhole camera (flags, else the scene's camera, else one framing the
@@ -23,7 +23,14 @@
 #ifndef BAKER_VIEW_H
 #define BAKER_VIEW_H
 
+#include <stdio.h>
+
 #include "common.h"
+#include "view_camera.h"
+#include "view_fields.h"
+#include "view_image.h"
+#include "view_render.h"
+#include "view_volume.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -35,22 +42,6 @@ extern "C" {
 int view_main(int argc, char **argv);
 
 void view_usage(FILE *out);
-
-/* The refractive field the kernel reads, from n (nx*ny*nz floats, x-fastest):
- * ng holds 4 floats per voxel, ∇n per voxel length (central differences,
- * one-sided on the faces: kernels/ior.h, as the photon march) and n. */
-void view_ng_field(int nx, int ny, int nz, const float *ior, float *ng);
-
-/* The layout the kernel reads 4-float fields in: src (nx*ny*nz voxels of 4
- * floats) with one layer of replicated edge voxels around it, into dst of
- * (nx+2)*(ny+2)*(nz+2) voxels. */
-void view_pad4(int nx, int ny, int nz, const float *src, float *dst);
-
-/* Where camera rays may walk straight inside refracting bricks: per voxel,
- * the Chebyshev distance in voxels (capped at VIEW_FLAT_MAX) to the nearest
- * voxel whose ∇n (from view_ng_field) is not zero. scratch: nx*ny*nz bytes. */
-void view_flat_field(int nx, int ny, int nz, const float *ng, unsigned char *flat,
-                     unsigned char *scratch);
 
 #ifdef __cplusplus
 }
