@@ -218,7 +218,9 @@ static int load_select(view_load_t *L, bk_error_t *err) {
     if (!ok)
       return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected %s", path,
                      L->gname[g], t,
-                     g == G_RAD ? "Vec3f (vec3s) radiance" : g == G_IOR ? "float" : "float or Vec3f");
+                     g == G_RAD   ? "Vec3f (vec3s) radiance"
+                     : g == G_IOR ? "float"
+                                  : "float or Vec3f");
     L->present[g] = 1;
   }
   return BK_OK;
