@@ -1,10 +1,11 @@
-/* bake.c: the `baker bake` command and the per-frame pipeline. */
+/* bake.c: the per-frame bake pipeline and the batch of frames `baker bake`
+ * runs (the command's parsing is bake_cmd.c). A frame is four stages:
+ * load the scene and voxelize it, trace photons (reference march or
+ * adaptive), derive the output grids, write the VDB. */
 #define _POSIX_C_SOURCE 200809L
 #include "bake.h"
 
-#include <errno.h>
 #include <inttypes.h>
-#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -17,63 +18,28 @@
 #include "march.h"
 #include "voxelize.h"
 
+/* One frame's state, from the scene to the grids written. */
+typedef struct bake_job {
+  scene_t scene;
+  int scene_loaded;
+  volume_t vol;
+  bk_timings_t timings;
+  clh_context_t cl;
+  pm_stats_t stats;
+  ad_stats_t astats;
+  float *extinction, *density, *ext_grey, *sca_grey;
+  float *radiance, *photon_count, *photon_weight, *filter_radius;
+} bake_job_t;
+
 static int expand_scene_paths(scene_t *s, int frame, bk_error_t *err);
 
-static void bake_usage(FILE *out) {
-  fprintf(out,
-          "usage: baker bake SCENE.json -o OUT.vdb [options]\n"
-          "\n"
-          "Voxelizes the scene's meshes into index-of-refraction and medium grids, traces\n"
-          "photons along curved paths on OpenCL and writes the grids radiance, ior,\n"
-          "extinction, scattering and density to OUT.vdb (DESIGN.md §5).\n"
-          "\n"
-          "options:\n"
-          "  -o, --output PATH        output .vdb (required); may hold a frame pattern\n"
-          "  --frames A[-B[xS]]       bake frames A..B step S; `####` (4 digits) or `$F4`\n"
-          "                           in SCENE and PATH become the frame number. Frames\n"
-          "                           whose output exists are skipped (restartable); one\n"
-          "                           frame per task: --frames $SLURM_ARRAY_TASK_ID\n"
-          "  --force                  re-bake frames whose output already exists\n"
-          "  --mode reference|adaptive   photon pipeline (scene photons.mode)\n"
-          "  --photons N              photon count (scene photons.count)\n"
-          "  --no-filter              adaptive: skip the reconstruction filter (the raw,\n"
-          "                           unbiased estimate)\n"
-          "  --write-filter-radius    adaptive: also write the filter_radius grid (debug)\n"
-          "  --integrator euler|rk4   ray-equation integrator (scene photons.integrator)\n"
-          "  --step VOXELS            march step in refractive regions (scene photons.step)\n"
-          "  --seed N                 sampling seed (scene photons.seed)\n"
-          "  --resolution N           voxels along the longest side (scene grid.resolution)\n"
-          "  --compression zip|blosc|none   VDB compression (default blosc: about half\n"
-          "                           the write time of zip and smaller here; Houdini's\n"
-          "                           and Blender's OpenVDB read both)\n"
-          "  --half                   store float grids as 16-bit half\n"
-          "  --device SPEC            OpenCL device: `P:D` indices or a name substring;\n"
-          "                           default PoCL (CPU). `baker devices` lists them\n"
-          "  --host                   march on the host in plain C instead of OpenCL\n"
-          "  --progress               show progress even when stderr is not a terminal\n"
-          "  -q, --quiet              errors only (no timing table)\n"
-          "  -v, --verbose            more detail (OpenCL build logs, cache use)\n"
-          "  -h, --help               this text\n"
-          "\n"
-          "Exit status: 0 success, 2 bad input or usage, 1 runtime failure.\n");
-}
-
-/* Parses a whole-string number; 0 on junk. */
-static int parse_ll(const char *s, long long *out) {
-  char *end;
-  errno = 0;
-  long long v = strtoll(s, &end, 10);
-  if (errno || end == s || *end) return 0;
-  *out = v;
-  return 1;
-}
-static int parse_float(const char *s, float *out) {
-  char *end;
-  errno = 0;
-  float v = strtof(s, &end);
-  if (errno || end == s || *end) return 0;
-  *out = v;
-  return 1;
+void bake_options_defaults(bake_options_t *opt) {
+  memset(opt, 0, sizeof *opt);
+  opt->mode = opt->integrator = -1;
+  opt->photons = opt->seed = -1;
+  opt->step = -1.0f;
+  opt->resolution = -1;
+  opt->write.compression = VDBIO_COMPRESS_BLOSC;
 }
 
 static void apply_overrides(const bake_options_t *opt, scene_t *s) {
@@ -125,161 +91,182 @@ static float *first_channel(const float *rgb, size_t n, bk_error_t *err) {
   return out;
 }
 
-int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
-               bk_error_t *err) {
-  scene_t scene;
-  volume_t vol;
-  bk_timings_t timings;
-  clh_context_t cl;
-  pm_stats_t stats;
-  float *extinction = NULL, *density = NULL, *ext_grey = NULL, *sca_grey = NULL;
-  float *radiance = NULL, *photon_count = NULL, *photon_weight = NULL, *filter_radius = NULL;
-  ad_stats_t astats;
-  memset(&astats, 0, sizeof astats);
-  memset(&vol, 0, sizeof vol);
-  memset(&cl, 0, sizeof cl);
-  memset(&stats, 0, sizeof stats);
-  memset(&timings, 0, sizeof timings);
-  int rc = bk_check_output_dir(out_path, err);
-  if (rc) return rc;
-
+/* Stage 1: the scene (with the command's overrides and the frame's paths)
+ * and its voxels. */
+static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene_path, int frame,
+                     bk_error_t *err) {
   double t0 = bk_now_ms();
-  rc = scene_load(scene_path, &scene, err);
+  int rc = scene_load(scene_path, &j->scene, err);
   if (rc) return rc;
-  apply_overrides(opt, &scene);
-  if ((rc = expand_scene_paths(&scene, frame, err))) goto done;
-  bk_timings_add(&timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
-                 scene.object_count, scene.light_count);
+  j->scene_loaded = 1;
+  apply_overrides(opt, &j->scene);
+  if ((rc = expand_scene_paths(&j->scene, frame, err))) return rc;
+  bk_timings_add(&j->timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
+                 j->scene.object_count, j->scene.light_count);
+  return vox_build(&j->scene, &j->vol, &j->timings, err);
+}
 
-  rc = vox_build(&scene, &vol, &timings, err);
-  if (rc) goto done;
-  size_t n = grid_count(&vol.dims);
+static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *err) {
+  size_t n = grid_count(&j->vol.dims);
+  ad_bake_opts_t ao;
+  ad_bake_defaults(&ao);
+  ao.filter = !opt->no_filter;
+  j->photon_count = bk_calloc(n, sizeof(float), "photon_count grid", err);
+  j->photon_weight = bk_calloc(n, sizeof(float), "photon_weight grid", err);
+  if (opt->write_filter_radius)
+    j->filter_radius = bk_calloc(n, sizeof(float), "filter_radius grid", err);
+  if (!j->photon_count || !j->photon_weight || (opt->write_filter_radius && !j->filter_radius))
+    return err->code;
+  int rc = ad_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, &ao, j->radiance,
+                   j->photon_count, j->photon_weight, j->filter_radius, &j->astats, &j->timings,
+                   err);
+  j->stats = j->astats.march;
+  return rc;
+}
 
-  /* photons: a scene without lights still gets an (empty) radiance grid */
-  radiance = bk_calloc(n * 3, sizeof(float), "radiance grid", err);
-  if (!radiance) {
-    rc = err->code;
-    goto done;
+/* Stage 2: the radiance grid, by the reference march or the adaptive
+ * pipeline; a scene without lights still gets an (empty) radiance grid. */
+static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *err) {
+  size_t n = grid_count(&j->vol.dims);
+  j->radiance = bk_calloc(n * 3, sizeof(float), "radiance grid", err);
+  if (!j->radiance) return err->code;
+  if (j->scene.light_count == 0) return BK_OK;
+  if (!opt->host_only) {
+    double t0 = bk_now_ms();
+    int rc = clh_init(&j->cl, opt->device, err);
+    if (rc) return rc;
+    bk_timings_add(&j->timings, "OpenCL init", bk_now_ms() - t0, "%s", j->cl.device_name);
   }
-  if (scene.light_count > 0) {
-    if (!opt->host_only) {
-      t0 = bk_now_ms();
-      rc = clh_init(&cl, opt->device, err);
-      if (rc) goto done;
-      bk_timings_add(&timings, "OpenCL init", bk_now_ms() - t0, "%s", cl.device_name);
-    }
-    if (scene.mode == MODE_ADAPTIVE) {
-      ad_bake_opts_t ao;
-      ad_bake_defaults(&ao);
-      ao.filter = !opt->no_filter;
-      photon_count = bk_calloc(n, sizeof(float), "photon_count grid", err);
-      photon_weight = bk_calloc(n, sizeof(float), "photon_weight grid", err);
-      if (opt->write_filter_radius)
-        filter_radius = bk_calloc(n, sizeof(float), "filter_radius grid", err);
-      if (!photon_count || !photon_weight || (opt->write_filter_radius && !filter_radius)) {
-        rc = err->code;
-        goto done;
-      }
-      rc = ad_bake(opt->host_only ? NULL : &cl, &scene, &vol, &ao, radiance, photon_count,
-                   photon_weight, filter_radius, &astats, &timings, err);
-      stats = astats.march;
-    } else {
-      rc = pm_bake(opt->host_only ? NULL : &cl, &scene, &vol, radiance, &stats, &timings, err);
-    }
-    if (rc) goto done;
-  }
+  if (j->scene.mode == MODE_ADAPTIVE) return bake_adaptive(j, opt, err);
+  return pm_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, j->radiance, &j->stats,
+                 &j->timings, err);
+}
 
-  t0 = bk_now_ms();
-  rc = derive_medium_grids(&vol, &extinction, &density, err);
-  if (rc) goto done;
-  vdbio_grid_t grids[11];
+#define BAKE_MAX_GRIDS 11
+
+/* Stage 3: the grids of DESIGN.md §5 in file order; *count of them. */
+static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], int *count,
+                             bk_error_t *err) {
+  const volume_t *vol = &j->vol;
+  size_t n = grid_count(&vol->dims);
+  int rc = derive_medium_grids(vol, &j->extinction, &j->density, err);
+  if (rc) return rc;
   int g = 0;
-  grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, vol.ior, 0};
-  if (vol.grey) {
-    ext_grey = first_channel(extinction, n, err);
-    sca_grey = first_channel(vol.sigma_s, n, err);
-    if (!ext_grey || !sca_grey) {
-      rc = err->code;
-      goto done;
-    }
-    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_FLOAT, ext_grey, 0};
-    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_FLOAT, sca_grey, 0};
+  grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, vol->ior, 0};
+  if (vol->grey) {
+    j->ext_grey = first_channel(j->extinction, n, err);
+    j->sca_grey = first_channel(vol->sigma_s, n, err);
+    if (!j->ext_grey || !j->sca_grey) return err->code;
+    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_FLOAT, j->ext_grey, 0};
+    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_FLOAT, j->sca_grey, 0};
   } else {
-    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, extinction, 1};
-    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_VEC3, vol.sigma_s, 1};
+    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, j->extinction, 1};
+    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_VEC3, vol->sigma_s, 1};
   }
-  grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, density, 0};
-  grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, radiance, 1};
-  if (photon_count) grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, photon_count, 0};
-  if (photon_weight) grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, photon_weight, 0};
-  if (filter_radius) grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, filter_radius, 0};
+  grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, j->density, 0};
+  grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, j->radiance, 1};
+  if (j->photon_count)
+    grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, j->photon_count, 0};
+  if (j->photon_weight)
+    grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, j->photon_weight, 0};
+  if (j->filter_radius)
+    grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, j->filter_radius, 0};
+  *count = g;
+  return BK_OK;
+}
 
+/* Stage 4: the grids and the metadata that says how they were made. */
+static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char *scene_path,
+                      const char *out_path, int frame, const vdbio_grid_t *grids, int count,
+                      bk_error_t *err) {
+  const scene_t *s = &j->scene;
+  const pm_stats_t *st = &j->stats;
+  const ad_stats_t *as = &j->astats;
   char hash[32], bounds[160];
-  snprintf(hash, sizeof hash, "%016" PRIx64, scene.hash);
-  snprintf(bounds, sizeof bounds, "[[%g,%g,%g],[%g,%g,%g]]", scene.bounds_min[0],
-           scene.bounds_min[1], scene.bounds_min[2], scene.bounds_max[0], scene.bounds_max[1],
-           scene.bounds_max[2]);
+  snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
+  snprintf(bounds, sizeof bounds, "[[%g,%g,%g],[%g,%g,%g]]", s->bounds_min[0], s->bounds_min[1],
+           s->bounds_min[2], s->bounds_max[0], s->bounds_max[1], s->bounds_max[2]);
   vdbio_meta_t meta[] = {
-      {"mode", VDBIO_META_STRING, scene_mode_name(scene.mode), 0, 0},
+      {"mode", VDBIO_META_STRING, scene_mode_name(s->mode), 0, 0},
       {"scene_file", VDBIO_META_STRING, scene_path, 0, 0},
       {"scene_hash", VDBIO_META_STRING, hash, 0, 0},
       {"frame", VDBIO_META_INT, NULL, frame, 0},
       {"grid_bounds", VDBIO_META_STRING, bounds, 0, 0},
-      {"grid_resolution", VDBIO_META_INT, NULL, scene.resolution, 0},
-      {"ior_smoothing_voxels", VDBIO_META_FLOAT, NULL, 0, scene.ior_smoothing},
-      {"photon_count", VDBIO_META_INT, NULL, (long long)stats.photons, 0},
-      {"photon_integrator", VDBIO_META_STRING, scene_integrator_name(scene.integrator), 0, 0},
-      {"photon_step_voxels", VDBIO_META_FLOAT, NULL, 0, scene.step},
-      {"photon_seed", VDBIO_META_INT, NULL, scene.seed, 0},
-      {"photons_missed_grid", VDBIO_META_INT, NULL, (long long)stats.missed_grid, 0},
-      {"photons_left_grid", VDBIO_META_INT, NULL, (long long)stats.left_grid, 0},
-      {"photons_absorbed", VDBIO_META_INT, NULL, (long long)stats.absorbed, 0},
-      {"photons_step_limit", VDBIO_META_INT, NULL, (long long)stats.step_limit, 0},
-      {"photon_steps", VDBIO_META_INT, NULL, (long long)stats.steps, 0},
-      {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : cl.device_name, 0, 0},
+      {"grid_resolution", VDBIO_META_INT, NULL, s->resolution, 0},
+      {"ior_smoothing_voxels", VDBIO_META_FLOAT, NULL, 0, s->ior_smoothing},
+      {"photon_count", VDBIO_META_INT, NULL, (long long)st->photons, 0},
+      {"photon_integrator", VDBIO_META_STRING, scene_integrator_name(s->integrator), 0, 0},
+      {"photon_step_voxels", VDBIO_META_FLOAT, NULL, 0, s->step},
+      {"photon_seed", VDBIO_META_INT, NULL, s->seed, 0},
+      {"photons_missed_grid", VDBIO_META_INT, NULL, (long long)st->missed_grid, 0},
+      {"photons_left_grid", VDBIO_META_INT, NULL, (long long)st->left_grid, 0},
+      {"photons_absorbed", VDBIO_META_INT, NULL, (long long)st->absorbed, 0},
+      {"photons_step_limit", VDBIO_META_INT, NULL, (long long)st->step_limit, 0},
+      {"photon_steps", VDBIO_META_INT, NULL, (long long)st->steps, 0},
+      {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : j->cl.device_name, 0, 0},
       /* adaptive only (the count below leaves them out otherwise) */
-      {"adaptive_pilot_photons", VDBIO_META_INT, NULL, (long long)astats.pilot.photons, 0},
-      {"adaptive_gradient_threshold", VDBIO_META_FLOAT, NULL, 0,
-       astats.select.gradient_threshold},
+      {"adaptive_pilot_photons", VDBIO_META_INT, NULL, (long long)as->pilot.photons, 0},
+      {"adaptive_gradient_threshold", VDBIO_META_FLOAT, NULL, 0, as->select.gradient_threshold},
       {"adaptive_gradient_threshold_rule", VDBIO_META_STRING,
-       scene.gradient_threshold < 0.0f ? "auto" : "given", 0, 0},
+       s->gradient_threshold < 0.0f ? "auto" : "given", 0, 0},
       {"adaptive_luminance_threshold", VDBIO_META_FLOAT, NULL, 0,
-       astats.select.luminance_threshold},
+       as->select.luminance_threshold},
       {"adaptive_luminance_threshold_rule", VDBIO_META_STRING,
-       scene.luminance_threshold < 0.0f ? "auto" : "given", 0, 0},
-      {"adaptive_alpha", VDBIO_META_FLOAT, NULL, 0, scene.alpha},
-      {"adaptive_filter", VDBIO_META_STRING, astats.filtered ? "on" : "off", 0, 0},
+       s->luminance_threshold < 0.0f ? "auto" : "given", 0, 0},
+      {"adaptive_alpha", VDBIO_META_FLOAT, NULL, 0, s->alpha},
+      {"adaptive_filter", VDBIO_META_STRING, as->filtered ? "on" : "off", 0, 0},
   };
   int meta_count = (int)(sizeof meta / sizeof meta[0]);
-  if (scene.mode != MODE_ADAPTIVE) meta_count -= 7;
-  rc = vdbio_write(out_path, &vol.dims, grids, g, meta, meta_count, &opt->write, err);
-  if (rc) goto done;
-  bk_timings_add(&timings, "write", bk_now_ms() - t0, "%s", out_path);
+  if (s->mode != MODE_ADAPTIVE) meta_count -= 7;
+  return vdbio_write(out_path, &j->vol.dims, grids, count, meta, meta_count, &opt->write, err);
+}
 
-  if (bk_verbosity >= 1) {
-    printf("baked %s -> %s (%dx%dx%d voxels of %g m)\n", scene_path, out_path, vol.dims.nx,
-           vol.dims.ny, vol.dims.nz, vol.dims.voxel_size);
-    if (stats.photons)
-      printf("photons: %llu traced, %llu missed the grid, %llu left it, %llu absorbed, "
-             "%llu stopped at the step limit\n",
-             (unsigned long long)stats.photons, (unsigned long long)stats.missed_grid,
-             (unsigned long long)stats.left_grid, (unsigned long long)stats.absorbed,
-             (unsigned long long)stats.step_limit);
-    bk_timings_print(&timings, stdout);
-    fflush(stdout);
+static void bake_report(const bake_job_t *j, const char *scene_path, const char *out_path) {
+  const volume_t *vol = &j->vol;
+  const pm_stats_t *st = &j->stats;
+  printf("baked %s -> %s (%dx%dx%d voxels of %g m)\n", scene_path, out_path, vol->dims.nx,
+         vol->dims.ny, vol->dims.nz, vol->dims.voxel_size);
+  if (st->photons)
+    printf("photons: %llu traced, %llu missed the grid, %llu left it, %llu absorbed, "
+           "%llu stopped at the step limit\n",
+           (unsigned long long)st->photons, (unsigned long long)st->missed_grid,
+           (unsigned long long)st->left_grid, (unsigned long long)st->absorbed,
+           (unsigned long long)st->step_limit);
+  bk_timings_print(&j->timings, stdout);
+  fflush(stdout);
+}
+
+static void bake_job_free(bake_job_t *j) {
+  free(j->extinction);
+  free(j->density);
+  free(j->ext_grey);
+  free(j->sca_grey);
+  free(j->radiance);
+  free(j->photon_count);
+  free(j->photon_weight);
+  free(j->filter_radius);
+  clh_release(&j->cl);
+  vox_free(&j->vol);
+  if (j->scene_loaded) scene_free(&j->scene);
+}
+
+int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
+               bk_error_t *err) {
+  bake_job_t job, *j = &job;
+  memset(j, 0, sizeof *j);
+  vdbio_grid_t grids[BAKE_MAX_GRIDS];
+  int count = 0;
+  int rc = bk_check_output_dir(out_path, err);
+  if (!rc) rc = bake_load(j, opt, scene_path, frame, err);
+  if (!rc) rc = bake_photons(j, opt, err);
+  double t0 = bk_now_ms();
+  if (!rc) rc = bake_output_grids(j, grids, &count, err);
+  if (!rc) rc = bake_write(j, opt, scene_path, out_path, frame, grids, count, err);
+  if (!rc) {
+    bk_timings_add(&j->timings, "write", bk_now_ms() - t0, "%s", out_path);
+    if (bk_verbosity >= 1) bake_report(j, scene_path, out_path);
   }
-done:
-  free(extinction);
-  free(density);
-  free(ext_grey);
-  free(sca_grey);
-  free(radiance);
-  free(photon_count);
-  free(photon_weight);
-  free(filter_radius);
-  clh_release(&cl);
-  vox_free(&vol);
-  scene_free(&scene);
+  bake_job_free(j);
   return rc;
 }
 
@@ -324,7 +311,7 @@ static int choose_frames(const bake_options_t *opt, frames_range_t *range, bk_er
   return BK_OK;
 }
 
-static int run_frames(const bake_options_t *opt, bk_error_t *err) {
+int bake_run(const bake_options_t *opt, bk_error_t *err) {
   frames_range_t range;
   int rc = choose_frames(opt, &range, err);
   if (rc) return rc;
@@ -344,7 +331,9 @@ static int run_frames(const bake_options_t *opt, bk_error_t *err) {
     if ((rc = bake_frame(opt, scene_path, out_path, frame, err))) {
       if (count > 1) {
         char msg[sizeof err->msg];
-        snprintf(msg, sizeof msg, "frame %d: %s", frame, err->msg);
+        /* a long message loses its tail, as bk_fail's do (the test keeps
+         * gcc's -Wformat-truncation quiet about it) */
+        if (snprintf(msg, sizeof msg, "frame %d: %s", frame, err->msg) < 0) msg[0] = 0;
         snprintf(err->msg, sizeof err->msg, "%s", msg);
       }
       return rc;
@@ -353,108 +342,4 @@ static int run_frames(const bake_options_t *opt, bk_error_t *err) {
   }
   if (count > 1) bk_log(1, "%d frames baked, %d skipped as already complete", baked, skipped);
   return BK_OK;
-}
-
-int bake_main(int argc, char **argv) {
-  bake_options_t opt;
-  memset(&opt, 0, sizeof opt);
-  opt.mode = opt.integrator = -1;
-  opt.photons = opt.seed = -1;
-  opt.step = -1.0f;
-  opt.resolution = -1;
-  opt.write.compression = VDBIO_COMPRESS_BLOSC;
-
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    const char *val = (i + 1 < argc) ? argv[i + 1] : NULL;
-#define NEED_VALUE()                                                            \
-  do {                                                                          \
-    if (!val) {                                                                 \
-      fprintf(stderr, "baker bake: %s needs a value (see baker bake --help)\n", a); \
-      return BK_ERR_INPUT;                                                      \
-    }                                                                           \
-    i++;                                                                        \
-  } while (0)
-#define BAD_VALUE(what)                                                              \
-  do {                                                                               \
-    fprintf(stderr, "baker bake: %s: expected %s, got '%s'\n", a, what, val);        \
-    return BK_ERR_INPUT;                                                             \
-  } while (0)
-    long long ll;
-    if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
-      bake_usage(stdout);
-      return BK_OK;
-    } else if (!strcmp(a, "-o") || !strcmp(a, "--output")) {
-      NEED_VALUE();
-      opt.out_path = val;
-    } else if (!strcmp(a, "--frames")) {
-      NEED_VALUE();
-      opt.frames = val;
-    } else if (!strcmp(a, "--force")) {
-      opt.force = 1;
-    } else if (!strcmp(a, "--mode")) {
-      NEED_VALUE();
-      if (!strcmp(val, "reference")) opt.mode = MODE_REFERENCE;
-      else if (!strcmp(val, "adaptive")) opt.mode = MODE_ADAPTIVE;
-      else BAD_VALUE("reference or adaptive");
-    } else if (!strcmp(a, "--photons")) {
-      NEED_VALUE();
-      if (!parse_ll(val, &ll) || ll < 1) BAD_VALUE("a positive photon count");
-      opt.photons = ll;
-    } else if (!strcmp(a, "--integrator")) {
-      NEED_VALUE();
-      if (!strcmp(val, "euler")) opt.integrator = INTEGRATOR_EULER;
-      else if (!strcmp(val, "rk4")) opt.integrator = INTEGRATOR_RK4;
-      else BAD_VALUE("euler or rk4");
-    } else if (!strcmp(a, "--step")) {
-      NEED_VALUE();
-      if (!parse_float(val, &opt.step) || !(opt.step > 0.0f)) BAD_VALUE("a positive step in voxels");
-    } else if (!strcmp(a, "--seed")) {
-      NEED_VALUE();
-      if (!parse_ll(val, &ll) || ll < 0 || ll > UINT_MAX) BAD_VALUE("a seed in 0..4294967295");
-      opt.seed = ll;
-    } else if (!strcmp(a, "--resolution")) {
-      NEED_VALUE();
-      if (!parse_ll(val, &ll) || ll < 1 || ll > INT_MAX) BAD_VALUE("a positive voxel count");
-      opt.resolution = (int)ll;
-    } else if (!strcmp(a, "--compression")) {
-      NEED_VALUE();
-      if (!strcmp(val, "zip")) opt.write.compression = VDBIO_COMPRESS_ZIP;
-      else if (!strcmp(val, "blosc")) opt.write.compression = VDBIO_COMPRESS_BLOSC;
-      else if (!strcmp(val, "none")) opt.write.compression = VDBIO_COMPRESS_NONE;
-      else BAD_VALUE("zip, blosc or none");
-    } else if (!strcmp(a, "--no-filter")) {
-      opt.no_filter = 1;
-    } else if (!strcmp(a, "--write-filter-radius")) {
-      opt.write_filter_radius = 1;
-    } else if (!strcmp(a, "--half")) {
-      opt.write.half_float = 1;
-    } else if (!strcmp(a, "--device")) {
-      NEED_VALUE();
-      opt.device = val;
-    } else if (!strcmp(a, "--host")) {
-      opt.host_only = 1;
-    } else if (bk_common_option(a)) {
-    } else if (a[0] == '-' && a[1]) {
-      fprintf(stderr, "baker bake: unknown option '%s' (see baker bake --help)\n", a);
-      return BK_ERR_INPUT;
-    } else if (!opt.scene_path) {
-      opt.scene_path = a;
-    } else {
-      fprintf(stderr, "baker bake: unexpected argument '%s' (one scene per command)\n", a);
-      return BK_ERR_INPUT;
-    }
-#undef NEED_VALUE
-#undef BAD_VALUE
-  }
-  if (!opt.scene_path || !opt.out_path) {
-    fprintf(stderr, "baker bake: %s\n\n", !opt.scene_path ? "no scene file given" : "no output given (-o OUT.vdb)");
-    bake_usage(stderr);
-    return BK_ERR_INPUT;
-  }
-
-  bk_error_t err = {0, ""};
-  int rc = run_frames(&opt, &err);
-  if (rc) fprintf(stderr, "baker bake: %s\n", err.msg);
-  return rc;
 }

@@ -1,4 +1,5 @@
-/* bake.h: the `baker bake` command: scene -> voxelize -> photons -> .vdb.
+/* bake.h: the bake pipeline, scene -> voxelize -> photons -> .vdb, and the
+ * `baker bake` command over it.
  *
  * In: a scene file (optionally a frame pattern), command-line overrides.
  * Out: one .vdb per frame with the grids of DESIGN.md §5, written under a
@@ -30,7 +31,17 @@ typedef struct bake_options {
   int write_filter_radius;  /* adaptive: also write the filter_radius grid (debug) */
 } bake_options_t;
 
+/* The command (bake_cmd.c): argv[0] is "bake", as main() passes argv + 1.
+ * Returns the exit status: 0 ok, 2 bad input or usage, 1 runtime failure;
+ * prints its own messages. */
 int bake_main(int argc, char **argv);
+
+/* No overrides, one frame, blosc compression. */
+void bake_options_defaults(bake_options_t *opt);
+/* Bakes the frames opt asks for (--frames, else $SLURM_ARRAY_TASK_ID for a
+ * patterned output, else frame 0), skipping complete outputs unless
+ * opt->force. */
+int bake_run(const bake_options_t *opt, bk_error_t *err);
 /* Bakes one frame; `frame` is recorded in the metadata. */
 int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
                bk_error_t *err);

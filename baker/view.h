@@ -1,4 +1,4 @@
-/* view.h: the viewing pass, `baker view IN.vdb -o OUT.exr`.
+/* view.h: the viewing pass, `baker view IN.vdb -o OUT.exr`, and its command.
  *
  * In: a baked VDB (or any VDB with the same grids and a similarity transform)
  * and a pinhole camera (flags, else the scene's camera, else one framing the
@@ -23,7 +23,14 @@
 #ifndef BAKER_VIEW_H
 #define BAKER_VIEW_H
 
+#include <stdio.h>
+
 #include "common.h"
+#include "view_camera.h"
+#include "view_fields.h"
+#include "view_image.h"
+#include "view_render.h"
+#include "view_volume.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -11,3 +11,16 @@ endforeach()
 add_test(NAME cli_bake_frames
          COMMAND bash ${BAKER_TEST_DIR}/bake_frames.sh $<TARGET_FILE:baker>
                  ${CMAKE_BINARY_DIR}/cli_frames ${CMAKE_SOURCE_DIR}/scenes)
+
+# getopt_long: `--opt=value` as well as `--opt value`, and --version on each
+# subcommand (exit 0).
+add_test(NAME cli_bake_equals_form
+         COMMAND $<TARGET_FILE:baker> bake ${CMAKE_SOURCE_DIR}/scenes/cube.json --photons=1000
+                 --resolution=16 --output=${CMAKE_BINARY_DIR}/cli_equals.vdb --force -q)
+set_tests_properties(cli_bake_equals_form PROPERTIES FIXTURES_SETUP cli_equals)
+add_test(NAME cli_view_equals_form
+         COMMAND $<TARGET_FILE:baker> view ${CMAKE_BINARY_DIR}/cli_equals.vdb --resolution=8x6
+                 --output=${CMAKE_BINARY_DIR}/cli_equals.exr -q)
+set_tests_properties(cli_view_equals_form PROPERTIES FIXTURES_REQUIRED cli_equals)
+add_test(NAME cli_bake_version COMMAND $<TARGET_FILE:baker> bake --version)
+add_test(NAME cli_view_version COMMAND $<TARGET_FILE:baker> view --version)

@@ -1,0 +1,187 @@
+/* bake_cmd.c: the `baker bake` command: parses the options (getopt_long, so
+ * `--photons=N` and `--photons N` alike) and hands them to the pipeline
+ * (bake_run in bake.c). */
+#include <errno.h>
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bake.h"
+#include "cmdline.h"
+#include "common.h"
+
+static void bake_usage(FILE *out) {
+  fprintf(out,
+          "usage: baker bake SCENE.json -o OUT.vdb [options]\n"
+          "\n"
+          "Voxelizes the scene's meshes into index-of-refraction and medium grids, traces\n"
+          "photons along curved paths on OpenCL and writes the grids radiance, ior,\n"
+          "extinction, scattering and density to OUT.vdb (DESIGN.md §5).\n"
+          "\n"
+          "options:\n"
+          "  -o, --output PATH        output .vdb (required); may hold a frame pattern\n"
+          "  --frames A[-B[xS]]       bake frames A..B step S; `####` (4 digits) or `$F4`\n"
+          "                           in SCENE and PATH become the frame number. Frames\n"
+          "                           whose output exists are skipped (restartable); one\n"
+          "                           frame per task: --frames $SLURM_ARRAY_TASK_ID\n"
+          "  --force                  re-bake frames whose output already exists\n"
+          "  --mode reference|adaptive   photon pipeline (scene photons.mode)\n"
+          "  --photons N              photon count (scene photons.count)\n"
+          "  --no-filter              adaptive: skip the reconstruction filter (the raw,\n"
+          "                           unbiased estimate)\n"
+          "  --write-filter-radius    adaptive: also write the filter_radius grid (debug)\n"
+          "  --integrator euler|rk4   ray-equation integrator (scene photons.integrator)\n"
+          "  --step VOXELS            march step in refractive regions (scene photons.step)\n"
+          "  --seed N                 sampling seed (scene photons.seed)\n"
+          "  --resolution N           voxels along the longest side (scene grid.resolution)\n"
+          "  --compression zip|blosc|none   VDB compression (default blosc: about half\n"
+          "                           the write time of zip and smaller here; Houdini's\n"
+          "                           and Blender's OpenVDB read both)\n"
+          "  --half                   store float grids as 16-bit half\n"
+          "  --device SPEC            OpenCL device: `P:D` indices or a name substring;\n"
+          "                           default PoCL (CPU). `baker devices` lists them\n"
+          "  --host                   march on the host in plain C instead of OpenCL\n"
+          "  --progress               show progress even when stderr is not a terminal\n"
+          "  -q, --quiet              errors only (no timing table)\n"
+          "  -v, --verbose            more detail (OpenCL build logs, cache use)\n"
+          "  -h, --help               this text\n"
+          "\n"
+          "Exit status: 0 success, 2 bad input or usage, 1 runtime failure.\n");
+}
+
+/* Parses a whole-string number; 0 on junk. */
+static int parse_ll(const char *s, long long *out) {
+  char *end;
+  errno = 0;
+  long long v = strtoll(s, &end, 10);
+  if (errno || end == s || *end) return 0;
+  *out = v;
+  return 1;
+}
+static int parse_float(const char *s, float *out) {
+  char *end;
+  errno = 0;
+  float v = strtof(s, &end);
+  if (errno || end == s || *end) return 0;
+  *out = v;
+  return 1;
+}
+
+/* values of the long-only options */
+enum {
+  OPT_FRAMES = CMD_FIRST_OWN, OPT_FORCE, OPT_MODE, OPT_PHOTONS, OPT_INTEGRATOR, OPT_STEP,
+  OPT_SEED, OPT_RESOLUTION, OPT_COMPRESSION, OPT_NO_FILTER, OPT_WRITE_FILTER_RADIUS, OPT_HALF,
+  OPT_DEVICE, OPT_HOST
+};
+
+static const struct option bake_longopts[] = {
+    {"output", required_argument, NULL, 'o'},
+    {"frames", required_argument, NULL, OPT_FRAMES},
+    {"force", no_argument, NULL, OPT_FORCE},
+    {"mode", required_argument, NULL, OPT_MODE},
+    {"photons", required_argument, NULL, OPT_PHOTONS},
+    {"integrator", required_argument, NULL, OPT_INTEGRATOR},
+    {"step", required_argument, NULL, OPT_STEP},
+    {"seed", required_argument, NULL, OPT_SEED},
+    {"resolution", required_argument, NULL, OPT_RESOLUTION},
+    {"compression", required_argument, NULL, OPT_COMPRESSION},
+    {"no-filter", no_argument, NULL, OPT_NO_FILTER},
+    {"write-filter-radius", no_argument, NULL, OPT_WRITE_FILTER_RADIUS},
+    {"half", no_argument, NULL, OPT_HALF},
+    {"device", required_argument, NULL, OPT_DEVICE},
+    {"host", no_argument, NULL, OPT_HOST},
+    CMD_COMMON_LONGOPTS,
+    {NULL, 0, NULL, 0}};
+
+/* Applies option c with value val; BK_OK or BK_ERR_INPUT with the message in err. */
+static int bake_option(bake_options_t *opt, int c, const char *name, const char *val,
+                       bk_error_t *err) {
+  long long ll;
+  const char *want = NULL;
+  switch (c) {
+  case 'o': opt->out_path = val; break;
+  case OPT_FRAMES: opt->frames = val; break;
+  case OPT_FORCE: opt->force = 1; break;
+  case OPT_MODE:
+    if (!strcmp(val, "reference")) opt->mode = MODE_REFERENCE;
+    else if (!strcmp(val, "adaptive")) opt->mode = MODE_ADAPTIVE;
+    else want = "reference or adaptive";
+    break;
+  case OPT_PHOTONS:
+    if (!parse_ll(val, &ll) || ll < 1) want = "a positive photon count";
+    else opt->photons = ll;
+    break;
+  case OPT_INTEGRATOR:
+    if (!strcmp(val, "euler")) opt->integrator = INTEGRATOR_EULER;
+    else if (!strcmp(val, "rk4")) opt->integrator = INTEGRATOR_RK4;
+    else want = "euler or rk4";
+    break;
+  case OPT_STEP:
+    if (!parse_float(val, &opt->step) || !(opt->step > 0.0f)) want = "a positive step in voxels";
+    break;
+  case OPT_SEED:
+    if (!parse_ll(val, &ll) || ll < 0 || ll > UINT_MAX) want = "a seed in 0..4294967295";
+    else opt->seed = ll;
+    break;
+  case OPT_RESOLUTION:
+    if (!parse_ll(val, &ll) || ll < 1 || ll > INT_MAX) want = "a positive voxel count";
+    else opt->resolution = (int)ll;
+    break;
+  case OPT_COMPRESSION:
+    if (!strcmp(val, "zip")) opt->write.compression = VDBIO_COMPRESS_ZIP;
+    else if (!strcmp(val, "blosc")) opt->write.compression = VDBIO_COMPRESS_BLOSC;
+    else if (!strcmp(val, "none")) opt->write.compression = VDBIO_COMPRESS_NONE;
+    else want = "zip, blosc or none";
+    break;
+  case OPT_NO_FILTER: opt->no_filter = 1; break;
+  case OPT_WRITE_FILTER_RADIUS: opt->write_filter_radius = 1; break;
+  case OPT_HALF: opt->write.half_float = 1; break;
+  case OPT_DEVICE: opt->device = val; break;
+  case OPT_HOST: opt->host_only = 1; break;
+  }
+  if (want) return bk_fail(err, BK_ERR_INPUT, "%s: expected %s, got '%s'", name, want, val);
+  return BK_OK;
+}
+
+/* Returns CMD_HELP or CMD_VERSION for those (exit 0), else an exit status. */
+static int bake_parse(int argc, char **argv, bake_options_t *opt, bk_error_t *err) {
+  cmd_parser_t p;
+  int c;
+  bake_options_defaults(opt);
+  cmd_begin(&p, argc, argv, "bake", "o:" CMD_COMMON_SHORTOPTS, bake_longopts);
+  while ((c = cmd_next(&p, err)) != CMD_END) {
+    if (c == CMD_ERROR) return err->code;
+    if (c == CMD_HELP || c == CMD_VERSION) return c;
+    if (c != CMD_POSITIONAL) {
+      if (bake_option(opt, c, p.opt, p.arg, err)) return err->code;
+    } else if (!opt->scene_path) {
+      opt->scene_path = p.arg;
+    } else {
+      return bk_fail(err, BK_ERR_INPUT, "unexpected argument '%s' (one scene per command)",
+                     p.arg);
+    }
+  }
+  return BK_OK;
+}
+
+int bake_main(int argc, char **argv) {
+  bake_options_t opt;
+  bk_error_t err = {0, ""};
+  int rc = bake_parse(argc, argv, &opt, &err);
+  if (rc == CMD_HELP) bake_usage(stdout);
+  else if (rc == CMD_VERSION) cmd_print_version();
+  if (rc == CMD_HELP || rc == CMD_VERSION) return BK_OK;
+  if (rc) {
+    fprintf(stderr, "baker bake: %s\n", err.msg);
+    return rc;
+  }
+  if (!opt.scene_path || !opt.out_path) {
+    fprintf(stderr, "baker bake: %s\n\n",
+            !opt.scene_path ? "no scene file given" : "no output given (-o OUT.vdb)");
+    bake_usage(stderr);
+    return BK_ERR_INPUT;
+  }
+  rc = bake_run(&opt, &err);
+  if (rc) fprintf(stderr, "baker bake: %s\n", err.msg);
+  return rc;
+}

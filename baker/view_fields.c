@@ -1,0 +1,40 @@
+/* view_fields.c: the camera rays' fields and pyramids (see view_fields.h). */
+#include "view_fields.h"
+
+#include <stdlib.h>
+
+#include "field.h"
+#include "octree.h"
+
+/* Replaces an unpadded 4-float field by its padded copy. */
+static int pad_field(const view_volume_t *v, float **a, bk_error_t *err) {
+  if (!*a) return BK_OK;
+  float *o = view_alloc(fld_padded_count(v->nx, v->ny, v->nz), 4 * sizeof(float),
+                        "view: padded field", err);
+  if (!o) return BK_ERR_RUNTIME;
+  fld_pad4(v->nx, v->ny, v->nz, *a, o);
+  free(*a);
+  *a = o;
+  return BK_OK;
+}
+
+/* n and its constant blocks, exactly as the photon march sees them. */
+static int build_refraction(view_volume_t *v, bk_error_t *err) {
+  const oct_source_t n = {v->ior, 1, 1};
+  v->ng = fld_build(v->nx, v->ny, v->nz, v->voxel_size, v->ior, err);
+  if (!v->ng) return BK_ERR_RUNTIME;
+  return oct_build_fields(v->nx, v->ny, v->nz, &n, 1, OCT_HALO, 0.0f, &v->npyr, err);
+}
+
+int view_fields_build(view_volume_t *v, bk_error_t *err) {
+  int rc;
+  if (v->refraction && (rc = build_refraction(v, err))) return rc;
+  /* S and σt constant over a block and the voxel around it that trilinear
+   * sampling reads; built before padding */
+  const oct_source_t medium[2] = {{v->medium, 4, 4}, {v->sigma_t4, 4, 3}};
+  if ((rc = oct_build_fields(v->nx, v->ny, v->nz, medium, v->sigma_t4 ? 2 : 1, 1, 0.0f, &v->mpyr,
+                             err)))
+    return rc;
+  if ((rc = pad_field(v, &v->medium, err)) || (rc = pad_field(v, &v->sigma_t4, err))) return rc;
+  return BK_OK;
+}

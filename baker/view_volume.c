@@ -1,0 +1,439 @@
+/* view_volume.c: a VDB file's grids on one dense box (view_volume.h):
+ * which grids, each over its own box, their union, every grid moved onto it
+ * (copied when aligned, else resampled), checked, and packed for the kernel. */
+#define _POSIX_C_SOURCE 200809L
+#include "view_volume.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "grid.h"
+#include "vdbio.h"
+#include "view_camera.h"
+#include "view_fields.h"
+
+void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err) {
+  size_t bytes;
+  void *p = NULL;
+  if (!bk_mul_size(count, size, &bytes) || posix_memalign(&p, VIEW_ALIGN, bytes ? bytes : 1)) {
+    bk_fail(err, BK_ERR_RUNTIME, "%s: cannot allocate %zu x %zu bytes", what, count, size);
+    return NULL;
+  }
+  memset(p, 0, bytes);
+  return p;
+}
+
+void view_volume_free(view_volume_t *v) {
+  free(v->medium);
+  free(v->sigma_t4);
+  free(v->ior);
+  free(v->ng);
+  oct_free(&v->npyr);
+  oct_free(&v->mpyr);
+  memset(v, 0, sizeof *v);
+}
+
+static int find_name(char **names, int count, const char *name) {
+  for (int i = 0; i < count; i++)
+    if (!strcmp(names[i], name)) return i;
+  return -1;
+}
+static int is_scalar_type(const char *t) { return !strcmp(t, "float") || !strcmp(t, "double"); }
+static int is_vec3_type(const char *t) { return !strcmp(t, "vec3s") || !strcmp(t, "vec3d"); }
+
+static int dense_is_empty(const vdbio_dense_t *d) {
+  if (d->nx != 1 || d->ny != 1 || d->nz != 1) return 0;
+  for (int c = 0; c < d->channels; c++)
+    if (d->data[c] != 0.0f) return 0;
+  return 1;
+}
+
+/* The linear part of i2w must be s·(rotation or reflection). */
+static int check_similarity(const double m[3][4], const char *path, double *scale,
+                            bk_error_t *err) {
+  double col[3][3], len[3];
+  for (int c = 0; c < 3; c++) {
+    for (int r = 0; r < 3; r++) col[c][r] = m[r][c];
+    len[c] = sqrt(view_dot3d(col[c], col[c]));
+  }
+  double s = (len[0] + len[1] + len[2]) / 3.0;
+  int ok = s > 0.0 && isfinite(s);
+  for (int c = 0; c < 3 && ok; c++) {
+    if (fabs(len[c] - s) > 1e-5 * s) ok = 0;
+    for (int d = c + 1; d < 3; d++)
+      if (fabs(view_dot3d(col[c], col[d])) > 1e-5 * s * s) ok = 0;
+  }
+  if (!ok)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: grid \"radiance\" has a transform with non-uniform scale or shear "
+                   "(index axes of world length %g, %g, %g); the viewing pass needs cubic "
+                   "voxels (translation, rotation and uniform scale only)",
+                   path, len[0], len[1], len[2]);
+  *scale = s;
+  return BK_OK;
+}
+
+/* Moves grid `d` (own box) onto the `like` box: a plain copy when its voxels
+ * coincide with like's (same axes and size, integer offset), d's own array
+ * when the boxes are the same; *out stays NULL otherwise, and the caller
+ * resamples. Cells of like outside d's box are 0, the fog background. */
+static int place_aligned(vdbio_dense_t *d, const vdbio_dense_t *like, float **out,
+                         bk_error_t *err) {
+  double m[3][3], off[3], zero[3] = {0, 0, 0}, w0[3];
+  *out = NULL;
+  view_affine_apply(d->index_to_world, zero, w0);
+  view_affine_apply(like->world_to_index, w0, off);
+  for (int r = 0; r < 3; r++)
+    for (int c = 0; c < 3; c++) {
+      m[r][c] = 0.0;
+      for (int k = 0; k < 3; k++) m[r][c] += like->world_to_index[r][k] * d->index_to_world[k][c];
+      if (fabs(m[r][c] - (r == c ? 1.0 : 0.0)) > 1e-6) return BK_OK;
+    }
+  int o[3];
+  for (int r = 0; r < 3; r++) {
+    if (fabs(off[r] - nearbyint(off[r])) > 1e-4) return BK_OK;
+    o[r] = (int)nearbyint(off[r]);
+  }
+  const int ch = d->channels;
+  if (o[0] == 0 && o[1] == 0 && o[2] == 0 && d->nx == like->nx && d->ny == like->ny &&
+      d->nz == like->nz) { /* the same box (the usual case): take the array, no copy */
+    *out = d->data;
+    d->data = NULL;
+    return BK_OK;
+  }
+  size_t count = (size_t)like->nx * like->ny * like->nz;
+  float *a = bk_calloc(count, sizeof(float) * (size_t)ch, "view: dense grid", err);
+  if (!a) return BK_ERR_RUNTIME;
+  for (int k = 0; k < d->nz; k++) {
+    int K = k + o[2];
+    if (K < 0 || K >= like->nz) continue;
+    for (int j = 0; j < d->ny; j++) {
+      int J = j + o[1];
+      if (J < 0 || J >= like->ny) continue;
+      for (int i = 0; i < d->nx; i++) {
+        int I = i + o[0];
+        if (I < 0 || I >= like->nx) continue;
+        size_t src = ((size_t)i + (size_t)d->nx * ((size_t)j + (size_t)d->ny * k)) * ch;
+        size_t dst = ((size_t)I + (size_t)like->nx * ((size_t)J + (size_t)like->ny * K)) * ch;
+        memcpy(a + dst, d->data + src, sizeof(float) * (size_t)ch);
+      }
+    }
+  }
+  *out = a;
+  return BK_OK;
+}
+
+/* Refuses NaN/inf anywhere and negative coefficients. */
+static int check_values(const char *path, const char *name, const float *a, size_t n,
+                        int nonneg, bk_error_t *err) {
+  size_t bad = 0, neg = 0;
+  float most_neg = 0.0f;
+  for (size_t i = 0; i < n; i++) {
+    if (!isfinite(a[i])) bad++;
+    else if (nonneg && a[i] < 0.0f) {
+      neg++;
+      if (a[i] < most_neg) most_neg = a[i];
+    }
+  }
+  if (bad)
+    return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %zu NaN or infinite values",
+                   path, name, bad);
+  if (neg)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: grid \"%s\" holds %zu negative values (down to %g); expected "
+                   "coefficients >= 0", path, name, neg, most_neg);
+  return BK_OK;
+}
+
+/* Expands a 1-channel array to 3 (replacing it). */
+static int expand_to_rgb(float **a, size_t n, bk_error_t *err) {
+  float *o = bk_calloc(n, 3 * sizeof(float), "view: coefficients", err);
+  if (!o) return BK_ERR_RUNTIME;
+  for (size_t i = 0; i < n; i++) o[3 * i] = o[3 * i + 1] = o[3 * i + 2] = (*a)[i];
+  free(*a);
+  *a = o;
+  return BK_OK;
+}
+
+/* All entries of a (n voxels x ch) equal: fills c[3]. */
+static int is_constant(const float *a, size_t n, int ch, float c[3]) {
+  for (int k = 0; k < 3; k++) c[k] = a[ch == 1 ? 0 : k];
+  for (size_t i = 0; i < n; i++)
+    for (int k = 0; k < ch; k++)
+      if (a[i * ch + k] != c[k]) return 0;
+  return 1;
+}
+
+enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_COUNT };
+
+/* One file's grids while they are read and moved onto one box. */
+typedef struct view_load {
+  const char *path;
+  char **names, **types;
+  int count;
+  const char *gname[G_COUNT];
+  int present[G_COUNT], ch[G_COUNT], empty[G_COUNT];
+  vdbio_dense_t own[G_COUNT], like;
+  float *arr[G_COUNT];
+  double scale;
+} view_load_t;
+
+/* Which grids the file has, and of which types. */
+static int load_select(view_load_t *L, bk_error_t *err) {
+  const char *path = L->path;
+  char **names = L->names, **types = L->types;
+  int count = L->count;
+  int idx[G_COUNT];
+  for (int g = 0; g < G_COUNT; g++) idx[g] = find_name(names, count, L->gname[g]);
+  if (idx[G_EXT] < 0 && (idx[G_EXT] = find_name(names, count, "density")) >= 0)
+    L->gname[G_EXT] = "density";
+  if (idx[G_RAD] < 0) {
+    char list[1024] = "";
+    for (int i = 0; i < count; i++)
+      snprintf(list + strlen(list), sizeof list - strlen(list), "%s\"%s\" (%s)", i ? ", " : "",
+               names[i], types[i]);
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: no \"radiance\" grid, which `baker view` renders (the Vec3f grid `baker "
+                   "bake` writes); the file has %s", path, count ? list : "no grids");
+  }
+  for (int g = 0; g < G_COUNT; g++) {
+    if (idx[g] < 0) continue;
+    const char *t = types[idx[g]];
+    int ok = g == G_RAD ? is_vec3_type(t)
+             : g == G_IOR ? is_scalar_type(t)
+                          : (is_scalar_type(t) || is_vec3_type(t));
+    if (!ok)
+      return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected %s", path,
+                     L->gname[g], t,
+                     g == G_RAD   ? "Vec3f (vec3s) radiance"
+                     : g == G_IOR ? "float"
+                                  : "float or Vec3f");
+    L->present[g] = 1;
+  }
+  return BK_OK;
+}
+
+/* Each grid over its own active box; the radiance transform sets the voxel. */
+static int load_read_own(view_load_t *L, bk_error_t *err) {
+  int rc;
+  for (int g = 0; g < G_COUNT; g++) {
+    if (!L->present[g]) continue;
+    if ((rc = vdbio_read_dense(L->path, L->gname[g], 0, &L->own[g], err))) return rc;
+    L->ch[g] = L->own[g].channels;
+    L->empty[g] = dense_is_empty(&L->own[g]);
+  }
+  return check_similarity(L->own[G_RAD].index_to_world, L->path, &L->scale, err);
+}
+
+/* L->like: the union of the non-empty boxes, in radiance index space
+ * (v->empty when there is none), checked against the machine's memory. */
+static int load_box(view_load_t *L, view_volume_t *v, bk_error_t *err) {
+  const vdbio_dense_t *rad = &L->own[G_RAD];
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  int any = 0;
+  for (int g = 0; g < G_COUNT; g++) {
+    if (!L->present[g] || L->empty[g]) continue;
+    any = 1;
+    const vdbio_dense_t *d = &L->own[g];
+    for (int c = 0; c < 8; c++) {
+      double p[3] = {(c & 1) ? d->nx - 0.5 : -0.5, (c & 2) ? d->ny - 0.5 : -0.5,
+                     (c & 4) ? d->nz - 0.5 : -0.5};
+      double w[3], u[3];
+      view_affine_apply(d->index_to_world, p, w);
+      view_affine_apply(rad->world_to_index, w, u);
+      for (int k = 0; k < 3; k++) {
+        lo[k] = fmin(lo[k], u[k]);
+        hi[k] = fmax(hi[k], u[k]);
+      }
+    }
+  }
+  vdbio_dense_t *like = &L->like;
+  *like = *rad;
+  like->data = NULL;
+  if (!any) {
+    v->empty = 1;
+    like->nx = like->ny = like->nz = 1;
+  } else {
+    int ilo[3], n[3];
+    for (int k = 0; k < 3; k++) {
+      ilo[k] = (int)floor(lo[k] + 0.5 + 1e-6);
+      int ihi = (int)ceil(hi[k] - 0.5 - 1e-6);
+      n[k] = ihi - ilo[k] + 1;
+      if (n[k] < 1 || n[k] > GRID_MAX_AXIS)
+        return bk_fail(err, BK_ERR_INPUT,
+                       "%s: the grids span %d voxels along axis %d (at most %d)", L->path, n[k],
+                       k, GRID_MAX_AXIS);
+    }
+    double shift[3] = {ilo[0], ilo[1], ilo[2]}, t[3];
+    for (int r = 0; r < 3; r++) {
+      t[r] = 0.0;
+      for (int c = 0; c < 3; c++) t[r] += rad->index_to_world[r][c] * shift[c];
+      like->index_to_world[r][3] += t[r];
+      like->world_to_index[r][3] -= shift[r];
+    }
+    like->nx = n[0];
+    like->ny = n[1];
+    like->nz = n[2];
+  }
+  grid_dims_t gd = {like->nx, like->ny, like->nz, (float)L->scale, {0, 0, 0}};
+  /* peak: the grids as read (up to 10 floats), ng, medium, σt and a padded copy */
+  return grid_check_memory(&gd, 24 * sizeof(float), L->path, err);
+}
+
+/* Every grid onto the like box: copied when aligned, else resampled. */
+static int load_place(view_load_t *L, const view_volume_t *v, bk_error_t *err) {
+  int rc;
+  for (int g = 0; g < G_COUNT; g++) {
+    if (!L->present[g] || v->empty) continue;
+    if ((rc = place_aligned(&L->own[g], &L->like, &L->arr[g], err))) return rc;
+    if (!L->arr[g]) {
+      vdbio_dense_t r;
+      int found = 0;
+      if ((rc = vdbio_read_dense_like(L->path, L->gname[g], &L->like, &r, &found, err)))
+        return rc;
+      if (!found)
+        return bk_fail(err, BK_ERR_RUNTIME, "%s: grid \"%s\" vanished while reading", L->path,
+                       L->gname[g]);
+      L->arr[g] = r.data;
+    }
+    vdbio_dense_free(&L->own[g]);
+  }
+  return BK_OK;
+}
+
+static void load_describe(const view_load_t *L, view_volume_t *v) {
+  v->nx = L->like.nx;
+  v->ny = L->like.ny;
+  v->nz = L->like.nz;
+  memcpy(v->i2w, L->like.index_to_world, sizeof v->i2w);
+  memcpy(v->w2i, L->like.world_to_index, sizeof v->w2i);
+  v->voxel_size = L->scale;
+  snprintf(v->desc, sizeof v->desc, "%dx%dx%d voxels of %g; radiance", v->nx, v->ny, v->nz,
+           L->scale);
+  for (int g = 1; g < G_COUNT; g++)
+    if (L->present[g])
+      snprintf(v->desc + strlen(v->desc), sizeof v->desc - strlen(v->desc), ", %s (%s)",
+               L->gname[g], L->ch[g] == 1 ? "float" : "Vec3f");
+}
+
+/* n: values below 1 are background (0) or nonsense; n >= 1 by contract. */
+static int load_ior(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
+  if (!L->arr[G_IOR]) {
+    v->n_min = v->n_max = 1.0f;
+    return BK_OK;
+  }
+  v->ior = L->arr[G_IOR];
+  L->arr[G_IOR] = NULL;
+  v->n_min = 1e30f;
+  v->n_max = -1e30f;
+  for (size_t i = 0; i < nvox; i++) {
+    float n = v->ior[i] < 1.0f ? 1.0f : v->ior[i];
+    v->ior[i] = n;
+    v->n_min = n < v->n_min ? n : v->n_min;
+    v->n_max = n > v->n_max ? n : v->n_max;
+  }
+  v->refraction = v->n_max - v->n_min > VIEW_N_EPS;
+  return BK_OK;
+}
+
+/* Coefficients: σs absent -> σt; σt absent -> σs; both absent -> 0. */
+static int load_coefficients(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
+  float **arr = L->arr;
+  int *ch = L->ch, rc;
+  if (!arr[G_EXT] && arr[G_SCA]) {
+    arr[G_EXT] = arr[G_SCA];
+    ch[G_EXT] = ch[G_SCA];
+    arr[G_SCA] = NULL;
+  }
+  if (!arr[G_EXT])
+    bk_warn("%s: no extinction, density or scattering grid: the medium is transparent and the "
+            "image shows only the background", L->path);
+  if (arr[G_EXT] && arr[G_SCA] && ch[G_SCA] != ch[G_EXT]) {
+    int g = ch[G_SCA] == 1 ? G_SCA : G_EXT;
+    if ((rc = expand_to_rgb(&arr[g], nvox, err))) return rc;
+    ch[g] = 3;
+  }
+  v->sigma_ch = arr[G_EXT] ? ch[G_EXT] : 1;
+  return BK_OK;
+}
+
+/* Packs {S = σs L̄, σt (grey)} and, for RGB, {σt}; σ per voxel length. */
+static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
+  int rc = load_coefficients(L, v, nvox, err);
+  if (rc) return rc;
+  const float *ext = L->arr[G_EXT], *sca = L->arr[G_SCA] ? L->arr[G_SCA] : L->arr[G_EXT];
+  const float *rad = L->arr[G_RAD];
+  const int sc = v->sigma_ch;
+  const double scale = L->scale;
+  v->medium = view_alloc(nvox, 4 * sizeof(float), "view: medium", err);
+  if (!v->medium) return BK_ERR_RUNTIME;
+  for (size_t i = 0; i < nvox; i++)
+    for (int c = 0; c < 3; c++)
+      v->medium[4 * i + c] =
+          sca ? (float)scale * sca[i * sc + (sc == 3 ? c : 0)] * rad[3 * i + c] : 0.0f;
+  if (sc == 1) {
+    if (ext)
+      for (size_t i = 0; i < nvox; i++) v->medium[4 * i + 3] = (float)scale * ext[i];
+    return BK_OK;
+  }
+  v->homogeneous = is_constant(ext, nvox, 3, v->st_const);
+  for (int c = 0; c < 3; c++) v->st_const[c] *= (float)scale;
+  if (v->homogeneous) return BK_OK;
+  v->sigma_t4 = view_alloc(nvox, 4 * sizeof(float), "view: extinction", err);
+  if (!v->sigma_t4) return BK_ERR_RUNTIME;
+  for (size_t i = 0; i < nvox; i++)
+    for (int c = 0; c < 3; c++) v->sigma_t4[4 * i + c] = (float)scale * ext[3 * i + c];
+  return BK_OK;
+}
+
+int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
+  view_load_t L;
+  memset(&L, 0, sizeof L);
+  memset(v, 0, sizeof *v);
+  L.path = path;
+  L.scale = 1.0;
+  const char *gname[G_COUNT] = {"radiance", "ior", "extinction", "scattering"};
+  memcpy(L.gname, gname, sizeof gname);
+
+  int rc = vdbio_list_grids(path, &L.names, &L.types, &L.count, err);
+  if (rc) return rc;
+  if ((rc = load_select(&L, err)) || (rc = load_read_own(&L, err)) ||
+      (rc = load_box(&L, v, err)) || (rc = load_place(&L, v, err)))
+    goto error;
+  load_describe(&L, v);
+  if (v->empty) goto done;
+
+  size_t nvox = (size_t)v->nx * v->ny * v->nz;
+  for (int g = 0; g < G_COUNT; g++)
+    if (L.arr[g] && (rc = check_values(path, L.gname[g], L.arr[g], nvox * (size_t)L.ch[g],
+                                       g == G_EXT || g == G_SCA, err)))
+      goto error;
+  if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_medium(&L, v, nvox, err))) goto error;
+  /* the grids as read are packed now: free them before padding (peak memory) */
+  for (int g = 0; g < G_COUNT; g++) free(L.arr[g]), L.arr[g] = NULL;
+  if ((rc = view_fields_build(v, err))) goto error;
+
+done:
+  rc = BK_OK;
+error:
+  for (int g = 0; g < G_COUNT; g++) {
+    vdbio_dense_free(&L.own[g]);
+    free(L.arr[g]);
+  }
+  vdbio_free_names(L.names, L.types, L.count);
+  if (rc) view_volume_free(v);
+  return rc;
+}
+
+/* World bounding box of the volume's cells. */
+void view_volume_world_box(const view_volume_t *v, double bmin[3], double bmax[3]) {
+  for (int k = 0; k < 3; k++) bmin[k] = 1e300, bmax[k] = -1e300;
+  for (int c = 0; c < 8; c++) {
+    double p[3] = {(c & 1) ? v->nx - 0.5 : -0.5, (c & 2) ? v->ny - 0.5 : -0.5,
+                   (c & 4) ? v->nz - 0.5 : -0.5};
+    double w[3];
+    view_affine_apply(v->i2w, p, w);
+    for (int k = 0; k < 3; k++) bmin[k] = fmin(bmin[k], w[k]), bmax[k] = fmax(bmax[k], w[k]);
+  }
+}

@@ -1,0 +1,51 @@
+/* view_volume.h: every grid of a VDB file on one dense box, as the view
+ * kernel reads them.
+ *
+ * In: a VDB with a `radiance` Vec3f grid and optionally `ior`, `extinction`
+ * (else `density`), `scattering` (view.h says how absent grids default), any
+ * similarity transform. Out: the union of the grids' active boxes in the
+ * radiance grid's index space, with the index <-> world transforms, and the
+ * packed fields: S = σs L̄ with σt, RGB σt, n, {∇n, n}, the flat distances
+ * and the brick flags (view_fields.h), σ per voxel length. */
+#ifndef BAKER_VIEW_VOLUME_H
+#define BAKER_VIEW_VOLUME_H
+
+#include <stddef.h>
+
+#include "base/common.h"
+#include "octree.h"
+
+#define VIEW_N_EPS 1e-6f         /* n differences below this bend nothing */
+/* view_alloc's alignment: PoCL uses such arrays in place (CL_MEM_USE_HOST_PTR) */
+#define VIEW_ALIGN 4096
+
+typedef struct view_volume {
+  int nx, ny, nz;
+  double i2w[3][4], w2i[3][4]; /* index (cell centre) <-> world */
+  double voxel_size;           /* world length of one index step */
+  int empty;                   /* no grid has active voxels: the image is the background */
+  float *medium;               /* 4 per voxel: S = σs L̄ (RGB), σt when grey; per voxel length */
+  float *sigma_t4;             /* 4 per voxel: σt (RGB) when RGB and not homogeneous */
+  int sigma_ch;                /* 1: grey coefficients, 3: RGB */
+  int homogeneous;             /* RGB σt constant: st_const */
+  float st_const[3];
+  float *ior;                  /* NULL: n = 1 */
+  float *ng;                   /* refraction only: the padded {∇n, n} field (baker/field.h) */
+  int refraction;
+  float n_min, n_max;
+  oct_pyramid_t npyr;          /* refraction only: constant blocks of n */
+  oct_pyramid_t mpyr;          /* constant blocks of the medium (view_fields.h) */
+  char desc[512];              /* what was read, for -v */
+} view_volume_t;
+
+/* Reads path into v (zeroed first); on failure v is freed. */
+int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err);
+void view_volume_free(view_volume_t *v);
+/* World bounding box of the volume's cells. */
+void view_volume_world_box(const view_volume_t *v, double bmin[3], double bmax[3]);
+
+/* Zeroed and VIEW_ALIGN-aligned, so PoCL can use the array in place as a
+ * buffer instead of copying tens of MB; freed with free(). */
+void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err);
+
+#endif
