@@ -53,8 +53,8 @@ static const float *channel_slice(oct_scan_t *w, const oct_source_t *src, int ch
 }
 
 /* Clears, in the finest blocks c0 (bx x by per z), every block holding a
- * voxel whose window sees channel ch of src vary by more than tol. */
-static void scan_channel(oct_scan_t *w, const oct_source_t *src, int ch, float tol,
+ * voxel whose window sees channel ch of src vary. */
+static void scan_channel(oct_scan_t *w, const oct_source_t *src, int ch,
                          unsigned char *c0, int bx, int by) {
   const int nx = w->nx, ny = w->ny, nz = w->nz, H = w->H, W = 2 * H + 1;
   const size_t plane = (size_t)nx * ny;
@@ -75,7 +75,7 @@ static void scan_channel(oct_scan_t *w, const oct_source_t *src, int ch, float t
           a = mn[at] < a ? mn[at] : a;
           b = mn[plane + at] > b ? mn[plane + at] : b;
         }
-        if (!(b - a <= tol)) crow[(i >> OCT_BLOCK_SHIFT) + (size_t)bx * (j >> OCT_BLOCK_SHIFT)] = 0;
+        if (a != b) crow[(i >> OCT_BLOCK_SHIFT) + (size_t)bx * (j >> OCT_BLOCK_SHIFT)] = 0;
       }
   }
 }
@@ -113,10 +113,12 @@ static void fill_levels(int nx, int ny, int nz, unsigned char **c, int dims[][3]
 }
 
 int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, int halo,
-                     float tol, oct_pyramid_t *out, bk_error_t *err) {
+                     oct_pyramid_t *out, bk_error_t *err) {
   int rc = BK_ERR_RUNTIME;
   const size_t plane = (size_t)nx * ny;
-  const int H = halo < 0 ? 0 : halo > OCT_MAX_HALO ? OCT_MAX_HALO : halo;
+  /* each voxel's window must overlap its neighbour's for the windows to
+   * chain into one constant block: at least 1 */
+  const int H = halo < 1 ? 1 : halo > OCT_MAX_HALO ? OCT_MAX_HALO : halo;
   float *work = NULL;
   unsigned char *c[OCT_LEVELS] = {NULL};
   int dims[OCT_LEVELS][3];
@@ -138,7 +140,7 @@ int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, 
   memset(c[0], 1, nb0);
   oct_scan_t w = {nx, ny, nz, H, work, work + plane, work + 2 * plane, work + 3 * plane};
   for (int s = 0; s < nsrc; s++)
-    for (int ch = 0; ch < src[s].channels; ch++) scan_channel(&w, &src[s], ch, tol, c[0], out->bx, out->by);
+    for (int ch = 0; ch < src[s].channels; ch++) scan_channel(&w, &src[s], ch, c[0], out->bx, out->by);
   /* a parent is constant when all its children are: neighbouring constant
    * blocks overlap in their halos, so they share one value */
   for (int l = 1; l < OCT_LEVELS; l++) coarsen(c[l - 1], dims[l - 1], c[l], dims[l]);
@@ -153,7 +155,7 @@ error:
 
 int oct_build(const grid_dims_t *d, const float *ior, oct_pyramid_t *out, bk_error_t *err) {
   const oct_source_t n = {ior, 1, 1};
-  return oct_build_fields(d->nx, d->ny, d->nz, &n, 1, OCT_HALO, 0.0f, out, err);
+  return oct_build_fields(d->nx, d->ny, d->nz, &n, 1, OCT_HALO, out, err);
 }
 
 void oct_free(oct_pyramid_t *p) {

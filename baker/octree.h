@@ -5,7 +5,7 @@
  * (2^3 voxels) saying which is the coarsest constant block containing it: 0
  * where the field varies, L in 1..OCT_LEVELS for the block of 2 * 4^(L-1)
  * voxels a side (2, 8, 32, 128; RC_BLOCK_SHIFT, RC_LEVELS). A block is
- * constant when every channel takes one value (within a tolerance) over the
+ * constant when every channel takes one value over the
  * block and a halo around it (clipped to the grid). The photon march builds
  * it over n with a halo of OCT_HALO and crosses constant blocks in a straight
  * line with an exact DDA instead of integrating d/ds(n dx/ds) = ∇n step by
@@ -58,10 +58,10 @@ typedef struct oct_source {
 /* Builds the pyramid of `ior` (grid_count(d) floats), exact equality and a
  * halo of OCT_HALO: the photon march's. BK_ERR_RUNTIME when out of memory. */
 int oct_build(const grid_dims_t *d, const float *ior, oct_pyramid_t *out, bk_error_t *err);
-/* The general form: constant where every channel of every source varies by
- * at most tol over the block and `halo` (0..OCT_MAX_HALO) voxels around. */
+/* The general form: constant where every channel of every source takes one
+ * value over the block and `halo` (1..OCT_MAX_HALO) voxels around. */
 int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, int halo,
-                     float tol, oct_pyramid_t *out, bk_error_t *err);
+                     oct_pyramid_t *out, bk_error_t *err);
 void oct_free(oct_pyramid_t *p);
 
 #ifdef __cplusplus

@@ -23,7 +23,7 @@ static int build_refraction(view_volume_t *v, bk_error_t *err) {
   const oct_source_t n = {v->ior, 1, 1};
   v->ng = fld_build(v->nx, v->ny, v->nz, v->voxel_size, v->ior, err);
   if (!v->ng) return BK_ERR_RUNTIME;
-  return oct_build_fields(v->nx, v->ny, v->nz, &n, 1, OCT_HALO, 0.0f, &v->npyr, err);
+  return oct_build_fields(v->nx, v->ny, v->nz, &n, 1, OCT_HALO, &v->npyr, err);
 }
 
 int view_fields_build(view_volume_t *v, bk_error_t *err) {
@@ -32,8 +32,7 @@ int view_fields_build(view_volume_t *v, bk_error_t *err) {
   /* S and σt constant over a block and the voxel around it that trilinear
    * sampling reads; built before padding */
   const oct_source_t medium[2] = {{v->medium, 4, 4}, {v->sigma_t4, 4, 3}};
-  if ((rc = oct_build_fields(v->nx, v->ny, v->nz, medium, v->sigma_t4 ? 2 : 1, 1, 0.0f, &v->mpyr,
-                             err)))
+  if ((rc = oct_build_fields(v->nx, v->ny, v->nz, medium, v->sigma_t4 ? 2 : 1, 1, &v->mpyr, err)))
     return rc;
   if ((rc = pad_field(v, &v->medium, err)) || (rc = pad_field(v, &v->sigma_t4, err))) return rc;
   return BK_OK;

@@ -1,9 +1,8 @@
-# OpenCL host layer and the ∇n kernel (tests/test_clhost.c), on PoCL.
+# OpenCL host layer (tests/test_clhost.c), on PoCL.
 add_executable(test_clhost ${BAKER_TEST_DIR}/test_clhost.c)
 target_link_libraries(test_clhost PRIVATE bakercore)
 
 add_test(NAME clhost_errors COMMAND test_clhost errors)
-add_test(NAME clhost_gradient COMMAND test_clhost gradient)
 add_test(NAME clhost_cache COMMAND test_clhost cache ${CMAKE_CURRENT_BINARY_DIR})
 add_test(NAME clhost_build_error COMMAND test_clhost build_error)
 add_test(NAME clhost_device_spec COMMAND test_clhost device_spec)
@@ -15,5 +14,5 @@ add_test(NAME clhost_no_platform COMMAND test_clhost no_platform)
 set_tests_properties(clhost_no_platform PROPERTIES
   ENVIRONMENT "OCL_ICD_VENDORS=${CLHOST_EMPTY_ICD_DIR}")
 # The kernel cache of the other tests stays inside the build directory.
-set_tests_properties(clhost_gradient clhost_build_error clhost_device_spec PROPERTIES
+set_tests_properties(clhost_build_error clhost_device_spec PROPERTIES
   ENVIRONMENT "BAKER_CACHE_DIR=${CMAKE_CURRENT_BINARY_DIR}/clhost_kernel_cache")

@@ -2,7 +2,7 @@
 # closed forms, a VDB written by pyopenvdb, and bad input.
 add_executable(test_view_math ${BAKER_TEST_DIR}/test_view_math.c)
 target_link_libraries(test_view_math PRIVATE bakercore)
-foreach(t frames srgb camera march rays flat)
+foreach(t frames srgb camera march)
   add_test(NAME view_math_${t} COMMAND test_view_math ${t})
 endforeach()
 
