@@ -1,11 +1,10 @@
-/* clhost.c: OpenCL platform/device choice, program builds with includes
- * expanded from the embedded kernels, and the on-disk binary cache. */
+/* clhost.c: OpenCL platform/device choice, program builds (their sources
+ * expanded by clsource.c) and the on-disk binary cache. */
 #define _POSIX_C_SOURCE 200809L
 #include "clhost.h"
 
 #include <ctype.h>
 #include <errno.h>
-#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
@@ -19,8 +18,6 @@
 /* Enough for any machine we know of; more are ignored, not an error. */
 #define CLH_MAX_PLATFORMS 16
 #define CLH_MAX_DEVICES 64
-/* Includes nest a few levels at most; deeper means a runaway expansion. */
-#define CLH_MAX_INCLUDE_DEPTH 16
 /* Room kept in bk_error_t.msg for the text around a build log. */
 #define CLH_LOG_RESERVE 400
 
@@ -302,157 +299,6 @@ void clh_release(clh_context_t *cl) {
   cl->platform = NULL;
 }
 
-/* --- include expansion ------------------------------------------------------ */
-
-typedef struct clh_buf {
-  char *p;
-  size_t len, cap;
-} clh_buf_t;
-
-static int buf_add(clh_buf_t *b, const char *s, size_t n) {
-  if (b->len + n + 1 > b->cap) {
-    size_t cap = b->cap ? b->cap : 4096;
-    while (cap < b->len + n + 1) {
-      if (cap > SIZE_MAX / 2) return 0;
-      cap *= 2;
-    }
-    char *q = realloc(b->p, cap);
-    if (!q) return 0;
-    b->p = q;
-    b->cap = cap;
-  }
-  memcpy(b->p + b->len, s, n);
-  b->len += n;
-  b->p[b->len] = 0;
-  return 1;
-}
-
-static int buf_printf(clh_buf_t *b, const char *fmt, ...) {
-  char tmp[512];
-  va_list ap;
-  va_start(ap, fmt);
-  int n = vsnprintf(tmp, sizeof tmp, fmt, ap);
-  va_end(ap);
-  if (n < 0) return 0;
-  return buf_add(b, tmp, (size_t)n < sizeof tmp ? (size_t)n : sizeof tmp - 1);
-}
-
-/* Kernel files are named as they are included, "kernels/x.h", or bare. */
-static const clh_source_t *find_source(const clh_source_t *table, const char *name) {
-  if (strncmp(name, "kernels/", 8) == 0) name += 8;
-  for (const clh_source_t *s = table; s && s->name; s++)
-    if (strcmp(s->name, name) == 0) return s;
-  return NULL;
-}
-
-/* If `line` is `#include "x"`, copies x into name and returns 1. Lines with
- * <...> are left to the compiler (OpenCL C has no system headers to offer). */
-static int parse_include(const char *line, const char *end, char *name, size_t cap) {
-  const char *p = line;
-  while (p < end && (*p == ' ' || *p == '\t')) p++;
-  if (p >= end || *p != '#') return 0;
-  p++;
-  while (p < end && (*p == ' ' || *p == '\t')) p++;
-  if (end - p < 7 || strncmp(p, "include", 7) != 0) return 0;
-  p += 7;
-  while (p < end && (*p == ' ' || *p == '\t')) p++;
-  if (p >= end || *p != '"') return 0;
-  const char *q = ++p;
-  while (q < end && *q != '"') q++;
-  if (q >= end || (size_t)(q - p) >= cap) return 0;
-  memcpy(name, p, (size_t)(q - p));
-  name[q - p] = 0;
-  return 1;
-}
-
-static const char *base_name(const char *path) {
-  const char *s = strrchr(path, '/');
-  return s ? s + 1 : path;
-}
-
-/* `name` is what messages call the file (kernels/x.h); `stack` holds the
- * plain names being expanded, to catch cycles. `#line` keeps the compiler's
- * messages pointing at kernels/<file>:<line>. */
-static int expand_rec(const clh_source_t *table, const char *name, const char *text,
-                      const char **stack, int depth, clh_buf_t *out, bk_error_t *err) {
-  if (!buf_printf(out, "#line 1 \"%s\"\n", name))
-    return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory expanding includes", name);
-  int line_no = 1;
-  for (const char *line = text; *line;) {
-    const char *end = strchr(line, '\n');
-    const char *next = end ? end + 1 : line + strlen(line);
-    if (!end) end = next;
-    char inc[256];
-    if (parse_include(line, end, inc, sizeof inc)) {
-      const clh_source_t *s = find_source(table, inc);
-      if (!s) {
-        clh_buf_t known = {0};
-        for (const clh_source_t *t = table; t && t->name; t++)
-          buf_printf(&known, "%s%s", known.len ? ", " : "", t->name);
-        bk_fail(err, BK_ERR_RUNTIME,
-                "%s:%d: #include \"%s\": not among the embedded kernel files (%s); add it to "
-                "kernels/ and re-run cmake",
-                name, line_no, inc, known.p ? known.p : "none");
-        free(known.p);
-        return BK_ERR_RUNTIME;
-      }
-      for (int d = 0; d < depth; d++) {
-        if (strcmp(stack[d], s->name) == 0) {
-          clh_buf_t chain = {0};
-          for (int k = 0; k < depth; k++) buf_printf(&chain, "%s -> ", stack[k]);
-          buf_printf(&chain, "%s", inc);
-          bk_fail(err, BK_ERR_RUNTIME, "%s:%d: #include cycle: %s", name, line_no,
-                  chain.p ? chain.p : inc);
-          free(chain.p);
-          return BK_ERR_RUNTIME;
-        }
-      }
-      if (depth >= CLH_MAX_INCLUDE_DEPTH)
-        return bk_fail(err, BK_ERR_RUNTIME, "%s:%d: includes nested deeper than %d", name,
-                       line_no, CLH_MAX_INCLUDE_DEPTH);
-      char shown[300];
-      snprintf(shown, sizeof shown, "kernels/%s", s->name);
-      stack[depth] = s->name;
-      int rc = expand_rec(table, shown, s->text, stack, depth + 1, out, err);
-      if (rc != BK_OK) return rc;
-      if (!buf_printf(out, "#line %d \"%s\"\n", line_no + 1, name))
-        return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory expanding includes", name);
-    } else {
-      if (!buf_add(out, line, (size_t)(next - line)) ||
-          (*next == 0 && next > line && next[-1] != '\n' && !buf_add(out, "\n", 1)))
-        return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory expanding includes", name);
-    }
-    line_no++;
-    line = next;
-  }
-  return BK_OK;
-}
-
-char *clh_expand_with(const clh_source_t *table, const char *name, const char *text,
-                      bk_error_t *err) {
-  const char *stack[CLH_MAX_INCLUDE_DEPTH + 1];
-  clh_buf_t out = {0};
-  stack[0] = base_name(name);
-  if (expand_rec(table, name, text, stack, 1, &out, err) != BK_OK) {
-    free(out.p);
-    return NULL;
-  }
-  return out.p;
-}
-
-char *clh_expand_source(const char *file, bk_error_t *err) {
-  const clh_source_t *s = find_source(clh_embedded_sources, file);
-  if (!s) {
-    bk_fail(err, BK_ERR_RUNTIME,
-            "kernels/%s: not among the embedded kernel files (add it to kernels/ and re-run "
-            "cmake)", file);
-    return NULL;
-  }
-  char name[300];
-  snprintf(name, sizeof name, "kernels/%s", s->name);
-  return clh_expand_with(clh_embedded_sources, name, s->text, err);
-}
-
 /* --- binary cache ----------------------------------------------------------- */
 
 /* File layout: magic, key, binary size, binary. The key in the file guards
@@ -583,12 +429,106 @@ static char *build_log(clh_context_t *cl, cl_program prog) {
   return log;
 }
 
-int clh_build_source(clh_context_t *cl, const char *name, const char *text, const char *options,
-                     cl_program *out, bk_error_t *err) {
-  char *src = NULL, *opts = NULL, *log = NULL;
-  unsigned char *bin = NULL;
+/* The key covers everything that changes the binary: the expanded source,
+ * the options and the exact device and driver. */
+static uint64_t clh_cache_key(const clh_context_t *cl, const char *src, const char *opts) {
+  uint64_t key = BK_HASH_SEED;
+  key = bk_hash64(src, strlen(src) + 1, key);
+  key = bk_hash64(opts, strlen(opts) + 1, key);
+  key = bk_hash64(cl->device_name, strlen(cl->device_name) + 1, key);
+  key = bk_hash64(cl->driver_version, strlen(cl->driver_version) + 1, key);
+  key = bk_hash64(cl->platform_name, strlen(cl->platform_name) + 1, key);
+  return key;
+}
+
+/* The program from the cache entry at `path`, or NULL when there is none or
+ * the driver rejects it (a driver update can do that): the caller then
+ * builds from source and stores it again. Counts the hit or the miss. */
+static cl_program clh_load_cached(clh_context_t *cl, const char *name, const char *path,
+                                  uint64_t key, const char *opts, double t0) {
+  size_t size = 0;
+  unsigned char *bin = cache_load(path, key, &size);
+  if (bin) {
+    const unsigned char *bp = bin;
+    cl_int status = CL_SUCCESS, cerr = CL_SUCCESS;
+    cl_program prog =
+        clCreateProgramWithBinary(cl->context, 1, &cl->device, &size, &bp, &status, &cerr);
+    if (cerr == CL_SUCCESS && status == CL_SUCCESS &&
+        clBuildProgram(prog, 1, &cl->device, opts, NULL, NULL) == CL_SUCCESS) {
+      cl->stats.cache_hits++;
+      cl->stats.last_hit = 1;
+      cl->stats.last_ms = bk_now_ms() - t0;
+      bk_log(2, "%s: kernel cache hit %016llx (%.1f ms)", name, (unsigned long long)key,
+             cl->stats.last_ms);
+      free(bin);
+      return prog;
+    }
+    bk_log(2, "kernel cache: %s was rejected by the driver (%s); rebuilding", path,
+           clh_error_name(cerr != CL_SUCCESS ? cerr : status));
+    if (prog) clReleaseProgram(prog);
+    free(bin);
+  }
+  cl->stats.cache_misses++;
+  bk_log(2, "%s: kernel cache miss %016llx", name, (unsigned long long)key);
+  return NULL;
+}
+
+/* A failed build's message with its log. The first errors are the useful
+ * ones, so a log too long for err->msg is cut there and printed whole to
+ * stderr. */
+static void clh_build_failed(const clh_context_t *cl, const char *name, const char *opts,
+                             cl_int cerr, const char *log, bk_error_t *err) {
+  const char *lg = log && log[0] ? log : "(the driver gave no build log)";
+  size_t room = sizeof err->msg - CLH_LOG_RESERVE - strlen(name) - strlen(opts);
+  size_t ll = strlen(lg);
+  if (room > sizeof err->msg) room = 0; /* very long names or options */
+  if (ll > room) {
+    fprintf(stderr, "full OpenCL build log of %s:\n%s\n", name, lg);
+    bk_fail(err, BK_ERR_RUNTIME,
+            "%s: OpenCL build failed (%s) on %s with options '%s'; build log:\n%.*s\n"
+            "[... %zu more bytes of build log, printed in full above]",
+            name, clh_error_name(cerr), cl->device_name, opts, (int)room, lg, ll - room);
+  } else {
+    bk_fail(err, BK_ERR_RUNTIME,
+            "%s: OpenCL build failed (%s) on %s with options '%s'; build log:\n%s", name,
+            clh_error_name(cerr), cl->device_name, opts, lg);
+  }
+}
+
+/* Compiles the expanded source; the build log is printed when verbose, and
+ * is the error message when the build fails. */
+static int clh_compile(clh_context_t *cl, const char *name, const char *src, const char *opts,
+                       double t0, cl_program *out, bk_error_t *err) {
+  char *log = NULL;
   cl_program prog = NULL;
   cl_int cerr = CL_SUCCESS;
+  int rc = BK_ERR_RUNTIME;
+  const char *sp = src;
+  prog = clCreateProgramWithSource(cl->context, 1, &sp, NULL, &cerr);
+  CLH_CHECK(cerr, err, error);
+  cerr = clBuildProgram(prog, 1, &cl->device, opts, NULL, NULL);
+  log = build_log(cl, prog);
+  if (cerr != CL_SUCCESS) {
+    clh_build_failed(cl, name, opts, cerr, log, err);
+    goto error;
+  }
+  cl->stats.source_builds++;
+  cl->stats.last_ms = bk_now_ms() - t0;
+  bk_log(2, "%s: built from source in %.1f ms (options '%s')", name, cl->stats.last_ms, opts);
+  if (log && log[0]) bk_log(2, "build log of %s:\n%s", name, log);
+  *out = prog;
+  prog = NULL;
+  rc = BK_OK;
+
+error:
+  if (prog) clReleaseProgram(prog);
+  free(log);
+  return rc;
+}
+
+int clh_build_source(clh_context_t *cl, const char *name, const char *text, const char *options,
+                     cl_program *out, bk_error_t *err) {
+  char *src = NULL, *opts = NULL;
   int rc = BK_ERR_RUNTIME;
   char dir[4096], path[4200];
   *out = NULL;
@@ -604,94 +544,29 @@ int clh_build_source(clh_context_t *cl, const char *name, const char *text, cons
   }
   snprintf(opts, olen, "-cl-std=CL1.2 %s", options);
 
-  /* The key covers everything that changes the binary: the expanded source,
-   * the options and the exact device and driver. */
-  uint64_t key = BK_HASH_SEED;
-  key = bk_hash64(src, strlen(src) + 1, key);
-  key = bk_hash64(opts, strlen(opts) + 1, key);
-  key = bk_hash64(cl->device_name, strlen(cl->device_name) + 1, key);
-  key = bk_hash64(cl->driver_version, strlen(cl->driver_version) + 1, key);
-  key = bk_hash64(cl->platform_name, strlen(cl->platform_name) + 1, key);
+  uint64_t key = clh_cache_key(cl, src, opts);
   cl->stats.last_key = key;
   cl->stats.last_hit = 0;
-
   int use_cache = cache_dir(dir, sizeof dir);
   if (use_cache) snprintf(path, sizeof path, "%s/%016llx.clbin", dir, (unsigned long long)key);
   double t0 = bk_now_ms();
 
-  if (use_cache) {
-    size_t size = 0;
-    bin = cache_load(path, key, &size);
-    if (bin) {
-      const unsigned char *bp = bin;
-      cl_int status = CL_SUCCESS;
-      prog = clCreateProgramWithBinary(cl->context, 1, &cl->device, &size, &bp, &status, &cerr);
-      if (cerr == CL_SUCCESS && status == CL_SUCCESS &&
-          clBuildProgram(prog, 1, &cl->device, opts, NULL, NULL) == CL_SUCCESS) {
-        cl->stats.cache_hits++;
-        cl->stats.last_hit = 1;
-        cl->stats.last_ms = bk_now_ms() - t0;
-        bk_log(2, "%s: kernel cache hit %016llx (%.1f ms)", name, (unsigned long long)key,
-               cl->stats.last_ms);
-        *out = prog;
-        prog = NULL;
-        rc = BK_OK;
-        goto error; /* the cleanup block */
-      }
-      bk_log(2, "kernel cache: %s was rejected by the driver (%s); rebuilding", path,
-             clh_error_name(cerr != CL_SUCCESS ? cerr : status));
-      if (prog) clReleaseProgram(prog);
-      prog = NULL;
-    }
-    cl->stats.cache_misses++;
-    bk_log(2, "%s: kernel cache miss %016llx", name, (unsigned long long)key);
+  if (use_cache && (*out = clh_load_cached(cl, name, path, key, opts, t0)) != NULL) {
+    rc = BK_OK;
+    goto error; /* the cleanup block */
   }
-
-  const char *sp = src;
-  prog = clCreateProgramWithSource(cl->context, 1, &sp, NULL, &cerr);
-  CLH_CHECK(cerr, err, error);
-  cerr = clBuildProgram(prog, 1, &cl->device, opts, NULL, NULL);
-  log = build_log(cl, prog);
-  if (cerr != CL_SUCCESS) {
-    const char *lg = log && log[0] ? log : "(the driver gave no build log)";
-    size_t room = sizeof err->msg - CLH_LOG_RESERVE - strlen(name) - strlen(opts);
-    size_t ll = strlen(lg);
-    if (room > sizeof err->msg) room = 0; /* very long names or options */
-    if (ll > room) {
-      /* the first errors are the useful ones; the whole log goes to stderr */
-      fprintf(stderr, "full OpenCL build log of %s:\n%s\n", name, lg);
-      bk_fail(err, BK_ERR_RUNTIME,
-              "%s: OpenCL build failed (%s) on %s with options '%s'; build log:\n%.*s\n"
-              "[... %zu more bytes of build log, printed in full above]",
-              name, clh_error_name(cerr), cl->device_name, opts, (int)room, lg, ll - room);
-    } else {
-      bk_fail(err, BK_ERR_RUNTIME,
-              "%s: OpenCL build failed (%s) on %s with options '%s'; build log:\n%s", name,
-              clh_error_name(cerr), cl->device_name, opts, lg);
-    }
-    goto error;
-  }
-  cl->stats.source_builds++;
-  cl->stats.last_ms = bk_now_ms() - t0;
-  bk_log(2, "%s: built from source in %.1f ms (options '%s')", name, cl->stats.last_ms, opts);
-  if (log && log[0]) bk_log(2, "build log of %s:\n%s", name, log);
-  if (use_cache) cache_store(dir, path, key, prog);
-  *out = prog;
-  prog = NULL;
-  rc = BK_OK;
+  rc = clh_compile(cl, name, src, opts, t0, out, err);
+  if (rc == BK_OK && use_cache) cache_store(dir, path, key, *out);
 
 error:
-  if (prog) clReleaseProgram(prog);
   free(src);
   free(opts);
-  free(log);
-  free(bin);
   return rc;
 }
 
 int clh_build(clh_context_t *cl, const char *file, const char *options, cl_program *out,
               bk_error_t *err) {
-  const clh_source_t *s = find_source(clh_embedded_sources, file);
+  const clh_source_t *s = clh_find_source(clh_embedded_sources, file);
   *out = NULL;
   if (!s)
     return bk_fail(err, BK_ERR_RUNTIME,

@@ -22,7 +22,7 @@
 
 #include "mesh.h"
 #include "mesh_io.h"
-#include "vdbio.h"
+#include "vox_medium.h"
 
 /* The band reaches this far beyond the smoothing half-width. Only |d| < s/2
  * uses the distance (beyond it w is 0 or 1 by the inside vote alone), so half
@@ -202,30 +202,15 @@ static void sort_hits(double *h, int n) {
   }
 }
 
-/* Rays along axis `ax` through the region's voxel centres. Each ray column
- * adds +1 (inside) or -1 (outside) to the vote of its voxels by hit parity;
- * a column with an odd number of hits crossed an open boundary and abstains. */
-static int vox_parity_axis(const mesh_tris_t *m, const vox_region_t *r, int ax, signed char *vote,
-                           bk_progress_t *prog, uint64_t prog_base, uint64_t prog_span,
-                           bk_error_t *err) {
-  /* the column's 2D axes, lower one first: neighbouring columns then write
-   * neighbouring bytes of the vote array, which keeps the y and z passes in cache */
-  const int bx = ax == 0 ? 1 : 0, cx = ax == 2 ? 1 : 2;
+/* Bins the triangles into the ray columns under their 2D bounding boxes:
+ * bins[start[col] .. start[col + 1]) are the triangles column col may hit.
+ * Two passes, counting and then filling, so that one allocation holds every
+ * bin; `start` has columns + 1 zeroed entries. */
+static int vox_bin_columns(const mesh_tris_t *m, const vox_region_t *r, int bx, int cx,
+                           size_t *start, int **bins_out, bk_error_t *err) {
   const int nb = r->n[bx], nc = r->n[cx];
   const size_t columns = (size_t)nb * (size_t)nc;
-  size_t stride[3] = {1, (size_t)r->n[0], (size_t)r->n[0] * (size_t)r->n[1]};
-  size_t *start = NULL;
   int *bins = NULL;
-  double *hits = NULL;
-  int rc = BK_OK, hit_cap = 64;
-
-  start = bk_calloc(columns + 1, sizeof *start, "voxelize: ray columns", err);
-  hits = bk_calloc((size_t)hit_cap, sizeof *hits, "voxelize: ray hits", err);
-  if (!start || !hits) {
-    rc = BK_ERR_RUNTIME;
-    goto error;
-  }
-  /* two passes: count the columns under each triangle's 2D box, then fill */
   for (int pass = 0; pass < 2; pass++) {
     for (int t = 0; t < m->triangle_count; t++) {
       const int *f = m->indices + 3 * (size_t)t;
@@ -251,67 +236,111 @@ static int vox_parity_axis(const mesh_tris_t *m, const vox_region_t *r, int ax, 
     if (pass == 0) {
       for (size_t col = 0; col < columns; col++) start[col + 1] += start[col];
       bins = bk_calloc(start[columns] ? start[columns] : 1, sizeof *bins, "voxelize: ray bins", err);
-      if (!bins) {
-        rc = BK_ERR_RUNTIME;
-        goto error;
-      }
+      if (!bins) return BK_ERR_RUNTIME;
     } else {
       /* the fill advanced every start to the next column's start: shift back */
       for (size_t col = columns; col > 0; col--) start[col] = start[col - 1];
       start[0] = 0;
     }
   }
+  *bins_out = bins;
+  return BK_OK;
+}
+
+/* Depths along axis `ax` at which the ray through (pb, pc) crosses the `count`
+ * triangles `tris` (unsorted, into *hits, which grows as needed). Edge-on
+ * triangles and edges the top-left rule gives to a neighbour add nothing, so
+ * a ray through a shared edge or vertex is counted once. */
+static int vox_column_hits(const mesh_tris_t *m, const int *tris, size_t count, int ax, int bx,
+                           int cx, double pb, double pc, double **hits, int *hit_cap, int *nh_out,
+                           bk_error_t *err) {
+  int nh = 0;
+  for (size_t e = 0; e < count; e++) {
+    const int *f = m->indices + 3 * (size_t)tris[e];
+    const float *v0 = m->positions + 3 * (size_t)f[0];
+    const float *v1 = m->positions + 3 * (size_t)f[1];
+    const float *v2 = m->positions + 3 * (size_t)f[2];
+    double x0 = v0[bx], y0 = v0[cx], x1 = v1[bx], y1 = v1[cx], x2 = v2[bx], y2 = v2[cx];
+    double z0 = v0[ax], z1 = v1[ax], z2 = v2[ax];
+    double area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0);
+    if (area == 0.0) continue; /* edge-on to the ray: its neighbours decide */
+    if (area < 0.0) {          /* make it counter-clockwise */
+      double tx = x1, ty = y1, tz = z1;
+      x1 = x2, y1 = y2, z1 = z2;
+      x2 = tx, y2 = ty, z2 = tz;
+    }
+    double e01 = edge_fn(x0, y0, x1, y1, pb, pc);
+    if (!owns_edge(x0, y0, x1, y1, e01)) continue;
+    double e12 = edge_fn(x1, y1, x2, y2, pb, pc);
+    if (!owns_edge(x1, y1, x2, y2, e12)) continue;
+    double e20 = edge_fn(x2, y2, x0, y0, pb, pc);
+    if (!owns_edge(x2, y2, x0, y0, e20)) continue;
+    double sum = e01 + e12 + e20;
+    if (!(sum > 0.0)) continue;
+    if (nh == *hit_cap) {
+      double *bigger = realloc(*hits, 2 * (size_t)*hit_cap * sizeof **hits);
+      if (!bigger) return bk_fail(err, BK_ERR_RUNTIME, "voxelize: out of memory for ray hits");
+      *hits = bigger;
+      *hit_cap *= 2;
+    }
+    /* barycentric depth: each edge function weighs the opposite vertex */
+    (*hits)[nh++] = (e12 * z0 + e20 * z1 + e01 * z2) / sum;
+  }
+  *nh_out = nh;
+  return BK_OK;
+}
+
+/* Walks column (bb, cc) along `ax` with its sorted hits: a voxel centre past
+ * an odd number of hits is inside (+1), past an even number outside (-1). */
+static void vox_column_vote(const vox_region_t *r, int ax, int bx, int cx, int bb, int cc,
+                            const double *hits, int nh, signed char *vote) {
+  const size_t stride[3] = {1, (size_t)r->n[0], (size_t)r->n[0] * (size_t)r->n[1]};
+  size_t idx[3];
+  idx[ax] = 0;
+  idx[bx] = (size_t)(bb - r->lo[bx]);
+  idx[cx] = (size_t)(cc - r->lo[cx]);
+  signed char *cell = vote + idx[0] * stride[0] + idx[1] * stride[1] + idx[2] * stride[2];
+  int h = 0;
+  for (int a = r->lo[ax]; a <= r->hi[ax]; a++, cell += stride[ax]) {
+    while (h < nh && hits[h] < (double)a) h++;
+    *cell += (h & 1) ? 1 : -1;
+  }
+}
+
+/* Rays along axis `ax` through the region's voxel centres. Each ray column
+ * adds +1 (inside) or -1 (outside) to the vote of its voxels by hit parity;
+ * a column with an odd number of hits crossed an open boundary and abstains. */
+static int vox_parity_axis(const mesh_tris_t *m, const vox_region_t *r, int ax, signed char *vote,
+                           bk_progress_t *prog, uint64_t prog_base, uint64_t prog_span,
+                           bk_error_t *err) {
+  /* the column's 2D axes, lower one first: neighbouring columns then write
+   * neighbouring bytes of the vote array, which keeps the y and z passes in cache */
+  const int bx = ax == 0 ? 1 : 0, cx = ax == 2 ? 1 : 2;
+  const int nb = r->n[bx], nc = r->n[cx];
+  const size_t columns = (size_t)nb * (size_t)nc;
+  size_t *start = NULL;
+  int *bins = NULL;
+  double *hits = NULL;
+  int rc = BK_OK, hit_cap = 64;
+
+  start = bk_calloc(columns + 1, sizeof *start, "voxelize: ray columns", err);
+  hits = bk_calloc((size_t)hit_cap, sizeof *hits, "voxelize: ray hits", err);
+  if (!start || !hits) {
+    rc = BK_ERR_RUNTIME;
+    goto error;
+  }
+  rc = vox_bin_columns(m, r, bx, cx, start, &bins, err);
+  if (rc) goto error;
 
   for (size_t col = 0; col < columns; col++) {
     int bb = r->lo[bx] + (int)(col % (size_t)nb), cc = r->lo[cx] + (int)(col / (size_t)nb);
-    double pb = bb, pc = cc;
     int nh = 0;
-    for (size_t e = start[col]; e < start[col + 1]; e++) {
-      const int *f = m->indices + 3 * (size_t)bins[e];
-      const float *v0 = m->positions + 3 * (size_t)f[0];
-      const float *v1 = m->positions + 3 * (size_t)f[1];
-      const float *v2 = m->positions + 3 * (size_t)f[2];
-      double x0 = v0[bx], y0 = v0[cx], x1 = v1[bx], y1 = v1[cx], x2 = v2[bx], y2 = v2[cx];
-      double z0 = v0[ax], z1 = v1[ax], z2 = v2[ax];
-      double area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0);
-      if (area == 0.0) continue; /* edge-on to the ray: its neighbours decide */
-      if (area < 0.0) {          /* make it counter-clockwise */
-        double tx = x1, ty = y1, tz = z1;
-        x1 = x2, y1 = y2, z1 = z2;
-        x2 = tx, y2 = ty, z2 = tz;
-      }
-      double e01 = edge_fn(x0, y0, x1, y1, pb, pc);
-      if (!owns_edge(x0, y0, x1, y1, e01)) continue;
-      double e12 = edge_fn(x1, y1, x2, y2, pb, pc);
-      if (!owns_edge(x1, y1, x2, y2, e12)) continue;
-      double e20 = edge_fn(x2, y2, x0, y0, pb, pc);
-      if (!owns_edge(x2, y2, x0, y0, e20)) continue;
-      double sum = e01 + e12 + e20;
-      if (!(sum > 0.0)) continue;
-      if (nh == hit_cap) {
-        double *bigger = realloc(hits, 2 * (size_t)hit_cap * sizeof *hits);
-        if (!bigger) {
-          rc = bk_fail(err, BK_ERR_RUNTIME, "voxelize: out of memory for ray hits");
-          goto error;
-        }
-        hits = bigger;
-        hit_cap *= 2;
-      }
-      /* barycentric depth: each edge function weighs the opposite vertex */
-      hits[nh++] = (e12 * z0 + e20 * z1 + e01 * z2) / sum;
-    }
+    rc = vox_column_hits(m, bins + start[col], start[col + 1] - start[col], ax, bx, cx, bb, cc,
+                         &hits, &hit_cap, &nh, err);
+    if (rc) goto error;
     if (nh & 1) continue; /* open boundary crossed: abstain */
     sort_hits(hits, nh);
-    size_t idx[3];
-    idx[ax] = 0;
-    idx[bx] = (size_t)(bb - r->lo[bx]);
-    idx[cx] = (size_t)(cc - r->lo[cx]);
-    signed char *cell = vote + idx[0] * stride[0] + idx[1] * stride[1] + idx[2] * stride[2];
-    int h = 0;
-    for (int a = r->lo[ax]; a <= r->hi[ax]; a++, cell += stride[ax]) {
-      while (h < nh && hits[h] < (double)a) h++;
-      *cell += (h & 1) ? 1 : -1;
-    }
+    vox_column_vote(r, ax, bx, cx, bb, cc, hits, nh, vote);
     if ((col & 4095) == 0)
       bk_progress_update(prog, prog_base + prog_span * (uint64_t)col / (uint64_t)columns);
   }
@@ -362,81 +391,6 @@ static void vox_blend(const scene_object_t *obj, const vox_region_t *r, float ba
     }
 }
 
-/* --- the medium ------------------------------------------------------------------ */
-
-static int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
-  const grid_dims_t *d = &out->dims;
-  const size_t count = grid_count(d);
-  float *density = NULL;
-  int rc = BK_OK;
-
-  if (scene->ior_vdb.present) {
-    const scene_vdb_ref_t *ref = &scene->ior_vdb;
-    rc = vdbio_resample_float(ref->file, ref->grid, d, out->ior, ref->where, err);
-    if (rc) goto error;
-    size_t clamped = 0;
-    float lowest = 1.0f;
-    for (size_t v = 0; v < count; v++) {
-      if (!isfinite(out->ior[v])) {
-        rc = bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite n at voxel %zu",
-                     ref->where, ref->file, ref->grid, v);
-        goto error;
-      }
-      if (out->ior[v] < 1.0f) { /* e.g. a zero background outside the active voxels */
-        lowest = fminf(lowest, out->ior[v]);
-        out->ior[v] = 1.0f;
-        clamped++;
-      }
-    }
-    if (clamped)
-      bk_warn("%s: %s: grid \"%s\": %zu voxels had n < 1 (lowest %g), raised to 1", ref->where,
-              ref->file, ref->grid, clamped, lowest);
-  } else {
-    for (size_t v = 0; v < count; v++) out->ior[v] = scene->medium_ior;
-  }
-
-  if (scene->density_vdb.present) {
-    const scene_vdb_ref_t *ref = &scene->density_vdb;
-    density = bk_calloc(count, sizeof *density, "voxelize: density_vdb", err);
-    if (!density) {
-      rc = BK_ERR_RUNTIME;
-      goto error;
-    }
-    rc = vdbio_resample_float(ref->file, ref->grid, d, density, ref->where, err);
-    if (rc) goto error;
-    size_t clamped = 0;
-    for (size_t v = 0; v < count; v++) {
-      float rho = density[v];
-      if (!isfinite(rho)) {
-        rc = bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite density at voxel %zu",
-                     ref->where, ref->file, ref->grid, v);
-        goto error;
-      }
-      if (rho < 0.0f) {
-        rho = 0.0f;
-        clamped++;
-      }
-      for (int ch = 0; ch < 3; ch++) {
-        out->sigma_s[3 * v + ch] = scene->medium_sigma_s[ch] * rho;
-        out->sigma_a[3 * v + ch] = scene->medium_sigma_a[ch] * rho;
-      }
-    }
-    if (clamped)
-      bk_warn("%s: %s: grid \"%s\": %zu voxels had a negative density, set to 0", ref->where,
-              ref->file, ref->grid, clamped);
-  } else {
-    for (size_t v = 0; v < count; v++)
-      for (int ch = 0; ch < 3; ch++) {
-        out->sigma_s[3 * v + ch] = scene->medium_sigma_s[ch];
-        out->sigma_a[3 * v + ch] = scene->medium_sigma_a[ch];
-      }
-  }
-
-error:
-  free(density);
-  return rc;
-}
-
 /* What the kernels may specialise on (DESIGN §3). */
 static void vox_summarise(volume_t *v) {
   const size_t count = grid_count(&v->dims);
@@ -463,21 +417,20 @@ static void vox_summarise(volume_t *v) {
 
 /* --- the stage ------------------------------------------------------------------- */
 
-int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_error_t *err) {
-  mesh_tris_t mesh = {0};
-  float *dist2 = NULL;
-  signed char *vote = NULL;
-  size_t scratch_cap = 0;
-  bk_progress_t prog = {0};
-  char label[48];
-  int rc = BK_OK;
-  long long total_tris = 0;
-  double load_ms = 0.0, t_start = bk_now_ms();
-  const char *grid_where = scene->where_resolution[0] ? scene->where_resolution : scene->path;
+/* Per-object scratch, kept across objects and grown to the largest region. */
+typedef struct vox_scratch {
+  float *dist2;
+  signed char *vote;
+  size_t cap;
+} vox_scratch_t;
 
-  memset(out, 0, sizeof *out);
-  rc = grid_dims_from_bounds(scene->bounds_min, scene->bounds_max, scene->resolution, grid_where,
-                             &out->dims, err);
+/* The grid, the memory it needs and the volume filled with the medium: what
+ * the objects are composited over. Refuses a grid that cannot fit before
+ * allocating anything. */
+static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *out,
+                       bk_error_t *err) {
+  int rc = grid_dims_from_bounds(scene->bounds_min, scene->bounds_max, scene->resolution,
+                                 grid_where, &out->dims, err);
   if (rc) return rc;
   if (!(scene->ior_smoothing > 0.0f) || !isfinite(scene->ior_smoothing))
     return bk_fail(err, BK_ERR_INPUT, "%s: grid.ior_smoothing: expected a positive number of voxels, got %g",
@@ -494,15 +447,137 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
   out->ior = bk_calloc(count, sizeof(float), "voxelize: ior grid", err);
   out->sigma_s = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_s grid", err);
   out->sigma_a = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_a grid", err);
-  if (!out->ior || !out->sigma_s || !out->sigma_a) {
-    rc = BK_ERR_RUNTIME;
-    goto error;
-  }
+  if (!out->ior || !out->sigma_s || !out->sigma_a) return BK_ERR_RUNTIME;
   double t_medium = bk_now_ms();
   rc = vox_medium(scene, out, err);
-  if (rc) goto error;
+  if (rc) return rc;
   bk_log(2, "voxelize: medium %.0f ms", bk_now_ms() - t_medium);
+  return BK_OK;
+}
 
+/* Reads and checks one object's mesh. A read error gets the object's place
+ * in the scene in front, so the user knows which entry names the file. */
+static int vox_load_mesh(const scene_object_t *obj, const char *where, mesh_tris_t *mesh,
+                         double *load_ms, bk_error_t *err) {
+  double t0 = bk_now_ms();
+  int rc = mesh_io_read(obj->mesh, mesh, err);
+  if (rc) {
+    char inner[sizeof err->msg];
+    snprintf(inner, sizeof inner, "%s", err->msg);
+    bk_fail(err, rc, "%s: %s", where, inner);
+    return rc;
+  }
+  *load_ms += bk_now_ms() - t0;
+
+  mesh_report_t report;
+  double t_check = bk_now_ms();
+  rc = mesh_check(mesh, &report, err);
+  if (rc) return rc;
+  mesh_check_log(obj->mesh, &report);
+  bk_log(2, "%s: topology check %.0f ms", obj->mesh, bk_now_ms() - t_check);
+  return BK_OK;
+}
+
+/* World -> voxel index space (voxel centres at integers); lo and hi get the
+ * mesh's bounds there. A vertex the transform sends to infinity is an input
+ * error, not a silent hole in the inside test. */
+static int vox_to_index_space(mesh_tris_t *mesh, const scene_object_t *obj, const char *where,
+                              const grid_dims_t *d, float lo[3], float hi[3], bk_error_t *err) {
+  mesh_transform(mesh, obj);
+  for (int a = 0; a < 3; a++) {
+    lo[a] = INFINITY;
+    hi[a] = -INFINITY;
+  }
+  for (int v = 0; v < mesh->vertex_count; v++) {
+    float *p = mesh->positions + 3 * (size_t)v;
+    for (int a = 0; a < 3; a++) {
+      if (!isfinite(p[a]))
+        return bk_fail(err, BK_ERR_INPUT,
+                       "%s: %s: the object's transform takes vertex %d to a non-finite position",
+                       where, obj->mesh, v);
+      p[a] = (float)(((double)p[a] - d->origin[a]) / d->voxel_size - 0.5);
+      if (!isfinite(p[a]))
+        return bk_fail(err, BK_ERR_INPUT,
+                       "%s: %s: the object's transform takes vertex %d beyond %g voxels from the grid",
+                       where, obj->mesh, v, (double)FLT_MAX);
+      lo[a] = fminf(lo[a], p[a]);
+      hi[a] = fmaxf(hi[a], p[a]);
+    }
+  }
+  return BK_OK;
+}
+
+/* The voxels within `band` of the mesh's bounds, clipped to the grid: the
+ * only ones the object can change. Returns 0 when none are left. */
+static int vox_region_around(const float lo[3], const float hi[3], float band,
+                             const grid_dims_t *d, vox_region_t *r) {
+  int n[3] = {d->nx, d->ny, d->nz}, outside = 0;
+  r->count = 1;
+  for (int a = 0; a < 3; a++) {
+    float l = floorf(lo[a] - band), h = ceilf(hi[a] + band);
+    r->lo[a] = l < 0.0f ? 0 : (l > (float)(n[a] - 1) ? n[a] : (int)l);
+    r->hi[a] = h > (float)(n[a] - 1) ? n[a] - 1 : (h < 0.0f ? -1 : (int)h);
+    if (r->lo[a] > r->hi[a]) outside = 1;
+    r->n[a] = r->hi[a] - r->lo[a] + 1;
+    r->count *= outside ? 1 : (size_t)r->n[a];
+  }
+  return !outside;
+}
+
+/* Room for `count` voxels of scratch (the old contents are not kept) with
+ * every inside vote at zero. */
+static int vox_scratch_fit(vox_scratch_t *s, size_t count, bk_error_t *err) {
+  if (count > s->cap) {
+    free(s->dist2);
+    free(s->vote);
+    s->vote = NULL;
+    s->dist2 = bk_calloc(count, sizeof *s->dist2, "voxelize: distance scratch", err);
+    if (s->dist2) s->vote = bk_calloc(count, sizeof *s->vote, "voxelize: inside votes", err);
+    if (!s->dist2 || !s->vote) return BK_ERR_RUNTIME;
+    s->cap = count;
+  }
+  memset(s->vote, 0, count * sizeof *s->vote);
+  return BK_OK;
+}
+
+/* The three passes over one object's region (distance, inside votes along
+ * x, y and z, blend), a quarter of the progress bar each for the first four. */
+static int vox_object_passes(const scene_object_t *obj, const mesh_tris_t *mesh,
+                             const vox_region_t *r, float band, float smoothing,
+                             vox_scratch_t *s, bk_progress_t *prog, volume_t *out,
+                             bk_error_t *err) {
+  uint64_t tris = (uint64_t)mesh->triangle_count;
+  prog->total = 4 * tris;
+  double t1 = bk_now_ms();
+  vox_distance(mesh, r, band, s->dist2, prog, 0);
+  double t2 = bk_now_ms();
+  for (int ax = 0; ax < 3; ax++) {
+    int rc = vox_parity_axis(mesh, r, ax, s->vote, prog, tris * (uint64_t)(1 + ax), tris, err);
+    if (rc) return rc;
+  }
+  double t3 = bk_now_ms();
+  vox_blend(obj, r, band, smoothing, s->dist2, s->vote, out);
+  bk_log(2, "%s: %dx%dx%d voxels around it: distance %.0f ms, inside votes %.0f ms, blend %.0f ms",
+         obj->mesh, r->n[0], r->n[1], r->n[2], t2 - t1, t3 - t2, bk_now_ms() - t3);
+  bk_progress_update(prog, prog->total);
+  return BK_OK;
+}
+
+int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_error_t *err) {
+  mesh_tris_t mesh = {0};
+  vox_scratch_t scratch = {0};
+  bk_progress_t prog = {0};
+  char label[48];
+  int rc = BK_OK;
+  long long total_tris = 0;
+  double load_ms = 0.0, t_start = bk_now_ms();
+  const char *grid_where = scene->where_resolution[0] ? scene->where_resolution : scene->path;
+
+  memset(out, 0, sizeof *out);
+  rc = vox_prepare(scene, grid_where, out, err);
+  if (rc) goto error;
+  const grid_dims_t *d = &out->dims;
+  const size_t count = grid_count(d);
   const float smoothing = scene->ior_smoothing;
   const float band = 0.5f * smoothing + VOX_BAND_MARGIN;
   bk_progress_begin(&prog, "voxelize", 1);
@@ -516,93 +591,24 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
       snprintf(where_buf, sizeof where_buf, "objects[%d].mesh", oi);
       where = where_buf;
     }
-    double t0 = bk_now_ms();
-    rc = mesh_io_read(obj->mesh, &mesh, err);
-    if (rc) {
-      char inner[sizeof err->msg];
-      snprintf(inner, sizeof inner, "%s", err->msg);
-      bk_fail(err, rc, "%s: %s", where, inner);
-      goto error;
-    }
-    load_ms += bk_now_ms() - t0;
-    total_tris += mesh.triangle_count;
-
-    mesh_report_t report;
-    double t_check = bk_now_ms();
-    rc = mesh_check(&mesh, &report, err);
+    rc = vox_load_mesh(obj, where, &mesh, &load_ms, err);
     if (rc) goto error;
-    mesh_check_log(obj->mesh, &report);
-    bk_log(2, "%s: topology check %.0f ms", obj->mesh, bk_now_ms() - t_check);
-
-    /* world -> voxel index space (voxel centres at integers) */
-    mesh_transform(&mesh, obj);
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int v = 0; v < mesh.vertex_count; v++) {
-      float *p = mesh.positions + 3 * (size_t)v;
-      for (int a = 0; a < 3; a++) {
-        if (!isfinite(p[a])) {
-          rc = bk_fail(err, BK_ERR_INPUT,
-                       "%s: %s: the object's transform takes vertex %d to a non-finite position",
-                       where, obj->mesh, v);
-          goto error;
-        }
-        p[a] = (float)(((double)p[a] - d->origin[a]) / d->voxel_size - 0.5);
-        if (!isfinite(p[a])) {
-          rc = bk_fail(err, BK_ERR_INPUT,
-                       "%s: %s: the object's transform takes vertex %d beyond %g voxels from the grid",
-                       where, obj->mesh, v, (double)FLT_MAX);
-          goto error;
-        }
-        lo[a] = fminf(lo[a], p[a]);
-        hi[a] = fmaxf(hi[a], p[a]);
-      }
-    }
+    total_tris += mesh.triangle_count;
+    float lo[3], hi[3];
+    rc = vox_to_index_space(&mesh, obj, where, d, lo, hi, err);
+    if (rc) goto error;
     vox_region_t r;
-    int n[3] = {d->nx, d->ny, d->nz}, outside = 0;
-    r.count = 1;
-    for (int a = 0; a < 3; a++) {
-      float l = floorf(lo[a] - band), h = ceilf(hi[a] + band);
-      r.lo[a] = l < 0.0f ? 0 : (l > (float)(n[a] - 1) ? n[a] : (int)l);
-      r.hi[a] = h > (float)(n[a] - 1) ? n[a] - 1 : (h < 0.0f ? -1 : (int)h);
-      if (r.lo[a] > r.hi[a]) outside = 1;
-      r.n[a] = r.hi[a] - r.lo[a] + 1;
-      r.count *= outside ? 1 : (size_t)r.n[a];
-    }
-    if (outside) {
+    if (!vox_region_around(lo, hi, band, d, &r)) {
       bk_warn("%s: %s lies entirely outside grid.bounds; ignored", where, obj->mesh);
       mesh_io_free(&mesh);
       continue;
     }
-    if (r.count > scratch_cap) {
-      free(dist2);
-      free(vote);
-      vote = NULL;
-      dist2 = bk_calloc(r.count, sizeof *dist2, "voxelize: distance scratch", err);
-      if (dist2) vote = bk_calloc(r.count, sizeof *vote, "voxelize: inside votes", err);
-      if (!dist2 || !vote) {
-        rc = BK_ERR_RUNTIME;
-        goto error;
-      }
-      scratch_cap = r.count;
-    }
-    memset(vote, 0, r.count * sizeof *vote);
-
-    uint64_t tris = (uint64_t)mesh.triangle_count;
-    prog.total = 4 * tris;
+    rc = vox_scratch_fit(&scratch, r.count, err);
+    if (rc) goto error;
     snprintf(label, sizeof label, "voxelize %d/%d", oi + 1, scene->object_count);
     prog.label = scene->object_count > 1 ? label : "voxelize";
-    double t1 = bk_now_ms();
-    vox_distance(&mesh, &r, band, dist2, &prog, 0);
-    double t2 = bk_now_ms();
-    for (int ax = 0; ax < 3; ax++) {
-      rc = vox_parity_axis(&mesh, &r, ax, vote, &prog, tris * (uint64_t)(1 + ax), tris, err);
-      if (rc) goto error;
-    }
-    double t3 = bk_now_ms();
-    vox_blend(obj, &r, band, smoothing, dist2, vote, out);
-    bk_log(2, "%s: %dx%dx%d voxels around it: distance %.0f ms, inside votes %.0f ms, blend %.0f ms",
-           obj->mesh, r.n[0], r.n[1], r.n[2], t2 - t1, t3 - t2, bk_now_ms() - t3);
-    bk_progress_update(&prog, prog.total);
+    rc = vox_object_passes(obj, &mesh, &r, band, smoothing, &scratch, &prog, out, err);
+    if (rc) goto error;
     mesh_io_free(&mesh);
   }
   bk_progress_end(&prog);
@@ -617,14 +623,14 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
                  "%d object%s, %lld tris, %dx%dx%d, n in [%g, %g]", scene->object_count,
                  scene->object_count == 1 ? "" : "s", total_tris, d->nx, d->ny, d->nz,
                  out->n_min, out->n_max);
-  free(dist2);
-  free(vote);
+  free(scratch.dist2);
+  free(scratch.vote);
   return BK_OK;
 
 error:
   mesh_io_free(&mesh);
-  free(dist2);
-  free(vote);
+  free(scratch.dist2);
+  free(scratch.vote);
   vox_free(out);
   return rc;
 }

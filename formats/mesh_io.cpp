@@ -379,29 +379,19 @@ bool prescan_stl(const char *text, size_t len, std::string *msg) {
   }
 }
 
-} // namespace
-
-extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err) {
-  memset(out, 0, sizeof *out);
-  std::string ext;
-  mesh_format fmt = format_of(path, &ext);
-  if (fmt == FMT_UNKNOWN)
-    return bk_fail(err, BK_ERR_INPUT,
-                   "%s: unknown mesh format '%s': expected .obj, .ply, .off or .stl", path,
-                   ext.empty() ? "(no extension)" : ext.c_str());
-
-  // Missing or unreadable files are named here, before OpenMesh tries, and the
-  // same read feeds the pre-scan.
+// Missing or unreadable files are named here, before OpenMesh tries, and the
+// same read feeds the pre-scan; an OBJ's "v" lines are counted into
+// obj_vertex_lines so that vertices OpenMesh drops can be noticed.
+int prescan_file(const char *path, mesh_format fmt, int *obj_vertex_lines, bk_error_t *err) {
   char *text = nullptr;
   size_t len = 0;
   bk_error_t read_err;
   if (bk_read_file(path, &text, &len, &read_err) != BK_OK)
     return bk_fail(err, BK_ERR_INPUT, "%s", read_err.msg);
   std::string msg;
-  int obj_vertex_lines = -1;
   bool ok = true;
   switch (fmt) {
-  case FMT_OBJ: ok = prescan_obj(text, &obj_vertex_lines, &msg); break;
+  case FMT_OBJ: ok = prescan_obj(text, obj_vertex_lines, &msg); break;
   case FMT_OFF: ok = prescan_off(text, &msg); break;
   case FMT_PLY: ok = prescan_ply(text, &msg); break;
   case FMT_STL: ok = prescan_stl(text, len, &msg); break;
@@ -409,8 +399,14 @@ extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err)
   }
   free(text);
   if (!ok) return bk_fail(err, BK_ERR_INPUT, "%s:%s", path, msg.c_str());
+  return BK_OK;
+}
 
-  om_mesh_t mesh;
+// OpenMesh reads the file with its console chatter captured: the chatter
+// becomes a log line (topology only), a warning, or part of the error.
+// Refuses meshes without faces, with dropped vertices or too large for int.
+int read_openmesh(const char *path, const std::string &ext, int obj_vertex_lines,
+                  om_mesh_t &mesh, bk_error_t *err) {
   OpenMesh::IO::Options opts;
   bool read_ok;
   std::string chatter;
@@ -448,7 +444,13 @@ extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err)
   if (mesh.n_vertices() > (size_t)INT32_MAX / 3 || mesh.n_faces() > (size_t)INT32_MAX / 3)
     return bk_fail(err, BK_ERR_INPUT, "%s: too large (%zu vertices, %zu faces)", path,
                    (size_t)mesh.n_vertices(), (size_t)mesh.n_faces());
+  return BK_OK;
+}
 
+// The triangulated OpenMesh mesh as the flat arrays of mesh_tris_t. A
+// non-finite coordinate is refused here, where the file's vertex number is
+// still known.
+int copy_triangles(const char *path, om_mesh_t &mesh, mesh_tris_t *out, bk_error_t *err) {
   int nv = (int)mesh.n_vertices(), nf = (int)mesh.n_faces();
   out->positions = (float *)bk_calloc((size_t)nv * 3, sizeof(float), path, err);
   out->indices = (int *)bk_calloc((size_t)nf * 3, sizeof(int), path, err);
@@ -483,6 +485,25 @@ extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err)
   out->vertex_count = nv;
   out->triangle_count = nf;
   return BK_OK;
+}
+
+} // namespace
+
+extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err) {
+  memset(out, 0, sizeof *out);
+  std::string ext;
+  mesh_format fmt = format_of(path, &ext);
+  if (fmt == FMT_UNKNOWN)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: unknown mesh format '%s': expected .obj, .ply, .off or .stl", path,
+                   ext.empty() ? "(no extension)" : ext.c_str());
+  int obj_vertex_lines = -1;
+  int rc = prescan_file(path, fmt, &obj_vertex_lines, err);
+  if (rc != BK_OK) return rc;
+  om_mesh_t mesh;
+  rc = read_openmesh(path, ext, obj_vertex_lines, mesh, err);
+  if (rc != BK_OK) return rc;
+  return copy_triangles(path, mesh, out, err);
 }
 
 extern "C" int mesh_io_write_obj(const char *path, const mesh_tris_t *m, bk_error_t *err) {

@@ -3,11 +3,11 @@
  * Every entry point catches openvdb and std exceptions and turns them into a
  * bk_error_t: no exception ever crosses into C. Files are read fully (no
  * delayed loading), so a truncated or corrupt file fails inside the call that
- * opened it, never later from a memory-mapped page or a worker thread. */
-#include "vdbio.h"
+ * opened it, never later from a memory-mapped page or a worker thread.
+ * Writing lives in vdbio_write.cpp. */
+#include "vdbio_internal.h"
 
 #include <openvdb/openvdb.h>
-#include <openvdb/tools/Dense.h>
 #include <openvdb/tools/Interpolation.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -21,15 +21,11 @@
 #include <fstream>
 #include <mutex>
 #include <new>
-#include <set>
 #include <string>
 
 namespace vdb = openvdb;
 
-static const char *const VDBIO_CENTERING =
-    "cell-centred: voxel (i,j,k) covers the cube centred at indexToWorld(i,j,k)";
-
-static void vdbio_init(void) {
+void vdbio_init(void) {
   static std::once_flag once;
   std::call_once(once, [] { vdb::initialize(); });
 }
@@ -40,136 +36,6 @@ static std::string vdbio_prefix(const char *path, const char *where) {
   if (where && where[0])
     s = std::string(where) + ": ";
   return s + (path ? path : "(null)");
-}
-
-/* --- writing --------------------------------------------------------------- */
-
-/* The transform that puts index (i,j,k) at the centre of our voxel (i,j,k). */
-static vdb::math::Transform::Ptr vdbio_cell_centred_transform(const grid_dims_t *d) {
-  const double vs = (double)d->voxel_size;
-  vdb::math::Transform::Ptr xf = vdb::math::Transform::createLinearTransform(vs);
-  xf->postTranslate(vdb::Vec3d((double)d->origin[0] + 0.5 * vs, (double)d->origin[1] + 0.5 * vs,
-                               (double)d->origin[2] + 0.5 * vs));
-  return xf;
-}
-
-/* Dense x-fastest array -> sparse grid; exact zeros stay inactive background
- * (tolerance 0). copyFromDense only reads the array, hence the const_cast. */
-template <typename GridT>
-static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *data) {
-  using ValueT = typename GridT::ValueType;
-  static_assert(sizeof(ValueT) % sizeof(float) == 0, "float or Vec3s");
-  const vdb::CoordBBox box(vdb::Coord(0, 0, 0), vdb::Coord(d->nx - 1, d->ny - 1, d->nz - 1));
-  vdb::tools::Dense<ValueT, vdb::tools::LayoutXYZ> dense(
-      box, reinterpret_cast<ValueT *>(const_cast<float *>(data)));
-  typename GridT::Ptr grid = GridT::create(vdb::zeroVal<ValueT>());
-  vdb::tools::copyFromDense(dense, *grid, vdb::zeroVal<ValueT>());
-  return grid;
-}
-
-int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *grids,
-                int grid_count, const vdbio_meta_t *meta, int meta_count,
-                const vdbio_write_opts_t *opts, bk_error_t *err) {
-  if (!path || !path[0])
-    return bk_fail(err, BK_ERR_INPUT, "vdbio_write: empty output path");
-  if (!dims || dims->nx < 1 || dims->ny < 1 || dims->nz < 1 || !(dims->voxel_size > 0.0f) ||
-      !std::isfinite(dims->voxel_size))
-    return bk_fail(err, BK_ERR_RUNTIME, "%s: invalid grid dimensions for writing", path);
-  if (grid_count < 0 || (grid_count > 0 && !grids) || meta_count < 0 || (meta_count > 0 && !meta))
-    return bk_fail(err, BK_ERR_RUNTIME, "%s: invalid grid or metadata list for writing", path);
-  {
-    std::set<std::string> seen;
-    for (int g = 0; g < grid_count; g++) {
-      if (!grids[g].name || !grids[g].name[0] || !grids[g].data ||
-          (grids[g].type != VDBIO_FLOAT && grids[g].type != VDBIO_VEC3))
-        return bk_fail(err, BK_ERR_RUNTIME, "%s: grid %d has no name, no data or an unknown type",
-                       path, g);
-      if (!seen.insert(grids[g].name).second)
-        return bk_fail(err, BK_ERR_RUNTIME, "%s: grid name \"%s\" is used twice", path,
-                       grids[g].name);
-    }
-    for (int m = 0; m < meta_count; m++)
-      if (!meta[m].key || !meta[m].key[0] || (meta[m].kind == VDBIO_META_STRING && !meta[m].s))
-        return bk_fail(err, BK_ERR_RUNTIME, "%s: metadata entry %d has no key or no value", path,
-                       m);
-  }
-  int rc = bk_check_output_dir(path, err);
-  if (rc)
-    return rc;
-
-  char tmp[4096];
-  bk_temp_path(path, tmp, sizeof tmp);
-  vdbio_init();
-  try {
-    vdb::math::Transform::Ptr xf = vdbio_cell_centred_transform(dims);
-    const bool half = opts && opts->half_float;
-    vdb::GridPtrVec out;
-    for (int g = 0; g < grid_count; g++) {
-      vdb::GridBase::Ptr base;
-      if (grids[g].type == VDBIO_FLOAT) {
-        base = vdbio_from_dense<vdb::FloatGrid>(dims, grids[g].data);
-      } else {
-        vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, grids[g].data);
-        /* unset means the OpenVDB default, which is also invariant; set it
-         * explicitly so readers see the metadata */
-        if (grids[g].vector_invariant)
-          v->setVectorType(vdb::VEC_INVARIANT);
-        base = v;
-      }
-      base->setName(grids[g].name);
-      base->setGridClass(vdb::GRID_FOG_VOLUME);
-      base->setTransform(xf->copy());
-      base->setSaveFloatAsHalf(half);
-      out.push_back(base);
-    }
-
-    vdb::MetaMap file_meta;
-    for (int m = 0; m < meta_count; m++) {
-      switch (meta[m].kind) {
-      case VDBIO_META_STRING:
-        file_meta.insertMeta(meta[m].key, vdb::StringMetadata(meta[m].s));
-        break;
-      case VDBIO_META_INT:
-        file_meta.insertMeta(meta[m].key, vdb::Int64Metadata((int64_t)meta[m].i));
-        break;
-      case VDBIO_META_FLOAT:
-        file_meta.insertMeta(meta[m].key, vdb::DoubleMetadata(meta[m].f));
-        break;
-      default:
-        return bk_fail(err, BK_ERR_RUNTIME, "%s: metadata \"%s\" has an unknown kind %d", path,
-                       meta[m].key, (int)meta[m].kind);
-      }
-    }
-    if (!file_meta["creator"])
-      file_meta.insertMeta("creator", vdb::StringMetadata("baker " BAKER_VERSION));
-    if (!file_meta["voxel_centering"])
-      file_meta.insertMeta("voxel_centering", vdb::StringMetadata(VDBIO_CENTERING));
-
-    uint32_t comp = vdb::io::COMPRESS_ZIP | vdb::io::COMPRESS_ACTIVE_MASK;
-    if (opts && opts->compression == VDBIO_COMPRESS_NONE) {
-      comp = vdb::io::COMPRESS_NONE;
-    } else if (opts && opts->compression == VDBIO_COMPRESS_BLOSC) {
-      if (vdb::io::Archive::hasBloscCompression())
-        comp = vdb::io::COMPRESS_BLOSC | vdb::io::COMPRESS_ACTIVE_MASK;
-      else
-        bk_warn("%s: this OpenVDB has no Blosc compression; writing with Zip instead", path);
-    }
-
-    vdb::io::File file(tmp);
-    file.setCompression(comp);
-    file.write(out, file_meta);
-    file.close();
-  } catch (const std::bad_alloc &) {
-    remove(tmp);
-    return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while writing the VDB file", path);
-  } catch (const std::exception &e) {
-    remove(tmp);
-    return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write VDB file: %s", path, e.what());
-  } catch (...) {
-    remove(tmp);
-    return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write VDB file: unknown error", path);
-  }
-  return bk_commit_temp(tmp, path, err);
 }
 
 /* --- reading --------------------------------------------------------------- */

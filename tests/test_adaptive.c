@@ -925,7 +925,7 @@ static int test_filter_cl(void) {
 /* --- device math --------------------------------------------------------------- */
 
 static const char *device_src =
-    "#include \"adaptive.h\"\n"
+    "#include \"kernels/light_domain.h\"\n"
     "__kernel void warp(__global const float *table, int nx, int ny, __global const float *u,\n"
     "                   int n, __global float *out) {\n"
     "  int i = get_global_id(0);\n"

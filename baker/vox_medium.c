@@ -1,0 +1,80 @@
+/* vox_medium.c: the medium under the objects (see vox_medium.h). */
+#include "vox_medium.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+#include "vdbio.h"
+
+int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
+  const grid_dims_t *d = &out->dims;
+  const size_t count = grid_count(d);
+  float *density = NULL;
+  int rc = BK_OK;
+
+  if (scene->ior_vdb.present) {
+    const scene_vdb_ref_t *ref = &scene->ior_vdb;
+    rc = vdbio_resample_float(ref->file, ref->grid, d, out->ior, ref->where, err);
+    if (rc) goto error;
+    size_t clamped = 0;
+    float lowest = 1.0f;
+    for (size_t v = 0; v < count; v++) {
+      if (!isfinite(out->ior[v])) {
+        rc = bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite n at voxel %zu",
+                     ref->where, ref->file, ref->grid, v);
+        goto error;
+      }
+      if (out->ior[v] < 1.0f) { /* e.g. a zero background outside the active voxels */
+        lowest = fminf(lowest, out->ior[v]);
+        out->ior[v] = 1.0f;
+        clamped++;
+      }
+    }
+    if (clamped)
+      bk_warn("%s: %s: grid \"%s\": %zu voxels had n < 1 (lowest %g), raised to 1", ref->where,
+              ref->file, ref->grid, clamped, lowest);
+  } else {
+    for (size_t v = 0; v < count; v++) out->ior[v] = scene->medium_ior;
+  }
+
+  if (scene->density_vdb.present) {
+    const scene_vdb_ref_t *ref = &scene->density_vdb;
+    density = bk_calloc(count, sizeof *density, "voxelize: density_vdb", err);
+    if (!density) {
+      rc = BK_ERR_RUNTIME;
+      goto error;
+    }
+    rc = vdbio_resample_float(ref->file, ref->grid, d, density, ref->where, err);
+    if (rc) goto error;
+    size_t clamped = 0;
+    for (size_t v = 0; v < count; v++) {
+      float rho = density[v];
+      if (!isfinite(rho)) {
+        rc = bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite density at voxel %zu",
+                     ref->where, ref->file, ref->grid, v);
+        goto error;
+      }
+      if (rho < 0.0f) {
+        rho = 0.0f;
+        clamped++;
+      }
+      for (int ch = 0; ch < 3; ch++) {
+        out->sigma_s[3 * v + ch] = scene->medium_sigma_s[ch] * rho;
+        out->sigma_a[3 * v + ch] = scene->medium_sigma_a[ch] * rho;
+      }
+    }
+    if (clamped)
+      bk_warn("%s: %s: grid \"%s\": %zu voxels had a negative density, set to 0", ref->where,
+              ref->file, ref->grid, clamped);
+  } else {
+    for (size_t v = 0; v < count; v++)
+      for (int ch = 0; ch < 3; ch++) {
+        out->sigma_s[3 * v + ch] = scene->medium_sigma_s[ch];
+        out->sigma_a[3 * v + ch] = scene->medium_sigma_a[ch];
+      }
+  }
+
+error:
+  free(density);
+  return rc;
+}

@@ -1,0 +1,17 @@
+/* vox_medium.h: the medium the voxelize stage composites its objects over.
+ *
+ * In: the scene's medium (ior, sigma_s, sigma_a) and its optional ior_vdb and
+ * density_vdb grids. Out: every voxel of `out` (dims set, grids allocated)
+ * holds the medium: n is the constant, or ior_vdb resampled with values below
+ * 1 raised to 1 (a warning says how many); sigma_s and sigma_a are the
+ * constants, scaled voxel by voxel by density_vdb where one is given
+ * (negative densities set to 0). Non-finite values in either grid are input
+ * errors naming the grid and the voxel. */
+#ifndef BAKER_VOX_MEDIUM_H
+#define BAKER_VOX_MEDIUM_H
+
+#include "voxelize.h"
+
+int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err);
+
+#endif

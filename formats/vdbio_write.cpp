@@ -1,0 +1,176 @@
+/* vdbio_write.cpp: dense arrays -> a VDB file (see vdbio.h).
+ *
+ * Like the rest of vdbio, it catches every exception and turns it into a
+ * bk_error_t; the file is written under a temporary name and renamed, so a
+ * failed write never leaves a half file where the output should be. */
+#include "vdbio_internal.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Dense.h>
+
+#include <cmath>
+#include <cstdio>
+#include <new>
+#include <set>
+#include <string>
+
+namespace vdb = openvdb;
+
+static const char *const VDBIO_CENTERING =
+    "cell-centred: voxel (i,j,k) covers the cube centred at indexToWorld(i,j,k)";
+
+/* The transform that puts index (i,j,k) at the centre of our voxel (i,j,k). */
+static vdb::math::Transform::Ptr vdbio_cell_centred_transform(const grid_dims_t *d) {
+  const double vs = (double)d->voxel_size;
+  vdb::math::Transform::Ptr xf = vdb::math::Transform::createLinearTransform(vs);
+  xf->postTranslate(vdb::Vec3d((double)d->origin[0] + 0.5 * vs, (double)d->origin[1] + 0.5 * vs,
+                               (double)d->origin[2] + 0.5 * vs));
+  return xf;
+}
+
+/* Dense x-fastest array -> sparse grid; exact zeros stay inactive background
+ * (tolerance 0). copyFromDense only reads the array, hence the const_cast. */
+template <typename GridT>
+static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *data) {
+  using ValueT = typename GridT::ValueType;
+  static_assert(sizeof(ValueT) % sizeof(float) == 0, "float or Vec3s");
+  const vdb::CoordBBox box(vdb::Coord(0, 0, 0), vdb::Coord(d->nx - 1, d->ny - 1, d->nz - 1));
+  vdb::tools::Dense<ValueT, vdb::tools::LayoutXYZ> dense(
+      box, reinterpret_cast<ValueT *>(const_cast<float *>(data)));
+  typename GridT::Ptr grid = GridT::create(vdb::zeroVal<ValueT>());
+  vdb::tools::copyFromDense(dense, *grid, vdb::zeroVal<ValueT>());
+  return grid;
+}
+
+/* The arguments, checked before anything is written: a bad list is a bug in
+ * the caller, reported with the path it was writing. */
+static int vdbio_check_write_args(const char *path, const grid_dims_t *dims,
+                                  const vdbio_grid_t *grids, int grid_count,
+                                  const vdbio_meta_t *meta, int meta_count, bk_error_t *err) {
+  if (!path || !path[0])
+    return bk_fail(err, BK_ERR_INPUT, "vdbio_write: empty output path");
+  if (!dims || dims->nx < 1 || dims->ny < 1 || dims->nz < 1 || !(dims->voxel_size > 0.0f) ||
+      !std::isfinite(dims->voxel_size))
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: invalid grid dimensions for writing", path);
+  if (grid_count < 0 || (grid_count > 0 && !grids) || meta_count < 0 || (meta_count > 0 && !meta))
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: invalid grid or metadata list for writing", path);
+  std::set<std::string> seen;
+  for (int g = 0; g < grid_count; g++) {
+    if (!grids[g].name || !grids[g].name[0] || !grids[g].data ||
+        (grids[g].type != VDBIO_FLOAT && grids[g].type != VDBIO_VEC3))
+      return bk_fail(err, BK_ERR_RUNTIME, "%s: grid %d has no name, no data or an unknown type",
+                     path, g);
+    if (!seen.insert(grids[g].name).second)
+      return bk_fail(err, BK_ERR_RUNTIME, "%s: grid name \"%s\" is used twice", path,
+                     grids[g].name);
+  }
+  for (int m = 0; m < meta_count; m++)
+    if (!meta[m].key || !meta[m].key[0] || (meta[m].kind == VDBIO_META_STRING && !meta[m].s))
+      return bk_fail(err, BK_ERR_RUNTIME, "%s: metadata entry %d has no key or no value", path,
+                     m);
+  return BK_OK;
+}
+
+/* The dense arrays as sparse fog-volume grids sharing the cell-centred
+ * transform. Throws what OpenVDB throws (the caller catches). */
+static vdb::GridPtrVec vdbio_make_grids(const grid_dims_t *dims, const vdbio_grid_t *grids,
+                                        int grid_count, bool half) {
+  vdb::math::Transform::Ptr xf = vdbio_cell_centred_transform(dims);
+  vdb::GridPtrVec out;
+  for (int g = 0; g < grid_count; g++) {
+    vdb::GridBase::Ptr base;
+    if (grids[g].type == VDBIO_FLOAT) {
+      base = vdbio_from_dense<vdb::FloatGrid>(dims, grids[g].data);
+    } else {
+      vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, grids[g].data);
+      /* unset means the OpenVDB default, which is also invariant; set it
+       * explicitly so readers see the metadata */
+      if (grids[g].vector_invariant)
+        v->setVectorType(vdb::VEC_INVARIANT);
+      base = v;
+    }
+    base->setName(grids[g].name);
+    base->setGridClass(vdb::GRID_FOG_VOLUME);
+    base->setTransform(xf->copy());
+    base->setSaveFloatAsHalf(half);
+    out.push_back(base);
+  }
+  return out;
+}
+
+/* The file's metadata: the caller's entries, then a creator and the voxel
+ * centring unless the caller gave its own. */
+static int vdbio_file_meta(const char *path, const vdbio_meta_t *meta, int meta_count,
+                           vdb::MetaMap &file_meta, bk_error_t *err) {
+  for (int m = 0; m < meta_count; m++) {
+    switch (meta[m].kind) {
+    case VDBIO_META_STRING:
+      file_meta.insertMeta(meta[m].key, vdb::StringMetadata(meta[m].s));
+      break;
+    case VDBIO_META_INT:
+      file_meta.insertMeta(meta[m].key, vdb::Int64Metadata((int64_t)meta[m].i));
+      break;
+    case VDBIO_META_FLOAT:
+      file_meta.insertMeta(meta[m].key, vdb::DoubleMetadata(meta[m].f));
+      break;
+    default:
+      return bk_fail(err, BK_ERR_RUNTIME, "%s: metadata \"%s\" has an unknown kind %d", path,
+                     meta[m].key, (int)meta[m].kind);
+    }
+  }
+  if (!file_meta["creator"])
+    file_meta.insertMeta("creator", vdb::StringMetadata("baker " BAKER_VERSION));
+  if (!file_meta["voxel_centering"])
+    file_meta.insertMeta("voxel_centering", vdb::StringMetadata(VDBIO_CENTERING));
+  return BK_OK;
+}
+
+/* Zip by default; Blosc only where this OpenVDB was built with it. */
+static uint32_t vdbio_compression(const char *path, const vdbio_write_opts_t *opts) {
+  uint32_t comp = vdb::io::COMPRESS_ZIP | vdb::io::COMPRESS_ACTIVE_MASK;
+  if (opts && opts->compression == VDBIO_COMPRESS_NONE) {
+    comp = vdb::io::COMPRESS_NONE;
+  } else if (opts && opts->compression == VDBIO_COMPRESS_BLOSC) {
+    if (vdb::io::Archive::hasBloscCompression())
+      comp = vdb::io::COMPRESS_BLOSC | vdb::io::COMPRESS_ACTIVE_MASK;
+    else
+      bk_warn("%s: this OpenVDB has no Blosc compression; writing with Zip instead", path);
+  }
+  return comp;
+}
+
+int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *grids,
+                int grid_count, const vdbio_meta_t *meta, int meta_count,
+                const vdbio_write_opts_t *opts, bk_error_t *err) {
+  int rc = vdbio_check_write_args(path, dims, grids, grid_count, meta, meta_count, err);
+  if (rc)
+    return rc;
+  rc = bk_check_output_dir(path, err);
+  if (rc)
+    return rc;
+
+  char tmp[4096];
+  bk_temp_path(path, tmp, sizeof tmp);
+  vdbio_init();
+  try {
+    vdb::GridPtrVec out = vdbio_make_grids(dims, grids, grid_count, opts && opts->half_float);
+    vdb::MetaMap file_meta;
+    rc = vdbio_file_meta(path, meta, meta_count, file_meta, err);
+    if (rc)
+      return rc;
+    vdb::io::File file(tmp);
+    file.setCompression(vdbio_compression(path, opts));
+    file.write(out, file_meta);
+    file.close();
+  } catch (const std::bad_alloc &) {
+    remove(tmp);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while writing the VDB file", path);
+  } catch (const std::exception &e) {
+    remove(tmp);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write VDB file: %s", path, e.what());
+  } catch (...) {
+    remove(tmp);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write VDB file: unknown error", path);
+  }
+  return bk_commit_temp(tmp, path, err);
+}
