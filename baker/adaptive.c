@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/parallel.h"
+
 void ad_bake_defaults(ad_bake_opts_t *o) {
   memset(o, 0, sizeof *o);
   o->filter = 1;
@@ -80,7 +82,7 @@ static void coarse_fields(const pm_setup_t *p, const uint64_t *acc, const volume
   grid_dims_t c = coarse_dims(d, shift);
   const int ch = p->channels;
   scat_job_t job = {vol, shift, scat};
-  pm_parallel((size_t)c.nz, 1, coarse_scattering_range, &job);
+  bk_parallel((size_t)c.nz, 1, coarse_scattering_range, &job);
   for (int k = 0; k < c.nz; k++)
     for (int j = 0; j < c.ny; j++)
       for (int i = 0; i < c.nx; i++) {
@@ -322,7 +324,7 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
     if (!r->raw) goto error;
     if (C == 1) {
       scale_job_t job = {acc, NULL, r->raw, {(float)r->grey_k, 0.0f, 0.0f}};
-      pm_parallel(V, PM_GRAIN, grey_range, &job);
+      bk_parallel(V, BK_GRAIN, grey_range, &job);
     } else
       pm_to_radiance(&r->main, acc, r->raw);
   } else {
@@ -360,7 +362,7 @@ static int filter_phase(ad_run_t *r, float *radiance, const float *count, const 
       scale_job_t job = {NULL, filtered, radiance,
                          {(float)(k[0] / r->grey_k), (float)(k[1] / r->grey_k),
                           (float)(k[2] / r->grey_k)}};
-      pm_parallel(V, PM_GRAIN, colour_range, &job);
+      bk_parallel(V, BK_GRAIN, colour_range, &job);
     }
     if (filtered != radiance) free(filtered);
   } else if (filter_radius) {

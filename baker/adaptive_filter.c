@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/parallel.h"
+
 #include "adaptive_internal.h"
 
 /* The 1D Gaussian weights (kernels/adaptive_filter.h): row q (level), column |d|. */
@@ -54,7 +56,7 @@ static int check_filter_args(const grid_dims_t *d, int channels, const float *ra
 
 /* One pass of the host filter over a range of z slices, with scratch for
  * one slice (AD_SLICE_SCRATCH) per range. Every slice writes its scratch
- * before reading it, so the result does not depend on how pm_parallel cuts
+ * before reading it, so the result does not depend on how bk_parallel cuts
  * the slices. */
 typedef struct filter_pass {
   int pass; /* 0: means into M, 1: differences and the choice */
@@ -111,7 +113,7 @@ int ad_filter_host(const grid_dims_t *d, int channels, const float *radiance, co
   if (!p.M) return BK_ERR_RUNTIME;
   /* pass 1 reads the means of neighbouring slices: every slice of pass 0 first */
   for (p.pass = 0; p.pass < 2 && !atomic_load(&p.no_memory); p.pass++)
-    pm_parallel((size_t)d->nz, 1, filter_slices, &p);
+    bk_parallel((size_t)d->nz, 1, filter_slices, &p);
   free(p.M);
   if (atomic_load(&p.no_memory)) {
     char b[32];

@@ -2,14 +2,14 @@
  *
  * In: a light's entry in the scene file (`lights[i]`), then the grid. Out: a
  * scene_light_t, the power it sends towards the grid (W, RGB) and the
- * ph_light the march samples photons from (kernels/photons.h).
+ * ph_light the march samples photons from (kernels/light_sample.h).
  *
  * Each kind is one row of light_kinds[], indexed by its light_type_t, which is
  * also ph_light.type on the device (PH_DIRECTIONAL, PH_SPOT, PH_POINT). A
  * row names the kind as the scene file does, lists the keys it takes (all
  * required), reads them, computes its power and its device frame, and names
  * the -D flag that keeps its generator in a specialised kernel. Adding a
- * light is one row here plus its mapping in ph_map (kernels/photons.h).
+ * light is one row here plus its mapping in ph_map (kernels/light_sample.h).
  *
  * Power towards the grid: directional E·A (A the area of the rectangle
  * perpendicular to the light covering the grid's projection, m^2), spot I·Ω
@@ -18,7 +18,7 @@
 #define BAKER_LIGHTS_H
 
 #include "base/grid.h"
-#include "kernels/photons.h"
+#include "kernels/light_sample.h"
 #include "scene.h"
 
 #ifdef __cplusplus

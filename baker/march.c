@@ -1,14 +1,14 @@
 /* march.c: photon marching on OpenCL or on the host (see march.h). */
-#define _DEFAULT_SOURCE /* sysconf, and M_PI from math.h */
+#define _DEFAULT_SOURCE /* M_PI from math.h */
 #include "march.h"
 
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
+#include "base/parallel.h"
 #include "field.h"
+#include "integrators.h"
 
 double pm_fixed_scale(double power_max, double path_bound) {
   if (!(power_max > 0.0) || !(path_bound > 0.0)) return 1.0;
@@ -25,7 +25,7 @@ bk_grid pm_kernel_grid(const grid_dims_t *d) {
   return g;
 }
 
-static void add_result(pm_stats_t *st, const pm_result *r) {
+void pm_stats_add(pm_stats_t *st, const pm_result *r) {
   st->photons++;
   switch (r->fate) {
   case PM_FATE_MISSED: st->missed_grid++; break;
@@ -81,14 +81,8 @@ static void set_scale(pm_setup_t *s, double w_max) {
                         ((double)P->fixed_scale * 4.0 * M_PI * h * h);
 }
 
-int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timings_t *timings,
-               pm_stats_t *stats, bk_error_t *err) {
-  memset(s, 0, sizeof *s);
-  s->dims = vol->dims;
-  s->voxels = grid_count(&vol->dims);
-  const grid_dims_t *d = &s->dims;
-  const double h = d->voxel_size;
-  if (s->voxels == 0 || !(h > 0.0))
+static int check_inputs(const scene_t *scene, const grid_dims_t *d, size_t voxels, bk_error_t *err) {
+  if (voxels == 0 || !(d->voxel_size > 0.0))
     return bk_fail(err, BK_ERR_INPUT, "%s: march: empty grid %dx%dx%d", scene->path, d->nx, d->ny,
                    d->nz);
   if (!(scene->step > 0.0f) || !isfinite(scene->step))
@@ -97,13 +91,89 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   if (scene->photon_count < 0)
     return bk_fail(err, BK_ERR_INPUT, "%s: photons.count: expected a count >= 0, got %lld",
                    scene->path, scene->photon_count);
+  return BK_OK;
+}
+
+/* Stage 3: the pyramid and the {∇n, n} field, only where n varies, and the
+ * extinction grid unless the medium is homogeneous (σt per voxel length). */
+static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
+  const grid_dims_t *d = &s->dims;
+  const double h = d->voxel_size;
+  if (s->has_refraction) {
+    int rc = oct_build(d, vol->ior, &s->pyramid, err);
+    if (rc != BK_OK) return rc;
+    s->ng = fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
+    if (!s->ng) return BK_ERR_RUNTIME;
+    s->octree_enabled = 1;
+  }
+  if (s->homogeneous) return BK_OK;
+  s->sigma = bk_calloc(s->voxels, s->channels * sizeof(float), "march: extinction grid", err);
+  if (!s->sigma) return BK_ERR_RUNTIME;
+  for (size_t i = 0; i < s->voxels; i++)
+    for (int c = 0; c < s->channels; c++)
+      s->sigma[s->channels * i + c] = (float)((vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c]) * h);
+  return BK_OK;
+}
+
+/* The march's parameters (kernels/photon_march.h) in reference mode. */
+static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
+  const grid_dims_t *d = &s->dims;
+  const double h = d->voxel_size;
+  pm_params *P = &s->params;
+  memset(P, 0, sizeof *P);
+  P->grid = pm_kernel_grid(d);
+  if (s->homogeneous)
+    for (int c = 0; c < 3; c++) P->sigma_t[c] = (float)((vol->sigma_s[c] + vol->sigma_a[c]) * h);
+  for (int c = 0; c < 3; c++)
+    if (!(P->sigma_t[c] >= 0.0f))
+      return bk_fail(err, BK_ERR_INPUT, "%s: medium: extinction must be >= 0, got %g per unit",
+                     scene->path, (double)P->sigma_t[c] / h);
+  double diag = sqrt((double)d->nx * d->nx + (double)d->ny * d->ny + (double)d->nz * d->nz);
+  P->step = scene->step;
+  P->path_cap = (float)(PM_MAX_PATH_DIAGONALS * diag);
+  P->absorb_fraction = PM_ABSORB_FRACTION;
+  P->channels = (bk_uint)s->channels;
+  P->has_refraction = (bk_uint)s->has_refraction;
+  P->homogeneous = (bk_uint)s->homogeneous;
+  P->integrator = integrator_kind(scene->integrator)->device;
+  P->mode = PM_MODE_REFERENCE;
+  set_scale(s, 1.0);
+  return BK_OK;
+}
+
+static void report_prepare(const pm_setup_t *s, bk_timings_t *timings, double ms_octree,
+                           double ms_generate) {
+  if (s->has_refraction) {
+    const uint64_t *v = s->pyramid.voxels_at_level;
+    double tot = (double)s->voxels;
+    char note[96];
+    int at = snprintf(note, sizeof note, "constant:");
+    for (int l = OCT_LEVELS; l >= 1 && at < (int)sizeof note; l--)
+      at += snprintf(note + at, sizeof note - at, " %.0f%% in %d^3", 100.0 * v[l] / tot,
+                     2 << (2 * (l - 1)));
+    bk_timings_add(timings, "octree", ms_octree, "%s", note);
+  } else {
+    bk_timings_add(timings, "octree", ms_octree, "n constant: one straight DDA per photon");
+  }
+  bk_timings_add(timings, "photon generation", ms_generate, "%d light(s), in-kernel Hammersley, %s",
+                 s->lights.count, s->channels == 1 ? "1 channel (one colour)" : "RGB");
+}
+
+int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timings_t *timings,
+               pm_stats_t *stats, bk_error_t *err) {
+  memset(s, 0, sizeof *s);
+  s->dims = vol->dims;
+  s->voxels = grid_count(&vol->dims);
+  const grid_dims_t *d = &s->dims;
+  int rc = check_inputs(scene, d, s->voxels, err);
+  if (rc != BK_OK) return rc;
 
   /* what the volume allows the kernel to skip: part of the octree stage */
   double t0 = bk_now_ms();
   scan_volume(vol, s->voxels, &s->has_refraction, &s->homogeneous, &s->grey);
   double ms_scan = bk_now_ms() - t0;
   t0 = bk_now_ms();
-  int rc = ph_prepare(scene, d, (uint64_t)scene->photon_count, scene->seed, &s->lights, err);
+  rc = ph_prepare(scene, d, (uint64_t)scene->photon_count, scene->seed, &s->lights, err);
   if (rc != BK_OK) return rc;
   s->channels = (s->grey && s->lights.one_colour) ? 1 : 3;
   if (s->channels == 1) ph_make_grey(&s->lights);
@@ -116,69 +186,13 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   if (rc != BK_OK) return rc;
   double ms_generate = bk_now_ms() - t0;
 
-  /* stage 3: pyramid and the n/∇n field, only where n varies */
   t0 = bk_now_ms();
-  bk_grid g = pm_kernel_grid(d);
-  if (s->has_refraction) {
-    rc = oct_build(d, vol->ior, &s->pyramid, err);
-    if (rc != BK_OK) goto error;
-    rc = BK_ERR_RUNTIME;
-    s->ng = fld_build(d->nx, d->ny, d->nz, d->voxel_size, vol->ior, err);
-    if (!s->ng) goto error;
-    s->octree_enabled = 1;
-  }
-  pm_params *P = &s->params;
-  memset(P, 0, sizeof *P);
-  P->grid = g;
-  if (s->homogeneous) {
-    for (int c = 0; c < 3; c++) P->sigma_t[c] = (float)((vol->sigma_s[c] + vol->sigma_a[c]) * h);
-  } else {
-    rc = BK_ERR_RUNTIME;
-    s->sigma = bk_calloc(s->voxels, s->channels * sizeof(float), "march: extinction grid", err);
-    if (!s->sigma) goto error;
-    for (size_t i = 0; i < s->voxels; i++)
-      for (int c = 0; c < s->channels; c++)
-        s->sigma[s->channels * i + c] =
-            (float)((vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c]) * h);
-  }
+  if ((rc = build_fields(vol, s, err)) != BK_OK) goto error;
   double ms_octree = bk_now_ms() - t0 + ms_scan;
-
   t0 = bk_now_ms();
-  for (int c = 0; c < 3; c++)
-    if (!(P->sigma_t[c] >= 0.0f)) {
-      rc = bk_fail(err, BK_ERR_INPUT, "%s: medium: extinction must be >= 0, got %g per unit",
-                   scene->path, (double)P->sigma_t[c] / h);
-      goto error;
-    }
-  double diag = sqrt((double)d->nx * d->nx + (double)d->ny * d->ny + (double)d->nz * d->nz);
-  P->step = scene->step;
-  P->path_cap = (float)(PM_MAX_PATH_DIAGONALS * diag);
-  P->absorb_fraction = PM_ABSORB_FRACTION;
-  P->channels = (bk_uint)s->channels;
-  P->has_refraction = (bk_uint)s->has_refraction;
-  P->homogeneous = (bk_uint)s->homogeneous;
-  P->integrator = scene->integrator == INTEGRATOR_RK4 ? 1u : 0u;
-  P->mode = PM_MODE_REFERENCE;
-  set_scale(s, 1.0);
+  if ((rc = set_params(scene, vol, s, err)) != BK_OK) goto error;
   ms_generate += bk_now_ms() - t0;
-
-  if (timings) {
-    if (s->has_refraction) {
-      const uint64_t *v = s->pyramid.voxels_at_level;
-      double tot = (double)s->voxels;
-      char note[96];
-      int at = snprintf(note, sizeof note, "constant:");
-      for (int l = OCT_LEVELS; l >= 1 && at < (int)sizeof note; l--)
-        at += snprintf(note + at, sizeof note - at, " %.0f%% in %d^3", 100.0 * v[l] / tot,
-                       2 << (2 * (l - 1)));
-      bk_timings_add(timings, "octree", ms_octree, "%s", note);
-    } else {
-      bk_timings_add(timings, "octree", ms_octree, "n constant: one straight DDA per photon");
-    }
-    bk_timings_add(timings, "photon generation", ms_generate,
-                   "%d light(s), in-kernel Hammersley, %s", s->lights.count,
-                   s->channels == 1 ? "1 channel (one colour)" : "RGB");
-  }
+  if (timings) report_prepare(s, timings, ms_octree, ms_generate);
   if (stats) {
     stats->ms_octree = ms_octree;
     stats->ms_generate = ms_generate;
@@ -273,223 +287,11 @@ int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_
     pm_result r;
     pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma, acc,
                     s->masks, s->tables, (bk_uint)i, &r, NULL);
-    if (stats) add_result(stats, &r);
+    if (stats) pm_stats_add(stats, &r);
     if ((i & 4095) == 4095) bk_progress_update(&prog, i + 1);
   }
   bk_progress_end(&prog);
   return BK_OK;
-}
-
-int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
-              bk_error_t *err) {
-  int rc = BK_ERR_RUNTIME;
-  cl_int cerr = CL_SUCCESS;
-  cl_program prog = NULL;
-  cl_kernel kern = NULL;
-  cl_mem b_params = NULL, b_lights = NULL, b_ng = NULL, b_pyr = NULL, b_sigma = NULL, b_acc = NULL,
-         b_out = NULL, b_dummy = NULL, b_masks = NULL, b_tables = NULL;
-  pm_result *res = NULL;
-  bk_progress_t progress;
-  int progress_on = 0;
-  char opts[512], b1[32], b2[32];
-  const size_t acc_bytes = pm_acc_count(s) * sizeof(uint64_t);
-  const size_t mask_bytes = pm_mask_count(s) * sizeof(uint64_t);
-  const int mode = (int)s->params.mode;
-
-  if (!cl->has_int64_atomics)
-    return bk_fail(err, BK_ERR_RUNTIME,
-                   "OpenCL device %s lacks cl_khr_int64_base_atomics, which the photon march "
-                   "needs for its fixed-point sums; choose another device with --device or march "
-                   "on the host with --host",
-                   cl->device_name);
-  if (acc_bytes > cl->max_alloc || (s->ng && fld_padded_count(s->dims.nx, s->dims.ny, s->dims.nz) * 4 * sizeof(float) > cl->max_alloc))
-    return bk_fail(err, BK_ERR_RUNTIME,
-                   "march: the %dx%dx%d grid needs buffers of %s; %s allows %s per buffer "
-                   "(lower grid.resolution or march on the host with --host)",
-                   s->dims.nx, s->dims.ny, s->dims.nz,
-                   bk_format_bytes((double)(s->ng ? fld_padded_count(s->dims.nx, s->dims.ny, s->dims.nz) * 16 : acc_bytes), b1, sizeof b1),
-                   cl->device_name, bk_format_bytes((double)cl->max_alloc, b2, sizeof b2));
-
-  double t0 = bk_now_ms();
-  const ph_setup_t *L = &s->lights;
-  snprintf(opts, sizeof opts,
-           "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d "
-           "-DLIGHT_DIRECTIONAL=%d -DLIGHT_SPOT=%d -DLIGHT_POINT=%d -DPM_MODE=%d",
-           s->has_refraction, s->homogeneous, s->params.integrator, s->channels,
-           L->has_type[PH_DIRECTIONAL], L->has_type[PH_SPOT], L->has_type[PH_POINT], mode);
-  if (clh_build(cl, "march.cl", opts, &prog, err) != BK_OK) goto error;
-  kern = clCreateKernel(prog, "pm_march", &cerr);
-  CLH_CHECK(cerr, err, error);
-  /* PM_LOCAL_SIZE, or the largest power of 2 the kernel allows below it */
-  size_t local = PM_LOCAL_SIZE, kmax = 0;
-  if (clGetKernelWorkGroupInfo(kern, cl->device, CL_KERNEL_WORK_GROUP_SIZE, sizeof kmax, &kmax,
-                               NULL) == CL_SUCCESS &&
-      kmax > 0)
-    while (local > kmax) local /= 2;
-  if (stats) stats->ms_build += bk_now_ms() - t0;
-
-  /* inputs stay where they are on a CPU device (USE_HOST_PTR); a GPU copies */
-  const cl_mem_flags in = CL_MEM_READ_ONLY | (cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR);
-  int nlights = L->count > 0 ? L->count : 1;
-  ph_light none;
-  memset(&none, 0, sizeof none);
-  b_params = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof(pm_params),
-                            (void *)&s->params, &cerr);
-  CLH_CHECK(cerr, err, error);
-  b_lights = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                            sizeof(ph_light) * nlights, L->count ? (void *)L->lights : &none, &cerr);
-  CLH_CHECK(cerr, err, error);
-  b_dummy = clCreateBuffer(cl->context, CL_MEM_READ_WRITE, 64, NULL, &cerr);
-  CLH_CHECK(cerr, err, error);
-  if (s->ng) {
-    b_ng = clCreateBuffer(cl->context, in,
-                          fld_padded_count(s->dims.nx, s->dims.ny, s->dims.nz) * 4 * sizeof(float), s->ng,
-                          &cerr);
-    CLH_CHECK(cerr, err, error);
-    b_pyr = clCreateBuffer(cl->context, in,
-                           (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz, s->pyramid.level,
-                           &cerr);
-    CLH_CHECK(cerr, err, error);
-  }
-  if (s->sigma) {
-    b_sigma = clCreateBuffer(cl->context, in, s->voxels * s->channels * sizeof(float), s->sigma,
-                             &cerr);
-    CLH_CHECK(cerr, err, error);
-  }
-  b_acc = clCreateBuffer(cl->context,
-                         CL_MEM_READ_WRITE | (cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR),
-                         acc_bytes, acc, &cerr);
-  CLH_CHECK(cerr, err, error);
-  b_out = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, &cerr);
-  CLH_CHECK(cerr, err, error);
-  if (mode == PM_MODE_ORIGINS) {
-    if (!s->masks) {
-      bk_fail(err, BK_ERR_RUNTIME, "march: pilot march without origin masks");
-      goto error;
-    }
-    b_masks = clCreateBuffer(cl->context,
-                             CL_MEM_READ_WRITE |
-                                 (cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR),
-                             mask_bytes, s->masks, &cerr);
-    CLH_CHECK(cerr, err, error);
-  }
-  if (mode == PM_MODE_TABLES) {
-    if (!s->tables) {
-      bk_fail(err, BK_ERR_RUNTIME, "march: weighted march without PDF tables");
-      goto error;
-    }
-    b_tables = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                              (size_t)nlights * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) *
-                                  sizeof(float),
-                              (void *)s->tables, &cerr);
-    CLH_CHECK(cerr, err, error);
-  }
-  res = bk_calloc(PM_CHUNK, sizeof(pm_result), "march: photon results", err);
-  if (!res) goto error;
-
-  cl_mem args[] = {b_params, b_lights, b_ng ? b_ng : b_dummy, b_pyr ? b_pyr : b_dummy,
-                   b_sigma ? b_sigma : b_dummy, b_acc};
-  for (cl_uint a = 0; a < 6; a++)
-    CLH_CHECK(clSetKernelArg(kern, a, sizeof(cl_mem), &args[a]), err, error);
-  CLH_CHECK(clSetKernelArg(kern, 8, sizeof(cl_mem), &b_out), err, error);
-  cl_mem b9 = b_masks ? b_masks : b_dummy, b10 = b_tables ? b_tables : b_dummy;
-  CLH_CHECK(clSetKernelArg(kern, 9, sizeof(cl_mem), &b9), err, error);
-  CLH_CHECK(clSetKernelArg(kern, 10, sizeof(cl_mem), &b10), err, error);
-
-  uint64_t total = L->photons;
-  bk_progress_begin(&progress, "photon marching", total);
-  progress_on = 1;
-  for (uint64_t first = 0; first < total; first += PM_CHUNK) {
-    cl_uint f = (cl_uint)first;
-    cl_uint count = (cl_uint)(total - first < PM_CHUNK ? total - first : PM_CHUNK);
-    /* a fixed work-group size: the global size rounded up to it (the kernel
-     * skips the excess), so that every photon count runs the same compiled
-     * work-group function (PoCL compiles one per local size on first use,
-     * half a second) */
-    size_t global = (count + local - 1) / local * local;
-    CLH_CHECK(clSetKernelArg(kern, 6, sizeof f, &f), err, error);
-    CLH_CHECK(clSetKernelArg(kern, 7, sizeof count, &count), err, error);
-    CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, kern, 1, NULL, &global, &local, 0, NULL, NULL),
-              err, error);
-    CLH_CHECK(clEnqueueReadBuffer(cl->queue, b_out, CL_TRUE, 0, count * sizeof(pm_result), res, 0,
-                                  NULL, NULL),
-              err, error);
-    if (stats)
-      for (cl_uint i = 0; i < count; i++) add_result(stats, &res[i]);
-    bk_progress_update(&progress, first + count);
-  }
-  if (cl->is_cpu) {
-    /* make the host copy current (a no-op copy on PoCL) */
-    void *p = clEnqueueMapBuffer(cl->queue, b_acc, CL_TRUE, CL_MAP_READ, 0, acc_bytes, 0, NULL,
-                                 NULL, &cerr);
-    CLH_CHECK(cerr, err, error);
-    CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, b_acc, p, 0, NULL, NULL), err, error);
-    if (b_masks) {
-      p = clEnqueueMapBuffer(cl->queue, b_masks, CL_TRUE, CL_MAP_READ, 0, mask_bytes, 0, NULL,
-                             NULL, &cerr);
-      CLH_CHECK(cerr, err, error);
-      CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, b_masks, p, 0, NULL, NULL), err, error);
-    }
-  } else {
-    CLH_CHECK(clEnqueueReadBuffer(cl->queue, b_acc, CL_TRUE, 0, acc_bytes, acc, 0, NULL, NULL),
-              err, error);
-    if (b_masks)
-      CLH_CHECK(clEnqueueReadBuffer(cl->queue, b_masks, CL_TRUE, 0, mask_bytes, s->masks, 0, NULL,
-                                    NULL),
-                err, error);
-  }
-  CLH_CHECK(clFinish(cl->queue), err, error);
-  rc = BK_OK;
-error:
-  if (progress_on) bk_progress_end(&progress);
-  free(res);
-  if (kern) clReleaseKernel(kern);
-  if (prog) clReleaseProgram(prog);
-  cl_mem all[] = {b_params, b_lights, b_ng, b_pyr, b_sigma, b_acc, b_out, b_dummy, b_masks, b_tables};
-  for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
-    if (all[i]) clReleaseMemObject(all[i]);
-  return rc;
-}
-
-/* --- voxel loops on every core ------------------------------------------- */
-
-#define PM_MAX_THREADS 64
-
-typedef struct pm_range_job {
-  void (*fn)(void *ctx, size_t lo, size_t hi);
-  void *ctx;
-  size_t lo, hi;
-} pm_range_job_t;
-
-static void *pm_range_run(void *arg) {
-  pm_range_job_t *j = arg;
-  j->fn(j->ctx, j->lo, j->hi);
-  return NULL;
-}
-
-void pm_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi),
-                 void *ctx) {
-  long cpus = sysconf(_SC_NPROCESSORS_ONLN);
-  int threads = cpus < 1 ? 1 : cpus > PM_MAX_THREADS ? PM_MAX_THREADS : (int)cpus;
-  if (grain < 1) grain = 1;
-  if ((size_t)threads > n / grain) threads = n / grain > 0 ? (int)(n / grain) : 1;
-  pm_range_job_t jobs[PM_MAX_THREADS];
-  pthread_t tid[PM_MAX_THREADS];
-  int started = 0;
-  for (int t = 0; t < threads; t++) {
-    jobs[t].fn = fn;
-    jobs[t].ctx = ctx;
-    jobs[t].lo = n * (size_t)t / (size_t)threads;
-    jobs[t].hi = n * (size_t)(t + 1) / (size_t)threads;
-  }
-  /* a thread that cannot start leaves its range to this one */
-  for (int t = 1; t < threads; t++) {
-    if (pthread_create(&tid[t], NULL, pm_range_run, &jobs[t]) != 0) break;
-    started = t;
-  }
-  pm_range_run(&jobs[0]);
-  for (int t = 1; t <= started; t++) pthread_join(tid[t], NULL);
-  for (int t = started + 1; t < threads; t++) pm_range_run(&jobs[t]);
 }
 
 typedef struct pm_unpack_ctx {
@@ -509,7 +311,7 @@ static void to_radiance_range(void *arg, size_t lo, size_t hi) {
 
 void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance) {
   pm_unpack_ctx_t u = {s, acc, radiance, NULL, NULL};
-  pm_parallel(s->voxels, PM_GRAIN, to_radiance_range, &u);
+  bk_parallel(s->voxels, BK_GRAIN, to_radiance_range, &u);
 }
 
 static void unpack_weights_range(void *arg, size_t lo, size_t hi) {
@@ -530,7 +332,7 @@ static void unpack_weights_range(void *arg, size_t lo, size_t hi) {
 void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
                        float *mean_weight) {
   pm_unpack_ctx_t u = {s, acc, NULL, count, mean_weight};
-  pm_parallel(s->voxels, PM_GRAIN, unpack_weights_range, &u);
+  bk_parallel(s->voxels, BK_GRAIN, unpack_weights_range, &u);
 }
 
 int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float *radiance,
@@ -632,37 +434,4 @@ uint64_t pm_deposit_repeat_host(float value, uint64_t n) {
     acc = a;
   }
   return acc;
-}
-
-int pm_deposit_repeat_cl(clh_context_t *cl, float value, uint32_t items, uint32_t per_item,
-                         uint64_t *sum, bk_error_t *err) {
-  int rc = BK_ERR_RUNTIME;
-  cl_int cerr = CL_SUCCESS;
-  cl_program prog = NULL;
-  cl_kernel kern = NULL;
-  cl_mem b = NULL;
-  cl_ulong zero = 0;
-  if (!cl->has_int64_atomics)
-    return bk_fail(err, BK_ERR_RUNTIME, "OpenCL device %s lacks cl_khr_int64_base_atomics",
-                   cl->device_name);
-  if (clh_build(cl, "march.cl", "", &prog, err) != BK_OK) goto error;
-  kern = clCreateKernel(prog, "pm_test_deposit", &cerr);
-  CLH_CHECK(cerr, err, error);
-  b = clCreateBuffer(cl->context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof zero, &zero, &cerr);
-  CLH_CHECK(cerr, err, error);
-  CLH_CHECK(clSetKernelArg(kern, 0, sizeof b, &b), err, error);
-  CLH_CHECK(clSetKernelArg(kern, 1, sizeof value, &value), err, error);
-  CLH_CHECK(clSetKernelArg(kern, 2, sizeof per_item, &per_item), err, error);
-  size_t global = items;
-  CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, kern, 1, NULL, &global, NULL, 0, NULL, NULL), err,
-            error);
-  CLH_CHECK(clEnqueueReadBuffer(cl->queue, b, CL_TRUE, 0, sizeof zero, &zero, 0, NULL, NULL), err,
-            error);
-  *sum = zero;
-  rc = BK_OK;
-error:
-  if (b) clReleaseMemObject(b);
-  if (kern) clReleaseKernel(kern);
-  if (prog) clReleaseProgram(prog);
-  return rc;
 }

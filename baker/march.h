@@ -11,7 +11,7 @@
  * pyramid of n, baker/octree.h, and the float4 field of ∇n and n the march
  * samples, baker/field.h), "photon generation"
  * (light set-up: the photons themselves are made in the kernel from their
- * index, kernels/photons.h), "photon marching".
+ * index, kernels/light_sample.h), "photon marching".
  *
  * Accumulation is 64-bit fixed point, one counter per voxel and channel,
  * added with atom_add on ulong (cl_khr_int64_base_atomics): sums are exact
@@ -117,6 +117,9 @@ int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_
 size_t pm_acc_count(const pm_setup_t *s);
 size_t pm_mask_count(const pm_setup_t *s);
 
+/* Counts one photon's outcome into st. */
+void pm_stats_add(pm_stats_t *st, const pm_result *r);
+
 /* Marches every photon into acc (pm_acc_count counters, zeroed by the
  * caller): in plain C on this thread, or with OpenCL on cl. */
 int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err);
@@ -125,11 +128,6 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
 /* acc -> radiance (3 floats per voxel, W m^-2 sr^-1); reference and
  * weighted modes. */
 void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);
-/* Runs fn(ctx, lo, hi) over [0, n) split into one range per CPU core, each
- * at least `grain` items (PM_GRAIN for voxels): for the loops around the
- * march. */
-#define PM_GRAIN 65536
-void pm_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi), void *ctx);
 /* Weighted mode: per voxel the photon count and the mean weight (0 where no
  * photon came); either may be NULL. */
 void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,

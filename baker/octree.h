@@ -13,7 +13,7 @@
  * σt) with a halo of 1, where one step crosses a whole block.
  *
  * Why a 2-voxel halo: inside a constant block the march must see exactly
- * ∇n = 0. ∇n at a voxel is a central difference (kernels/ior.h) reaching one
+ * ∇n = 0. ∇n at a voxel is a central difference (kernels/ray_core.h) reaching one
  * voxel out, and between voxel centres it is interpolated trilinearly, which
  * near a block face reads the neighbour voxel's gradient: two voxels out.
  * Why 2^3 finest blocks: a varying band (the smoothed surface plus the halo

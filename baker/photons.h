@@ -2,7 +2,7 @@
  * (pipeline stage 4).
  *
  * In: the scene's lights, the grid, the photon count and seed. Out: one
- * ph_light per light that gets photons (kernels/photons.h), in voxel
+ * ph_light per light that gets photons (kernels/light_sample.h), in voxel
  * coordinates, with its range of photon indices and its power per photon.
  * The photons themselves are generated inside the march from their index.
  *
@@ -16,7 +16,7 @@
 #define BAKER_PHOTONS_H
 
 #include "base/grid.h"
-#include "kernels/photons.h"
+#include "kernels/light_sample.h"
 #include "lights.h"
 #include "scene.h"
 

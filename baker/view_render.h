@@ -1,6 +1,6 @@
 /* view_render.h: one image of a dense volume (view_volume.h) through a
  * camera (view_camera.h), on OpenCL (kernels/view.cl) or, with --device host,
- * the same ray code (kernels/view.h) compiled for the host, one pixel after
+ * the same ray code (kernels/view_march.h) compiled for the host, one pixel after
  * another. Each pixel's camera ray bends through n with the ray equation and
  * gathers L = ∫ T σs L̄ dt + T_end·L_background; out come linear RGBA floats,
  * A = 1 − mean transmittance, and the work done for the timing table. */
@@ -21,7 +21,7 @@
 typedef struct view_gpu {
   clh_context_t cl;
   int ready;
-  int host;            /* --device host: kernels/view.h in plain C, no OpenCL */
+  int host;            /* --device host: kernels/view_march.h in plain C, no OpenCL */
   cl_program program;
   cl_kernel kernel;
   char options[256];

@@ -209,7 +209,7 @@ BK_INLINE void ad_means_slice(const BK_GLOBAL float *f, const BK_GLOBAL float *w
  * the grid) of the squared luminance difference between levels q and q-1
  * (level 0: f itself, DQ from pass 1),
  *   D(q) = box[(lum M_q - lum M_{q-1})^2],
- * then per voxel the level (kernels/adaptive.h's header comment):
+ * then per voxel the level (this header's opening comment):
  *   q = 0; if q_w >= 1 and D(1) count^2 <= noise_k^2 lum(M_1)^2: q = 1,
  *   then while q < q_w and D(q+1) < D(q): q++
  * and out = M_q (f for q = 0), radius = q / 2 voxels. */

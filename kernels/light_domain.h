@@ -9,7 +9,7 @@
  *
  *
  * Light domain. Every light maps a 2D point (a, b) in [0,1)^2 to a photon
- * origin and direction (kernels/photons.h; (a, b) is the point after the
+ * origin and direction (kernels/light_sample.h; (a, b) is the point after the
  * Cranley–Patterson rotation, the one the generator actually uses). The
  * domain is split into LD_CELLS_X x LD_CELLS_Y = 64 cells; cell
  * c = cx + LD_CELLS_X * cy with cx = floor(a * LD_CELLS_X), cy = floor(b *
@@ -21,7 +21,7 @@
  * index of the pilot's coarse grid (blocks of 2^s voxels, baker/adaptive.h;
  * s = 0 makes them voxels). A pilot photon from light-domain cell c sets
  * bit c of every coarse cell it crosses (ld_origin_mark: atom_or on the
- * device, an atomic fetch-or on the host; kernels/march.h, PM_MODE_PILOT).
+ * device, an atomic fetch-or on the host; kernels/photon_march.h, PM_MODE_ORIGINS).
  *
  * PDF (phase 2). A piecewise-constant density over nx x ny cells, stored as a
  * table of LD_TABLE_FLOATS(nx, ny) floats:

@@ -1,5 +1,5 @@
 /* march.cl: photon generation and marching, one work-item per photon (the
- * math is in march.h and photons.h, shared with the host path). Launched in
+ * math is in photon_march.h and light_sample.h, shared with the host path). Launched in
  * chunks of photons [first, first + count); each work-item writes its
  * photon's pm_result for the host to count. Deposits are 64-bit fixed-point
  * integer atomics (cl_khr_int64_base_atomics): exact, order-independent sums,

@@ -1,6 +1,6 @@
 /* photon_march.h: one photon's march through the grid, shared by host and device.
  *
- * In: the photon's index (its light and origin come from photons.h), the
+ * In: the photon's index (its light and origin come from light_sample.h), the
  * refractive field {∇n, n} and the constant-block pyramid of n
  * (kernels/ray_core.h), the extinction grid (or constant
  * extinction), and a fixed-point accumulator. Out: the accumulator gains
@@ -27,7 +27,7 @@
  * HAS_REFRACTION, HOMOGENEOUS (σt as parameters, no grid lookups),
  * INTEGRATOR (0 Euler, 1 RK4), PM_CHANNELS (1 when every light has the same
  * colour and the medium is grey: one atomic per voxel instead of three),
- * LIGHT_DIRECTIONAL / LIGHT_SPOT / LIGHT_POINT (photons.h), and PM_MODE:
+ * LIGHT_DIRECTIONAL / LIGHT_SPOT / LIGHT_POINT (light_sample.h), and PM_MODE:
  *
  * Modes: the march's optional inputs from kernels/light_domain.h, which it
  * uses without knowing who made them (the adaptive pipeline does):
@@ -52,7 +52,7 @@
 #define BAKER_MARCH_KERNEL_H
 
 #include "kernels/light_domain.h"
-#include "kernels/photons.h"
+#include "kernels/light_sample.h"
 #include "kernels/ray_core.h"
 
 #define PM_MAX_STEPS 65536 /* photons trapped by total internal reflection */

@@ -17,7 +17,7 @@
 
 #include "adaptive.h"
 #include "clhost.h"
-#include "kernels/photons.h" /* ph_radical_inverse2: the march's own Hammersley */
+#include "kernels/light_sample.h" /* ph_radical_inverse2: the march's own Hammersley */
 #include "scene.h"
 #include "test_util.h"
 

@@ -1,4 +1,4 @@
-/* photons.h: photon generation from a photon index, shared by host and device.
+/* light_sample.h: photon generation from a photon index, shared by host and device.
  *
  * In: a light prepared on the host (ph_light, in voxel coordinates: u = (x -
  * origin) / voxel_size) and the photon's index k within that light's share of
@@ -18,9 +18,9 @@
  *    Omega = 2 pi (1 - cos theta).
  *  - point: the same with cos theta = -1 (whole sphere), power I 4 pi / N.
  * Photons that start outside the grid are advanced to where they enter it
- * (ph_enter_grid); those that never hit it are counted as missed. */
-#ifndef BAKER_PHOTONS_KERNEL_H
-#define BAKER_PHOTONS_KERNEL_H
+ * (rc_slab, kernels/ray_core.h); those that never hit it are counted as missed. */
+#ifndef BAKER_LIGHT_SAMPLE_H
+#define BAKER_LIGHT_SAMPLE_H
 
 #include "kernels/shared.h"
 
@@ -87,7 +87,7 @@ BK_INLINE void ph_hammersley(bk_uint k, bk_uint n, float rot_u, float rot_v, flo
 
 /* The light-domain point of photon k (0 <= k < count) of light L: the
  * rotated Hammersley point the generator maps (ph_map). The adaptive pipeline
- * warps it through its sampling PDF first (kernels/adaptive.h). */
+ * warps it through its sampling PDF first (kernels/light_domain.h). */
 BK_INLINE void ph_point(BK_CONSTANT const ph_light *L, bk_uint k, float *a, float *b) {
   ph_hammersley(k, L->count, L->rot_u, L->rot_v, a, b);
 }

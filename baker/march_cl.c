@@ -1,0 +1,238 @@
+/* march_cl.c: the photon march on an OpenCL device (see march.h): the
+ * kernel specialised for the scene, its buffers, launches in chunks of
+ * PM_CHUNK photons with progress between them, and the sums read back. */
+#include "march.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "field.h"
+
+/* The kernel and the buffers of one march. */
+typedef struct pm_cl_run {
+  cl_program prog;
+  cl_kernel kern;
+  size_t local;
+  cl_mem params, lights, ng, pyr, sigma, acc, out, dummy, masks, tables;
+  size_t acc_bytes, mask_bytes;
+  pm_result *res;
+} pm_cl_run_t;
+
+static size_t field_bytes(const pm_setup_t *s) {
+  return fld_padded_count(s->dims.nx, s->dims.ny, s->dims.nz) * 4 * sizeof(float);
+}
+
+/* What the device must offer: 64-bit atomics, buffers as large as the grid. */
+static int check_device(clh_context_t *cl, const pm_setup_t *s, size_t acc_bytes, bk_error_t *err) {
+  char b1[32], b2[32];
+  if (!cl->has_int64_atomics)
+    return bk_fail(err, BK_ERR_RUNTIME,
+                   "OpenCL device %s lacks cl_khr_int64_base_atomics, which the photon march "
+                   "needs for its fixed-point sums; choose another device with --device or march "
+                   "on the host with --host",
+                   cl->device_name);
+  size_t largest = s->ng && field_bytes(s) > acc_bytes ? field_bytes(s) : acc_bytes;
+  if (largest > cl->max_alloc)
+    return bk_fail(err, BK_ERR_RUNTIME,
+                   "march: the %dx%dx%d grid needs buffers of %s; %s allows %s per buffer "
+                   "(lower grid.resolution or march on the host with --host)",
+                   s->dims.nx, s->dims.ny, s->dims.nz, bk_format_bytes((double)largest, b1, sizeof b1),
+                   cl->device_name, bk_format_bytes((double)cl->max_alloc, b2, sizeof b2));
+  return BK_OK;
+}
+
+/* The kernel specialised by -D flags for what the scene contains, and the
+ * work-group size: PM_LOCAL_SIZE, or the largest power of 2 below it that
+ * the kernel allows. */
+static int build_kernel(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, bk_error_t *err) {
+  char opts[512], lights[256];
+  cl_int cerr = CL_SUCCESS;
+  ph_kernel_defines(&s->lights, lights, sizeof lights);
+  snprintf(opts, sizeof opts,
+           "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d %s -DPM_MODE=%d",
+           s->has_refraction, s->homogeneous, s->params.integrator, s->channels, lights,
+           (int)s->params.mode);
+  if (clh_build(cl, "march.cl", opts, &r->prog, err) != BK_OK) return BK_ERR_RUNTIME;
+  r->kern = clCreateKernel(r->prog, "pm_march", &cerr);
+  CLH_CHECK(cerr, err, error);
+  size_t kmax = 0;
+  r->local = PM_LOCAL_SIZE;
+  if (clGetKernelWorkGroupInfo(r->kern, cl->device, CL_KERNEL_WORK_GROUP_SIZE, sizeof kmax, &kmax,
+                               NULL) == CL_SUCCESS &&
+      kmax > 0)
+    while (r->local > kmax) r->local /= 2;
+  return BK_OK;
+error:
+  return BK_ERR_RUNTIME;
+}
+
+static cl_mem make_buffer(clh_context_t *cl, cl_mem_flags flags, size_t bytes, const void *data,
+                          bk_error_t *err) {
+  cl_int cerr = CL_SUCCESS;
+  cl_mem b = clCreateBuffer(cl->context, flags, bytes, (void *)data, &cerr);
+  CLH_CHECK(cerr, err, error);
+  return b;
+error:
+  return NULL;
+}
+
+/* Inputs and outputs on the device; inputs stay where they are on a CPU
+ * device (USE_HOST_PTR), a GPU copies. Optional inputs the scene does not
+ * use get a small dummy buffer. */
+static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_cl_run_t *r,
+                        bk_error_t *err) {
+  const cl_mem_flags host = cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;
+  const cl_mem_flags in = CL_MEM_READ_ONLY | host, copy = CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR;
+  const ph_setup_t *L = &s->lights;
+  ph_light none;
+  memset(&none, 0, sizeof none);
+  size_t nlights = L->count > 0 ? (size_t)L->count : 1;
+  if (!(r->params = make_buffer(cl, copy, sizeof(pm_params), &s->params, err)) ||
+      !(r->lights = make_buffer(cl, copy, sizeof(ph_light) * nlights, L->count ? (void *)L->lights : &none, err)) ||
+      !(r->dummy = make_buffer(cl, CL_MEM_READ_WRITE, 64, NULL, err)) ||
+      (s->ng && !(r->ng = make_buffer(cl, in, field_bytes(s), s->ng, err))) ||
+      (s->ng && !(r->pyr = make_buffer(cl, in, (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz,
+                                        s->pyramid.level, err))) ||
+      (s->sigma && !(r->sigma = make_buffer(cl, in, s->voxels * s->channels * sizeof(float), s->sigma, err))) ||
+      !(r->acc = make_buffer(cl, CL_MEM_READ_WRITE | host, r->acc_bytes, acc, err)) ||
+      !(r->out = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, err)))
+    return BK_ERR_RUNTIME;
+  if (s->params.mode == PM_MODE_ORIGINS) {
+    if (!s->masks) return bk_fail(err, BK_ERR_RUNTIME, "march: origin recorder without masks");
+    if (!(r->masks = make_buffer(cl, CL_MEM_READ_WRITE | host, r->mask_bytes, s->masks, err)))
+      return BK_ERR_RUNTIME;
+  }
+  if (s->params.mode == PM_MODE_TABLES) {
+    if (!s->tables) return bk_fail(err, BK_ERR_RUNTIME, "march: sampling tables missing");
+    size_t bytes = nlights * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) * sizeof(float);
+    if (!(r->tables = make_buffer(cl, copy, bytes, s->tables, err))) return BK_ERR_RUNTIME;
+  }
+  return BK_OK;
+}
+
+/* Arguments of pm_march (kernels/march.cl) but the photon range (6, 7). */
+static int set_args(pm_cl_run_t *r, bk_error_t *err) {
+  cl_mem a[11] = {r->params, r->lights, r->ng ? r->ng : r->dummy, r->pyr ? r->pyr : r->dummy,
+                  r->sigma ? r->sigma : r->dummy, r->acc, NULL, NULL, r->out,
+                  r->masks ? r->masks : r->dummy, r->tables ? r->tables : r->dummy};
+  for (cl_uint i = 0; i < 11; i++)
+    if (a[i]) CLH_CHECK(clSetKernelArg(r->kern, i, sizeof(cl_mem), &a[i]), err, error);
+  return BK_OK;
+error:
+  return BK_ERR_RUNTIME;
+}
+
+/* Every photon, PM_CHUNK at a time, counting outcomes into stats. */
+static int launch(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, pm_stats_t *stats,
+                  bk_error_t *err) {
+  bk_progress_t progress;
+  uint64_t total = s->lights.photons;
+  int rc = BK_ERR_RUNTIME;
+  bk_progress_begin(&progress, "photon marching", total);
+  for (uint64_t first = 0; first < total; first += PM_CHUNK) {
+    cl_uint f = (cl_uint)first;
+    cl_uint count = (cl_uint)(total - first < PM_CHUNK ? total - first : PM_CHUNK);
+    /* a fixed work-group size: the global size rounded up to it (the kernel
+     * skips the excess), so that every photon count runs the same compiled
+     * work-group function (PoCL compiles one per local size on first use,
+     * half a second) */
+    size_t global = (count + r->local - 1) / r->local * r->local;
+    CLH_CHECK(clSetKernelArg(r->kern, 6, sizeof f, &f), err, error);
+    CLH_CHECK(clSetKernelArg(r->kern, 7, sizeof count, &count), err, error);
+    CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, r->kern, 1, NULL, &global, &r->local, 0, NULL, NULL),
+              err, error);
+    CLH_CHECK(clEnqueueReadBuffer(cl->queue, r->out, CL_TRUE, 0, count * sizeof(pm_result), r->res,
+                                  0, NULL, NULL),
+              err, error);
+    if (stats)
+      for (cl_uint i = 0; i < count; i++) pm_stats_add(stats, &r->res[i]);
+    bk_progress_update(&progress, first + count);
+  }
+  rc = BK_OK;
+error:
+  bk_progress_end(&progress);
+  return rc;
+}
+
+/* Makes the host's copy of buffer b (bytes, at host) current: a map on a
+ * CPU device, where the buffer is the host memory; a read on a GPU. */
+static int read_back(clh_context_t *cl, cl_mem b, size_t bytes, void *host, bk_error_t *err) {
+  cl_int cerr = CL_SUCCESS;
+  if (!cl->is_cpu) {
+    CLH_CHECK(clEnqueueReadBuffer(cl->queue, b, CL_TRUE, 0, bytes, host, 0, NULL, NULL), err, error);
+    return BK_OK;
+  }
+  void *p = clEnqueueMapBuffer(cl->queue, b, CL_TRUE, CL_MAP_READ, 0, bytes, 0, NULL, NULL, &cerr);
+  CLH_CHECK(cerr, err, error);
+  CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, b, p, 0, NULL, NULL), err, error);
+  return BK_OK;
+error:
+  return BK_ERR_RUNTIME;
+}
+
+static void release(pm_cl_run_t *r) {
+  free(r->res);
+  if (r->kern) clReleaseKernel(r->kern);
+  if (r->prog) clReleaseProgram(r->prog);
+  cl_mem all[] = {r->params, r->lights, r->ng,    r->pyr,   r->sigma,
+                  r->acc,    r->out,    r->dummy, r->masks, r->tables};
+  for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
+    if (all[i]) clReleaseMemObject(all[i]);
+}
+
+int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+              bk_error_t *err) {
+  pm_cl_run_t r;
+  memset(&r, 0, sizeof r);
+  r.acc_bytes = pm_acc_count(s) * sizeof(uint64_t);
+  r.mask_bytes = pm_mask_count(s) * sizeof(uint64_t);
+  int rc = check_device(cl, s, r.acc_bytes, err);
+  if (rc != BK_OK) return rc;
+  double t0 = bk_now_ms();
+  if ((rc = build_kernel(cl, s, &r, err))) goto done;
+  if (stats) stats->ms_build += bk_now_ms() - t0;
+  rc = BK_ERR_RUNTIME;
+  r.res = bk_calloc(PM_CHUNK, sizeof(pm_result), "march: photon results", err);
+  if (!r.res || make_buffers(cl, s, acc, &r, err) || set_args(&r, err) ||
+      launch(cl, s, &r, stats, err) || read_back(cl, r.acc, r.acc_bytes, acc, err) ||
+      (r.masks && read_back(cl, r.masks, r.mask_bytes, s->masks, err)))
+    goto done;
+  CLH_CHECK(clFinish(cl->queue), err, done);
+  rc = BK_OK;
+done:
+  release(&r);
+  return rc;
+}
+
+int pm_deposit_repeat_cl(clh_context_t *cl, float value, uint32_t items, uint32_t per_item,
+                         uint64_t *sum, bk_error_t *err) {
+  int rc = BK_ERR_RUNTIME;
+  cl_int cerr = CL_SUCCESS;
+  cl_program prog = NULL;
+  cl_kernel kern = NULL;
+  cl_mem b = NULL;
+  cl_ulong zero = 0;
+  if (!cl->has_int64_atomics)
+    return bk_fail(err, BK_ERR_RUNTIME, "OpenCL device %s lacks cl_khr_int64_base_atomics",
+                   cl->device_name);
+  if (clh_build(cl, "march.cl", "", &prog, err) != BK_OK) goto error;
+  kern = clCreateKernel(prog, "pm_test_deposit", &cerr);
+  CLH_CHECK(cerr, err, error);
+  b = clCreateBuffer(cl->context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof zero, &zero, &cerr);
+  CLH_CHECK(cerr, err, error);
+  CLH_CHECK(clSetKernelArg(kern, 0, sizeof b, &b), err, error);
+  CLH_CHECK(clSetKernelArg(kern, 1, sizeof value, &value), err, error);
+  CLH_CHECK(clSetKernelArg(kern, 2, sizeof per_item, &per_item), err, error);
+  size_t global = items;
+  CLH_CHECK(clEnqueueNDRangeKernel(cl->queue, kern, 1, NULL, &global, NULL, 0, NULL, NULL), err,
+            error);
+  CLH_CHECK(clEnqueueReadBuffer(cl->queue, b, CL_TRUE, 0, sizeof zero, &zero, 0, NULL, NULL), err,
+            error);
+  *sum = zero;
+  rc = BK_OK;
+error:
+  if (b) clReleaseMemObject(b);
+  if (kern) clReleaseKernel(kern);
+  if (prog) clReleaseProgram(prog);
+  return rc;
+}

@@ -1,0 +1,44 @@
+/* parallel.c: one range of a loop per core (see parallel.h). */
+#define _DEFAULT_SOURCE /* sysconf */
+#include "parallel.h"
+
+#include <pthread.h>
+#include <unistd.h>
+
+#define BK_MAX_THREADS 64
+
+typedef struct bk_range_job {
+  void (*fn)(void *ctx, size_t lo, size_t hi);
+  void *ctx;
+  size_t lo, hi;
+} bk_range_job_t;
+
+static void *range_run(void *arg) {
+  bk_range_job_t *j = arg;
+  j->fn(j->ctx, j->lo, j->hi);
+  return NULL;
+}
+
+void bk_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi), void *ctx) {
+  long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+  int threads = cpus < 1 ? 1 : cpus > BK_MAX_THREADS ? BK_MAX_THREADS : (int)cpus;
+  if (grain < 1) grain = 1;
+  if ((size_t)threads > n / grain) threads = n / grain > 0 ? (int)(n / grain) : 1;
+  bk_range_job_t jobs[BK_MAX_THREADS];
+  pthread_t tid[BK_MAX_THREADS];
+  int started = 0;
+  for (int t = 0; t < threads; t++) {
+    jobs[t].fn = fn;
+    jobs[t].ctx = ctx;
+    jobs[t].lo = n * (size_t)t / (size_t)threads;
+    jobs[t].hi = n * (size_t)(t + 1) / (size_t)threads;
+  }
+  /* a thread that cannot start leaves its range to this one */
+  for (int t = 1; t < threads; t++) {
+    if (pthread_create(&tid[t], NULL, range_run, &jobs[t]) != 0) break;
+    started = t;
+  }
+  range_run(&jobs[0]);
+  for (int t = 1; t <= started; t++) pthread_join(tid[t], NULL);
+  for (int t = started + 1; t < threads; t++) range_run(&jobs[t]);
+}

@@ -1,0 +1,24 @@
+/* parallel.h: the one thread fan-out of the project, for loops over voxels
+ * and slices around the OpenCL stages (radiance conversion, the adaptive
+ * filter on the host).
+ *
+ * bk_parallel runs fn(ctx, lo, hi) over [0, n) split into one contiguous
+ * range per CPU core, each at least `grain` items (BK_GRAIN for voxels),
+ * and returns when all are done. A thread that cannot start leaves its range
+ * to the caller's thread, so the loop always completes. */
+#ifndef BAKER_PARALLEL_H
+#define BAKER_PARALLEL_H
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define BK_GRAIN 65536
+void bk_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi), void *ctx);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
