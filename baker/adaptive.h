@@ -58,7 +58,7 @@
 #include <stdint.h>
 
 #include "clhost.h"
-#include "grid.h"
+#include "base/grid.h"
 #include "kernels/adaptive_filter.h"
 #include "kernels/light_domain.h"
 #include "march.h"

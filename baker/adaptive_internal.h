@@ -3,7 +3,7 @@
 #ifndef BAKER_ADAPTIVE_INTERNAL_H
 #define BAKER_ADAPTIVE_INTERNAL_H
 
-#include "grid.h"
+#include "base/grid.h"
 
 /* Voxel count of a grid, refusing empty grids and overflow of `per_voxel`
  * bytes per voxel; `what` names the caller in the message. (A base-layer

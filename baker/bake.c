@@ -12,9 +12,9 @@
 
 #include "adaptive.h"
 #include "clhost.h"
-#include "common.h"
-#include "frames.h"
-#include "grid.h"
+#include "base/common.h"
+#include "base/frames.h"
+#include "base/grid.h"
 #include "march.h"
 #include "voxelize.h"
 

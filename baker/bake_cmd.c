@@ -8,7 +8,7 @@
 
 #include "bake.h"
 #include "cmdline.h"
-#include "common.h"
+#include "base/common.h"
 
 static void bake_usage(FILE *out) {
   fprintf(out,

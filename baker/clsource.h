@@ -8,7 +8,7 @@
 #ifndef BAKER_CLSOURCE_H
 #define BAKER_CLSOURCE_H
 
-#include "common.h"
+#include "base/common.h"
 
 #ifdef __cplusplus
 extern "C" {

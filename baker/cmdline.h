@@ -15,7 +15,7 @@
 
 #include <getopt.h>
 
-#include "common.h"
+#include "base/common.h"
 
 /* codes cmd_next returns besides an option's own value */
 enum {

@@ -5,7 +5,7 @@
 
 #include "bake.h"
 #include "clhost.h"
-#include "common.h"
+#include "base/common.h"
 #include "view.h"
 
 static void usage(FILE *out) {

@@ -27,7 +27,7 @@
 #ifndef BAKER_OCTREE_H
 #define BAKER_OCTREE_H
 
-#include "grid.h"
+#include "base/grid.h"
 #include "kernels/ray_core.h"
 
 #ifdef __cplusplus

@@ -25,7 +25,7 @@
 
 #include <stdio.h>
 
-#include "common.h"
+#include "base/common.h"
 #include "view_camera.h"
 #include "view_fields.h"
 #include "view_image.h"

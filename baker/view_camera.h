@@ -8,7 +8,7 @@
 #ifndef BAKER_VIEW_CAMERA_H
 #define BAKER_VIEW_CAMERA_H
 
-#include "common.h"
+#include "base/common.h"
 #include "scene.h"
 
 #define VIEW_DEFAULT_FOV 40.0f   /* degrees, vertical; DESIGN.md's example camera */

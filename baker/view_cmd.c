@@ -14,7 +14,7 @@
 
 #include "clhost.h"
 #include "cmdline.h"
-#include "frames.h"
+#include "base/frames.h"
 #include "kernels/view_march.h"
 #include "scene.h"
 

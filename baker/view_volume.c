@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "grid.h"
+#include "base/grid.h"
 #include "vdbio.h"
 #include "view_camera.h"
 #include "view_fields.h"
