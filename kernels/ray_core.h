@@ -147,6 +147,21 @@ typedef struct rc_tri {
 } rc_tri;
 
 BK_INLINE rc_tri rc_tri_at(rc_dims n, bk_v3 u) {
+#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
+  /* the same operations on the three axes at once (bit-identical results;
+   * a true vector compare is -1) */
+  float4 f = (float4)(u.x, u.y, u.z, 0.0f) - 0.5f;
+  int4 i = convert_int4(f);
+  i += convert_float4(i) > f;
+  float4 fr = f - convert_float4(i);
+  i = clamp(i + 1, (int4)(0), (int4)(n.nx, n.ny, n.nz, 0));
+  rc_tri t;
+  t.tx = fr.x;
+  t.ty = fr.y;
+  t.tz = fr.z;
+  t.base = (bk_long)i.x + rc_pad_sy(n) * i.y + rc_pad_sz(n) * i.z;
+  return t;
+#else
   float fx = u.x - 0.5f, fy = u.y - 0.5f, fz = u.z - 0.5f;
   int i = rc_floori(fx), j = rc_floori(fy), k = rc_floori(fz);
   rc_tri t;
@@ -158,6 +173,7 @@ BK_INLINE rc_tri rc_tri_at(rc_dims n, bk_v3 u) {
   k = bk_clampi(k + 1, 0, n.nz);
   t.base = (bk_long)i + rc_pad_sy(n) * j + rc_pad_sz(n) * k;
   return t;
+#endif
 }
 
 typedef struct rc_f4 {
