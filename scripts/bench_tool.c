@@ -6,12 +6,15 @@
  * In: two RGBA OpenEXR images of the same size (formats/exr.h reads them).
  * Out: one JSON line on stdout,
  *   {"rel_rms": e, "rms": d, "ref_rms": r, "width": w, "height": h,
- *    "nonfinite": k, "max_abs": m}
+ *    "nonfinite": k, "max_abs": m, "differ": f}
  * with the relative RMS error over the R, G, B values of every pixel
  *   e = sqrt( sum (test - ref)^2 / sum ref^2 ),
  * d = sqrt(mean (test - ref)^2), r = sqrt(mean ref^2), k the number of
  * non-finite values in TEST (the writer turns NaN into 0 and clamps inf to the
- * half range, so k counts what reached the file) and m the largest |test-ref|.
+ * half range, so k counts what reached the file), m the largest |test-ref|
+ * and f the fraction of pixels where some channel differs by more than the
+ * rounding of two half-float writes (2e-3 relative, plus 1e-4 of the
+ * reference's RMS red for black pixels).
  * Alpha is left out: it is coverage, not radiance. A reference that is black
  * everywhere gives e = null (the ratio is undefined).
  * Exit status: 0 success, 2 bad input (unreadable files, sizes differ). */
@@ -27,7 +30,7 @@ static void usage(FILE *out) {
   fprintf(out,
           "usage: bench_tool exrdiff TEST.exr REF.exr\n"
           "  prints {\"rel_rms\": ..., \"rms\": ..., \"ref_rms\": ..., \"width\": ..., "
-          "\"height\": ..., \"nonfinite\": ..., \"max_abs\": ...}\n"
+          "\"height\": ..., \"nonfinite\": ..., \"max_abs\": ..., \"differ\": ...}\n"
           "  rel_rms = sqrt(sum (TEST-REF)^2 / sum REF^2) over R, G, B of all pixels\n");
 }
 
@@ -46,9 +49,13 @@ static int exrdiff(const char *test_path, const char *ref_path) {
   }
   /* double sums: a 800x600 image has 1.4 M values, float would lose digits */
   double sum_d2 = 0.0, sum_r2 = 0.0, max_abs = 0.0;
-  long long nonfinite = 0;
+  long long nonfinite = 0, differ = 0;
   size_t pixels = (size_t)tw * (size_t)th;
+  for (size_t p = 0; p < pixels; p++) sum_r2 += (double)ref[4 * p] * ref[4 * p];
+  const double floor_abs = 1e-4 * sqrt(sum_r2 / (double)(pixels ? pixels : 1));
+  sum_r2 = 0.0;
   for (size_t p = 0; p < pixels; p++) {
+    int pixel_differs = 0;
     for (int c = 0; c < 3; c++) {
       double t = test[4 * p + c], r = ref[4 * p + c];
       if (!isfinite(t)) {
@@ -59,15 +66,19 @@ static int exrdiff(const char *test_path, const char *ref_path) {
       sum_d2 += d * d;
       sum_r2 += r * r;
       if (fabs(d) > max_abs) max_abs = fabs(d);
+      /* beyond the rounding of two half-float writes (2^-11 each) */
+      if (fabs(d) > 2e-3 * fabs(r) + floor_abs) pixel_differs = 1;
     }
+    differ += pixel_differs;
   }
   double n = (double)pixels * 3.0;
   printf("{\"rel_rms\": ");
   if (sum_r2 > 0.0) printf("%.9g", sqrt(sum_d2 / sum_r2));
   else printf("null");
   printf(", \"rms\": %.9g, \"ref_rms\": %.9g, \"width\": %d, \"height\": %d, "
-         "\"nonfinite\": %lld, \"max_abs\": %.9g}\n",
-         sqrt(sum_d2 / n), sqrt(sum_r2 / n), tw, th, nonfinite, max_abs);
+         "\"nonfinite\": %lld, \"max_abs\": %.9g, \"differ\": %.9g}\n",
+         sqrt(sum_d2 / n), sqrt(sum_r2 / n), tw, th, nonfinite, max_abs,
+         (double)differ / (double)(pixels ? pixels : 1));
 error:
   if (rc) fprintf(stderr, "bench_tool exrdiff: %s\n", err.msg);
   free(test);
