@@ -21,7 +21,7 @@ int sc_fail_at(const sc_ctx_t *c, int line, int col,
 }
 
 /* Key paths are cut at SC_KEY_MAX: a message with a cut path still helps. */
-void sc_append(char *buf, size_t *n, const char *s) {
+static void sc_append(char *buf, size_t *n, const char *s) {
   while (*s && *n + 1 < SC_KEY_MAX) buf[(*n)++] = *s++;
   buf[*n] = 0;
 }
@@ -42,7 +42,7 @@ const char *sc_index(char *buf, const char *parent, size_t i) {
 }
 
 /* Edit distance, to suggest the key a typo was meant to be. */
-int sc_distance(const char *a, const char *b) {
+static int sc_distance(const char *a, const char *b) {
   size_t la = strlen(a), lb = strlen(b);
   int row[64];
   if (la >= 64 || lb >= 64) return 64;
@@ -91,7 +91,7 @@ void sc_check_keys(const sc_ctx_t *c, const json_value_t *obj, const char *path,
 
 /* --- typed getters ---------------------------------------------------------- */
 
-const char *sc_range_text(const sc_range_t *r, char *buf, size_t n) {
+static const char *sc_range_text(const sc_range_t *r, char *buf, size_t n) {
   const char *noun = r->integer ? "an integer" : "a number";
   int has_lo = r->lo > -SC_NOLIM, has_hi = !r->hi_silent;
   if (has_lo && has_hi)

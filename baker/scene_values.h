@@ -38,16 +38,13 @@ __attribute__((format(printf, 5, 6))) int sc_fail_at(const sc_ctx_t *c, int line
                                                      const char *path, const char *fmt, ...);
 #define sc_fail(c, v, path, ...) sc_fail_at((c), (v)->line, (v)->col, (path), __VA_ARGS__)
 
-void sc_append(char *buf, size_t *n, const char *s);
 const char *sc_key(char *buf, const char *parent, const char *key);
 const char *sc_index(char *buf, const char *parent, size_t i);
-int sc_distance(const char *a, const char *b);
 void sc_warn_unknown(const sc_ctx_t *c, const json_member_t *m, const char *parent,
                      const char *const *known);
 int sc_known(const char *key, const char *const *known);
 void sc_check_keys(const sc_ctx_t *c, const json_value_t *obj, const char *path,
                    const char *const *known);
-const char *sc_range_text(const sc_range_t *r, char *buf, size_t n);
 int sc_number(const sc_ctx_t *c, const json_value_t *v, const char *path,
               const sc_range_t *r, double *out);
 int sc_float(const sc_ctx_t *c, const json_value_t *v, const char *path,

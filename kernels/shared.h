@@ -65,22 +65,4 @@ BK_INLINE int bk_grid_index(const bk_grid g, int i, int j, int k) {
   return i + g.nx * (j + g.ny * k);
 }
 
-/* Trilinear sample of a scalar field at voxel coordinate u (cell-centred:
- * the value of voxel i sits at i + 0.5), clamped to the edge voxels. */
-BK_INLINE float bk_sample_trilinear(BK_GLOBAL const float *f, const bk_grid g, bk_v3 u) {
-  float fx = u.x - 0.5f, fy = u.y - 0.5f, fz = u.z - 0.5f;
-  float flx = floor(fx), fly = floor(fy), flz = floor(fz);
-  int i0 = (int)flx, j0 = (int)fly, k0 = (int)flz;
-  float tx = fx - flx, ty = fy - fly, tz = fz - flz;
-  int i1 = bk_clampi(i0 + 1, 0, g.nx - 1), j1 = bk_clampi(j0 + 1, 0, g.ny - 1), k1 = bk_clampi(k0 + 1, 0, g.nz - 1);
-  i0 = bk_clampi(i0, 0, g.nx - 1); j0 = bk_clampi(j0, 0, g.ny - 1); k0 = bk_clampi(k0, 0, g.nz - 1);
-  float c00 = f[bk_grid_index(g, i0, j0, k0)] * (1.0f - tx) + f[bk_grid_index(g, i1, j0, k0)] * tx;
-  float c10 = f[bk_grid_index(g, i0, j1, k0)] * (1.0f - tx) + f[bk_grid_index(g, i1, j1, k0)] * tx;
-  float c01 = f[bk_grid_index(g, i0, j0, k1)] * (1.0f - tx) + f[bk_grid_index(g, i1, j0, k1)] * tx;
-  float c11 = f[bk_grid_index(g, i0, j1, k1)] * (1.0f - tx) + f[bk_grid_index(g, i1, j1, k1)] * tx;
-  float c0 = c00 * (1.0f - ty) + c10 * ty;
-  float c1 = c01 * (1.0f - ty) + c11 * ty;
-  return c0 * (1.0f - tz) + c1 * tz;
-}
-
 #endif
