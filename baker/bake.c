@@ -51,15 +51,25 @@ static void apply_overrides(const bake_options_t *opt, scene_t *s) {
   if (opt->seed >= 0) s->seed = (unsigned)opt->seed;
 }
 
-/* An existing output counts as complete when it opens as a VDB written by
- * baker: files are renamed into place only once fully written, so a partial
- * file can only come from another program. */
-static int output_complete(const char *path) {
-  if (access(path, F_OK) != 0) return 0;
-  char creator[256];
-  bk_error_t err;
-  if (vdbio_read_meta(path, "creator", creator, sizeof creator, &err) != BK_OK) return 0;
-  return strncmp(creator, "baker", 5) == 0;
+int bake_load_scene(const bake_options_t *opt, const char *scene_path, scene_t *s,
+                    bk_error_t *err) {
+  int rc = scene_load_with(scene_path, opt->sets, opt->set_count, s, err);
+  if (!rc) apply_overrides(opt, s);
+  return rc;
+}
+
+static const char *compression_name(vdbio_compression_t c) {
+  return c == VDBIO_COMPRESS_ZIP ? "zip" : c == VDBIO_COMPRESS_NONE ? "none" : "blosc";
+}
+
+void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_t len) {
+  snprintf(out, len,
+           "scene=%016" PRIx64 " mode=%s photons=%lld integrator=%s step=%.9g seed=%u "
+           "resolution=%d compression=%s half=%d filter=%s",
+           s->hash, scene_mode_name(s->mode), s->photon_count,
+           scene_integrator_name(s->integrator), (double)s->step, s->seed, s->resolution,
+           compression_name(opt->write.compression), opt->write.half_float ? 1 : 0,
+           s->mode != MODE_ADAPTIVE ? "n/a" : opt->no_filter ? "off" : "on");
 }
 
 /* sigma_t = sigma_s + sigma_a per channel, the grey density (mean of the
@@ -96,10 +106,9 @@ static float *first_channel(const float *rgb, size_t n, bk_error_t *err) {
 static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene_path, int frame,
                      bk_error_t *err) {
   double t0 = bk_now_ms();
-  int rc = scene_load(scene_path, &j->scene, err);
+  int rc = bake_load_scene(opt, scene_path, &j->scene, err);
   if (rc) return rc;
   j->scene_loaded = 1;
-  apply_overrides(opt, &j->scene);
   if ((rc = expand_scene_paths(&j->scene, frame, err))) return rc;
   bk_timings_add(&j->timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
                  j->scene.object_count, j->scene.light_count);
@@ -182,7 +191,8 @@ static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char
   const scene_t *s = &j->scene;
   const pm_stats_t *st = &j->stats;
   const ad_stats_t *as = &j->astats;
-  char hash[32], bounds[160];
+  char hash[32], bounds[160], settings[512];
+  bake_settings(opt, s, settings, sizeof settings);
   snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
   snprintf(bounds, sizeof bounds, "[[%g,%g,%g],[%g,%g,%g]]", s->bounds_min[0], s->bounds_min[1],
            s->bounds_min[2], s->bounds_max[0], s->bounds_max[1], s->bounds_max[2]);
@@ -204,6 +214,7 @@ static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char
       {"photons_step_limit", VDBIO_META_INT, NULL, (long long)st->step_limit, 0},
       {"photon_steps", VDBIO_META_INT, NULL, (long long)st->steps, 0},
       {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : j->cl.device_name, 0, 0},
+      {"bake_settings", VDBIO_META_STRING, settings, 0, 0},
       /* adaptive only (the count below leaves them out otherwise) */
       {"adaptive_pilot_photons", VDBIO_META_INT, NULL, (long long)as->pilot.photons, 0},
       {"adaptive_gradient_threshold", VDBIO_META_FLOAT, NULL, 0, as->select.gradient_threshold},
@@ -283,63 +294,4 @@ static int expand_scene_paths(scene_t *s, int frame, bk_error_t *err) {
     if (refs[i]->present && !(rc = frames_expand(refs[i]->file, frame, buf, sizeof buf, err)))
       memcpy(refs[i]->file, buf, sizeof buf);
   return rc;
-}
-
-/* Which frames to bake: --frames, else $SLURM_ARRAY_TASK_ID when the output
- * holds a frame pattern (one frame per array task), else the single frame 0
- * for a plain output path. */
-static int choose_frames(const bake_options_t *opt, frames_range_t *range, bk_error_t *err) {
-  const char *slurm = getenv("SLURM_ARRAY_TASK_ID");
-  int patterned = frames_has_pattern(opt->out_path);
-  if (opt->frames) {
-    int rc = frames_parse(opt->frames, "--frames", range, err);
-    if (rc) return rc;
-  } else if (patterned && slurm && *slurm) {
-    int rc = frames_parse(slurm, "$SLURM_ARRAY_TASK_ID", range, err);
-    if (rc) return rc;
-  } else if (patterned) {
-    return bk_fail(err, BK_ERR_INPUT,
-                   "%s: the output holds a frame pattern but no frame was given "
-                   "(--frames A-B, or run as a Slurm array task)", opt->out_path);
-  } else {
-    *range = (frames_range_t){0, 0, 1};
-  }
-  if (frames_count(range) > 1 && !patterned)
-    return bk_fail(err, BK_ERR_INPUT,
-                   "%s: %d frames would all write this one file; put #### or $F4 in the "
-                   "output path", opt->out_path, frames_count(range));
-  return BK_OK;
-}
-
-int bake_run(const bake_options_t *opt, bk_error_t *err) {
-  frames_range_t range;
-  int rc = choose_frames(opt, &range, err);
-  if (rc) return rc;
-  int count = frames_count(&range), baked = 0, skipped = 0;
-  for (int i = 0; i < count; i++) {
-    int frame = frames_at(&range, i);
-    char scene_path[SCENE_PATH_MAX], out_path[SCENE_PATH_MAX];
-    if ((rc = frames_expand(opt->scene_path, frame, scene_path, sizeof scene_path, err)) ||
-        (rc = frames_expand(opt->out_path, frame, out_path, sizeof out_path, err)))
-      return rc;
-    if (!opt->force && output_complete(out_path)) {
-      bk_log(1, "%s exists and is complete: skipped (--force re-bakes it)", out_path);
-      skipped++;
-      continue;
-    }
-    if (count > 1) bk_log(1, "frame %d (%d of %d)", frame, i + 1, count);
-    if ((rc = bake_frame(opt, scene_path, out_path, frame, err))) {
-      if (count > 1) {
-        char msg[sizeof err->msg];
-        /* a long message loses its tail, as bk_fail's do (the test keeps
-         * gcc's -Wformat-truncation quiet about it) */
-        if (snprintf(msg, sizeof msg, "frame %d: %s", frame, err->msg) < 0) msg[0] = 0;
-        snprintf(err->msg, sizeof err->msg, "%s", msg);
-      }
-      return rc;
-    }
-    baked++;
-  }
-  if (count > 1) bk_log(1, "%d frames baked, %d skipped as already complete", baked, skipped);
-  return BK_OK;
 }

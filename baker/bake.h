@@ -3,9 +3,12 @@
  *
  * In: a scene file (optionally a frame pattern), command-line overrides.
  * Out: one .vdb per frame with the grids of DESIGN.md §5, written under a
- * temporary name and renamed, and a per-stage timing table. Frames whose
- * output already exists and opens as a baker file are skipped, so a killed
- * batch job restarts where it stopped. */
+ * temporary name and renamed, and a per-stage timing table. A frame whose
+ * output already exists is skipped only when that file is complete and
+ * records the scene hash and bake settings this run would bake with
+ * (bake_settings); otherwise it is re-baked with a line saying why. So a
+ * killed batch job restarts where it stopped, and a changed scene or option
+ * never leaves stale frames behind. */
 #ifndef BAKER_BAKE_H
 #define BAKER_BAKE_H
 
@@ -15,7 +18,11 @@
 typedef struct bake_options {
   const char *scene_path;   /* may hold a frame pattern */
   const char *out_path;     /* may hold a frame pattern */
-  const char *frames;       /* "A", "A-B" or "A-BxS"; NULL: one frame */
+  const char *frames;       /* frame list ("1-3,7,10-20x2", "1-20:2") or "task";
+                               NULL: a scheduler's array task, else one frame */
+  const char *const *sets;  /* --set KEY=VALUE, applied to the scene's JSON */
+  int set_count;
+  int keep_going;           /* bake the other frames after a failure */
   const char *device;       /* OpenCL device spec, NULL: PoCL/default */
   int host_only;            /* march with the host C path (no OpenCL) */
   int force;                /* re-bake frames whose output exists */
@@ -38,10 +45,19 @@ int bake_main(int argc, char **argv);
 
 /* No overrides, one frame, blosc compression. */
 void bake_options_defaults(bake_options_t *opt);
-/* Bakes the frames opt asks for (--frames, else $SLURM_ARRAY_TASK_ID for a
- * patterned output, else frame 0), skipping complete outputs unless
- * opt->force. */
+/* Bakes the frames opt asks for (bake_batch.c: --frames, else the array
+ * task of Slurm, SGE or PBS for a patterned output, else frame 0), skipping
+ * up-to-date outputs unless opt->force. */
 int bake_run(const bake_options_t *opt, bk_error_t *err);
+/* The scene with the command's --set and option overrides, as bake_frame
+ * bakes it (frame patterns inside the scene not yet expanded). */
+int bake_load_scene(const bake_options_t *opt, const char *scene_path, scene_t *s,
+                    bk_error_t *err);
+/* What an output depends on besides the meshes and VDBs the scene names, as
+ * "scene=HASH mode=M photons=N integrator=I step=S seed=S resolution=R
+ * compression=C half=H filter=F": recorded in each file's `bake_settings`
+ * metadata and compared before a frame is skipped. */
+void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_t len);
 /* Bakes one frame; `frame` is recorded in the metadata. */
 int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
                bk_error_t *err);

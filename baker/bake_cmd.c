@@ -18,13 +18,29 @@ static void bake_usage(FILE *out) {
           "photons along curved paths on OpenCL and writes the grids radiance, ior,\n"
           "extinction, scattering and density to OUT.vdb (DESIGN.md §5).\n"
           "\n"
+          "SCENE `-` reads the scene from standard input (relative paths against the\n"
+          "working directory).\n"
+          "\n"
           "options:\n"
-          "  -o, --output PATH        output .vdb (required); may hold a frame pattern\n"
-          "  --frames A[-B[xS]]       bake frames A..B step S; `####` (4 digits) or `$F4`\n"
-          "                           in SCENE and PATH become the frame number. Frames\n"
-          "                           whose output exists are skipped (restartable); one\n"
-          "                           frame per task: --frames $SLURM_ARRAY_TASK_ID\n"
-          "  --force                  re-bake frames whose output already exists\n"
+          "  -o, --output PATH        output .vdb (required; not `-`, not a directory);\n"
+          "                           may hold a frame pattern\n"
+          "  --frames LIST            frames to bake, in this order, each once: A, A-B,\n"
+          "                           A-BxS or A-B:S, comma-separated (1-3,7,10-20x2);\n"
+          "                           `####` (4 digits) or `$F4` in SCENE and PATH become\n"
+          "                           the frame number. `--frames task`: the array task's\n"
+          "                           frame ($SLURM_ARRAY_TASK_ID, $SGE_TASK_ID,\n"
+          "                           $PBS_ARRAYID, $PBS_ARRAY_INDEX), also the default\n"
+          "                           for a patterned PATH without --frames\n"
+          "  --keep-going             bake the other frames after a failure; end with a\n"
+          "                           per-frame summary (exit 1 if any failed at run\n"
+          "                           time, 2 if only for bad input)\n"
+          "  --force                  re-bake frames whose output is up to date (an output\n"
+          "                           is skipped only when complete and baked from the\n"
+          "                           same scene hash and settings; else re-baked)\n"
+          "  --set KEY=VALUE          override a scene key before validation, by its path:\n"
+          "                           medium.sigma_s=0.3, lights[0].intensity=[5,5,5],\n"
+          "                           photons.integrator=rk4 (VALUE is JSON, else a string);\n"
+          "                           repeatable\n"
           "  --mode reference|adaptive   photon pipeline (scene photons.mode)\n"
           "  --photons N              photon count (scene photons.count)\n"
           "  --no-filter              adaptive: skip the reconstruction filter (the raw,\n"
@@ -41,7 +57,11 @@ static void bake_usage(FILE *out) {
           "  --device SPEC            OpenCL device: `P:D` indices or a name substring;\n"
           "                           default PoCL (CPU). `baker devices` lists them\n"
           "  --host                   march on the host in plain C instead of OpenCL\n"
-          "  --progress               show progress even when stderr is not a terminal\n"
+          "  --progress[=json]        show progress even when stderr is not a terminal;\n"
+          "                           =json: one JSON object per line on stderr\n"
+          "                           {\"stage\",\"fraction\",\"eta_s\",\"frame\"}\n"
+          "  --threads N              at most N host threads and PoCL CPU threads\n"
+          "  --log FILE               append every message to FILE as well\n"
           "  -q, --quiet              errors only (no timing table)\n"
           "  -v, --verbose            more detail (OpenCL build logs, cache use)\n"
           "  -h, --help               this text\n"
@@ -71,7 +91,7 @@ static int parse_float(const char *s, float *out) {
 enum {
   OPT_FRAMES = CMD_FIRST_OWN, OPT_FORCE, OPT_MODE, OPT_PHOTONS, OPT_INTEGRATOR, OPT_STEP,
   OPT_SEED, OPT_RESOLUTION, OPT_COMPRESSION, OPT_NO_FILTER, OPT_WRITE_FILTER_RADIUS, OPT_HALF,
-  OPT_DEVICE, OPT_HOST
+  OPT_DEVICE, OPT_HOST, OPT_KEEP_GOING, OPT_SET
 };
 
 static const struct option bake_longopts[] = {
@@ -90,12 +110,14 @@ static const struct option bake_longopts[] = {
     {"half", no_argument, NULL, OPT_HALF},
     {"device", required_argument, NULL, OPT_DEVICE},
     {"host", no_argument, NULL, OPT_HOST},
+    {"keep-going", no_argument, NULL, OPT_KEEP_GOING},
+    {"set", required_argument, NULL, OPT_SET},
     CMD_COMMON_LONGOPTS,
     {NULL, 0, NULL, 0}};
 
 /* Applies option c with value val; BK_OK or BK_ERR_INPUT with the message in err. */
-static int bake_option(bake_options_t *opt, int c, const char *name, const char *val,
-                       bk_error_t *err) {
+static int bake_option(bake_options_t *opt, const char **sets, int c, const char *name,
+                       const char *val, bk_error_t *err) {
   long long ll;
   const char *want = NULL;
   switch (c) {
@@ -138,22 +160,29 @@ static int bake_option(bake_options_t *opt, int c, const char *name, const char 
   case OPT_HALF: opt->write.half_float = 1; break;
   case OPT_DEVICE: opt->device = val; break;
   case OPT_HOST: opt->host_only = 1; break;
+  case OPT_KEEP_GOING: opt->keep_going = 1; break;
+  case OPT_SET:
+    if (!strchr(val, '=') || val[0] == '=') want = "KEY=VALUE (e.g. medium.sigma_s=0.3)";
+    else sets[opt->set_count++] = val;
+    break;
   }
   if (want) return bk_fail(err, BK_ERR_INPUT, "%s: expected %s, got '%s'", name, want, val);
   return BK_OK;
 }
 
 /* Returns CMD_HELP or CMD_VERSION for those (exit 0), else an exit status. */
-static int bake_parse(int argc, char **argv, bake_options_t *opt, bk_error_t *err) {
+static int bake_parse(int argc, char **argv, bake_options_t *opt, const char **sets,
+                      bk_error_t *err) {
   cmd_parser_t p;
   int c;
   bake_options_defaults(opt);
+  opt->sets = sets;
   cmd_begin(&p, argc, argv, "bake", "o:" CMD_COMMON_SHORTOPTS, bake_longopts);
   while ((c = cmd_next(&p, err)) != CMD_END) {
     if (c == CMD_ERROR) return err->code;
     if (c == CMD_HELP || c == CMD_VERSION) return c;
     if (c != CMD_POSITIONAL) {
-      if (bake_option(opt, c, p.opt, p.arg, err)) return err->code;
+      if (bake_option(opt, sets, c, p.opt, p.arg, err)) return err->code;
     } else if (!opt->scene_path) {
       opt->scene_path = p.arg;
     } else {
@@ -164,15 +193,16 @@ static int bake_parse(int argc, char **argv, bake_options_t *opt, bk_error_t *er
   return BK_OK;
 }
 
-int bake_main(int argc, char **argv) {
+/* Parses, then bakes; `sets` holds room for every --set of argv. */
+static int bake_command(int argc, char **argv, const char **sets) {
   bake_options_t opt;
   bk_error_t err = {0, ""};
-  int rc = bake_parse(argc, argv, &opt, &err);
+  int rc = bake_parse(argc, argv, &opt, sets, &err);
   if (rc == CMD_HELP) bake_usage(stdout);
   else if (rc == CMD_VERSION) cmd_print_version();
   if (rc == CMD_HELP || rc == CMD_VERSION) return BK_OK;
   if (rc) {
-    fprintf(stderr, "baker bake: %s\n", err.msg);
+    bk_report("bake", err.msg);
     return rc;
   }
   if (!opt.scene_path || !opt.out_path) {
@@ -182,6 +212,14 @@ int bake_main(int argc, char **argv) {
     return BK_ERR_INPUT;
   }
   rc = bake_run(&opt, &err);
-  if (rc) fprintf(stderr, "baker bake: %s\n", err.msg);
+  if (rc) bk_report("bake", err.msg);
+  return rc;
+}
+
+int bake_main(int argc, char **argv) {
+  const char **sets = calloc((size_t)argc + 1, sizeof *sets); /* --set texts, in order */
+  if (!sets) return BK_ERR_RUNTIME;
+  int rc = bake_command(argc, argv, sets);
+  free(sets);
   return rc;
 }

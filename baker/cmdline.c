@@ -1,8 +1,12 @@
 /* cmdline.c: getopt_long with the project's messages; see cmdline.h. */
 #include "cmdline.h"
 
+#include <errno.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+
+#include "base/parallel.h"
 
 #define CMD_SHORTOPTS_MAX 64
 
@@ -30,6 +34,27 @@ static int spelled_in_full(const char *tok, const char *name) {
 static int unknown(cmd_parser_t *p, const char *typed, bk_error_t *err) {
   return bk_fail(err, BK_ERR_INPUT, "unknown option '%s' (see baker %s --help)", typed,
                  p->command), CMD_ERROR;
+}
+
+/* The shared options that take a value: --progress[=json], --threads N,
+ * --log FILE. */
+static int common_value(cmd_parser_t *p, int c, bk_error_t *err) {
+  const char *v = p->arg;
+  if (c == CMD_PROGRESS) {
+    if (v && strcmp(v, "json") != 0)
+      return bk_fail(err, BK_ERR_INPUT, "--progress=%s: expected --progress or --progress=json", v);
+    bk_common_option(v ? "--progress=json" : "--progress");
+    return BK_OK;
+  }
+  if (c == CMD_LOG) return bk_log_open(v, err);
+  char *end;
+  errno = 0;
+  long n = strtol(v, &end, 10);
+  if (errno || end == v || *end || n < 1 || n > 4096)
+    return bk_fail(err, BK_ERR_INPUT, "--threads: expected a thread count in 1..4096, got '%s'",
+                   v);
+  bk_set_threads((int)n);
+  return BK_OK;
 }
 
 int cmd_next(cmd_parser_t *p, bk_error_t *err) {
@@ -65,9 +90,10 @@ int cmd_next(cmd_parser_t *p, bk_error_t *err) {
       return bk_fail(err, BK_ERR_INPUT, "%s needs a value (see baker %s --help)", p->opt,
                      p->command), CMD_ERROR;
     }
-    if (c == 'q') bk_common_option("-q");
+    if (c == CMD_PROGRESS || c == CMD_THREADS || c == CMD_LOG) {
+      if (common_value(p, c, err)) return CMD_ERROR;
+    } else if (c == 'q') bk_common_option("-q");
     else if (c == 'v') bk_common_option("-v");
-    else if (c == CMD_PROGRESS) bk_common_option("--progress");
     else return c;
   }
 }

@@ -5,9 +5,9 @@
  * Out: one option or positional argument per call, in command-line order
  * (no permutation), `--opt=value` and `--opt value` alike. Long options must
  * be spelled in full (no abbreviations), so adding an option never changes
- * what an existing command line means. The verbosity flags shared by every
- * command (--progress, -q/--quiet, -v/--verbose) are taken here
- * (bk_common_option); the caller sees -h/--help and --version as codes.
+ * what an existing command line means. The flags shared by every command
+ * (--progress[=json], -q/--quiet, -v/--verbose, --threads N, --log FILE)
+ * are taken here (bk_common_option, bk_set_threads, bk_log_open); the caller sees -h/--help and --version as codes.
  * On a bad option the message (as "--photons needs a value (see baker bake
  * --help)") lands in err and the caller exits with BK_ERR_INPUT. */
 #ifndef BAKER_CMDLINE_H
@@ -25,6 +25,8 @@ enum {
   CMD_HELP = 'h',
   CMD_VERSION = 0x100,   /* values of long-only options start here */
   CMD_PROGRESS,
+  CMD_THREADS,
+  CMD_LOG,
   CMD_FIRST_OWN          /* first value free for a command's long-only options */
 };
 
@@ -32,7 +34,9 @@ enum {
 #define CMD_COMMON_LONGOPTS                                   \
   {"help", no_argument, NULL, CMD_HELP},                      \
   {"version", no_argument, NULL, CMD_VERSION},                \
-  {"progress", no_argument, NULL, CMD_PROGRESS},              \
+  {"progress", optional_argument, NULL, CMD_PROGRESS},        \
+  {"threads", required_argument, NULL, CMD_THREADS},          \
+  {"log", required_argument, NULL, CMD_LOG},                  \
   {"quiet", no_argument, NULL, 'q'},                          \
   {"verbose", no_argument, NULL, 'v'}
 /* ...and their short options end with these */

@@ -363,31 +363,54 @@ void scene_object_defaults(scene_object_t *o) {
   for (int a = 0; a < 3; a++) o->scale[a] = 1.0f;
 }
 
-int scene_load(const char *path, scene_t *s, bk_error_t *err) {
-  bk_error_t local;
-  char *text = NULL;
-  size_t len = 0;
-  json_value_t *root = NULL;
-  sc_ctx_t c = {s->path, s->dir, err ? err : &local};
-  int rc;
-  if (!err) err = &local;
-  scene_defaults(s);
+/* The scene's name for messages and its directory for relative paths: "-"
+ * is standard input, named <stdin>, its paths relative to the working
+ * directory. */
+static int scene_names(const char *path, scene_t *s, bk_error_t *err) {
   size_t pl = strlen(path);
   if (pl == 0 || pl >= SCENE_PATH_MAX)
     return bk_fail(err, BK_ERR_INPUT, "%.200s: expected a scene path of 1 to %d bytes, found %zu",
                    path, SCENE_PATH_MAX - 1, pl);
+  if (!strcmp(path, "-")) {
+    snprintf(s->path, sizeof s->path, "<stdin>");
+    snprintf(s->dir, sizeof s->dir, ".");
+    return BK_OK;
+  }
   memcpy(s->path, path, pl + 1);
   const char *slash = strrchr(path, '/');
   if (!slash) snprintf(s->dir, sizeof s->dir, ".");
   else if (slash == path) snprintf(s->dir, sizeof s->dir, "/");
   else memcpy(s->dir, path, (size_t)(slash - path)), s->dir[slash - path] = 0;
+  return BK_OK;
+}
 
-  if ((rc = bk_read_file(path, &text, &len, err))) goto error;
-  s->hash = bk_hash64(text, len, BK_HASH_SEED);
-  if (!(root = json_parse(text, len, path, err))) {
+int scene_load(const char *path, scene_t *s, bk_error_t *err) {
+  return scene_load_with(path, NULL, 0, s, err);
+}
+
+int scene_load_with(const char *path, const char *const *sets, int set_count, scene_t *s,
+                    bk_error_t *err) {
+  bk_error_t local;
+  char *text = NULL;
+  const char *bytes;
+  size_t len = 0;
+  json_value_t *root = NULL;
+  if (!err) err = &local;
+  sc_ctx_t c = {s->path, s->dir, err, sets};
+  scene_defaults(s);
+  int rc = scene_names(path, s, err);
+  if (rc) return rc;
+  if (!strcmp(path, "-")) rc = scene_read_stdin(&bytes, &len, err);
+  else if (!(rc = bk_read_file(path, &text, &len, err))) bytes = text;
+  if (rc) goto error;
+  /* the hash names what is baked: the file's bytes, then each override */
+  s->hash = bk_hash64(bytes, len, BK_HASH_SEED);
+  for (int k = 0; k < set_count; k++) s->hash = bk_hash64(sets[k], strlen(sets[k]) + 1, s->hash);
+  if (!(root = json_parse(bytes, len, s->path, err))) {
     rc = err->code ? err->code : BK_ERR_INPUT;
     goto error;
   }
+  if ((rc = scene_apply_sets(root, sets, set_count, err))) goto error;
   if ((rc = sc_root(&c, root, s))) goto error;
   free(text);
   json_free(root);

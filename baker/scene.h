@@ -109,6 +109,21 @@ void scene_object_defaults(scene_object_t *o);
  * unreadable scene file included: the user named it) or BK_ERR_RUNTIME (out of
  * memory), with err naming the file, line, column and key. */
 int scene_load(const char *path, scene_t *out, bk_error_t *err);
+/* The same with `--set KEY=VALUE` overrides applied to the JSON before it is
+ * validated (scene_set.c; messages about their values name the --set), and
+ * path "-" for standard input (read once per process; named <stdin>,
+ * relative paths against the working directory). The hash covers the
+ * overrides as well as the file's bytes. */
+int scene_load_with(const char *path, const char *const *sets, int set_count, scene_t *out,
+                    bk_error_t *err);
+
+/* scene_set.c: the overrides on a parsed tree (BK_ERR_INPUT naming the
+ * --set for a key path that does not fit the tree), and standard input's
+ * bytes, read on first use. */
+struct json_value;
+int scene_apply_sets(struct json_value *root, const char *const *sets, int count,
+                     bk_error_t *err);
+int scene_read_stdin(const char **text, size_t *len, bk_error_t *err);
 void scene_free(scene_t *s);
 
 const char *scene_light_type_name(light_type_t t);

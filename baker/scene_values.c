@@ -9,6 +9,12 @@
 
 /* --- messages ------------------------------------------------------------- */
 
+const char *sc_origin(const sc_ctx_t *c, int line, int col, char *buf, size_t len) {
+  if (line == 0 && c->sets && col > 0) snprintf(buf, len, "--set %.300s", c->sets[col - 1]);
+  else snprintf(buf, len, "%s:%d:%d", c->file, line, col);
+  return buf;
+}
+
 int sc_fail_at(const sc_ctx_t *c, int line, int col,
                const char *path, const char *fmt, ...) {
   char msg[1024];
@@ -16,7 +22,8 @@ int sc_fail_at(const sc_ctx_t *c, int line, int col,
   va_start(ap, fmt);
   vsnprintf(msg, sizeof msg, fmt, ap);
   va_end(ap);
-  return bk_fail(c->err, BK_ERR_INPUT, "%s:%d:%d: %s%s%s", c->file, line, col, path,
+  char at[SCENE_PATH_MAX + 320];
+  return bk_fail(c->err, BK_ERR_INPUT, "%s: %s%s%s", sc_origin(c, line, col, at, sizeof at), path,
                  *path ? ": " : "", msg);
 }
 
@@ -72,8 +79,9 @@ void sc_warn_unknown(const sc_ctx_t *c, const json_member_t *m, const char *pare
       snprintf(hint, sizeof hint, " (did you mean \"%s\"?)", *known);
     }
   }
-  bk_warn("%s:%d:%d: %s: unknown key, ignored%s", c->file, m->line, m->col, sc_key(p, parent, m->key),
-          hint);
+  char at[SCENE_PATH_MAX + 320];
+  bk_warn("%s: %s: unknown key, ignored%s", sc_origin(c, m->line, m->col, at, sizeof at),
+          sc_key(p, parent, m->key), hint);
 }
 
 int sc_known(const char *key, const char *const *known) {
@@ -217,7 +225,11 @@ int sc_file(const sc_ctx_t *c, const json_value_t *v, const char *path,
     return sc_fail(c, v, path, "expected a path shorter than %d bytes once joined to %s, found %zu",
                    SCENE_PATH_MAX, c->dir, dl + 1 + rl);
   }
-  snprintf(where, SCENE_WHERE_MAX, "%s:%d:%d: %s", c->file, v->line, v->col, path);
+  char at[SCENE_PATH_MAX + 320];
+  /* a long origin loses its tail (the test keeps -Wformat-truncation quiet) */
+  if (snprintf(where, SCENE_WHERE_MAX, "%s: %s", sc_origin(c, v->line, v->col, at, sizeof at),
+               path) < 0)
+    where[0] = 0;
   return BK_OK;
 }
 

@@ -23,7 +23,14 @@ typedef struct sc_ctx {
   const char *file; /* the scene path as given, for messages */
   const char *dir;  /* for relative paths */
   bk_error_t *err;
+  /* --set KEY=VALUE texts: values they put in the tree carry line 0 and, as
+   * column, the 1-based index of their --set, so messages name it */
+  const char *const *sets;
 } sc_ctx_t;
+
+/* "scene.json:LINE:COL", or "--set KEY=VALUE" for a value from the command
+ * line, into buf. */
+const char *sc_origin(const sc_ctx_t *c, int line, int col, char *buf, size_t len);
 
 /* The values a number may take. hi_silent: hi is only the limit of the C
  * type, not worth mentioning unless the value exceeds it. */

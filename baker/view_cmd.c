@@ -59,7 +59,10 @@ void view_usage(FILE *out) {
           "                           `list` prints the devices (default PoCL); `host`\n"
           "                           runs the same ray code in plain C, one thread\n"
           "                           (the reference path, slow)\n"
-          "  --progress               show progress even when stderr is not a terminal\n"
+          "  --progress[=json]        show progress even when stderr is not a terminal;\n"
+          "                           =json: one JSON object per line on stderr\n"
+          "  --threads N              at most N host threads and PoCL CPU threads\n"
+          "  --log FILE               append every message to FILE as well\n"
           "  -q, --quiet              errors only (no timing table)\n"
           "  -v, --verbose            more detail (grids, kernel options, device)\n"
           "  -h, --help               this text\n"
@@ -392,7 +395,7 @@ int view_main(int argc, char **argv) {
   else if (rc == CMD_VERSION) cmd_print_version();
   if (rc == CMD_HELP || rc == CMD_VERSION) return BK_OK;
   if (rc) {
-    fprintf(stderr, "baker view: %s\n", err.msg);
+    bk_report("view", err.msg);
     return rc;
   }
   if (j->o.device && !strcmp(j->o.device, "list")) {
@@ -403,7 +406,7 @@ int view_main(int argc, char **argv) {
     for (int f = 0; f < j->nframes && !rc; f++) rc = view_frame(j, f, &err);
   if (!rc) view_report(&j->tot, j->o.png != NULL);
 
-  if (rc) fprintf(stderr, "baker view: %s\n", err.msg);
+  if (rc) bk_report("view", err.msg);
   view_volume_free(&j->vol);
   view_gpu_release(&j->gpu);
   free(j->rgba);

@@ -13,6 +13,9 @@
 
 int bk_verbosity = 1;
 int bk_progress_forced = 0;
+int bk_progress_json = 0;
+int bk_progress_frame = BK_NO_FRAME;
+static FILE *bk_log_file;
 
 int bk_fail(bk_error_t *err, int code, const char *fmt, ...) {
   if (err) {
@@ -25,26 +28,66 @@ int bk_fail(bk_error_t *err, int code, const char *fmt, ...) {
   return code;
 }
 
+/* One message line on stderr and, with --log, in the log file. */
+static void emit(const char *prefix, const char *fmt, va_list ap) {
+  va_list copy;
+  va_copy(copy, ap);
+  fprintf(stderr, "%s", prefix);
+  vfprintf(stderr, fmt, ap);
+  fputc('\n', stderr);
+  if (bk_log_file) {
+    fprintf(bk_log_file, "%s", prefix);
+    vfprintf(bk_log_file, fmt, copy);
+    fputc('\n', bk_log_file);
+    fflush(bk_log_file);
+  }
+  va_end(copy);
+}
+
 void bk_log(int level, const char *fmt, ...) {
-  if (level > bk_verbosity) return;
+  /* the log file keeps what -q hides, and what -v adds */
+  int log_level = bk_verbosity > 1 ? bk_verbosity : 1;
+  if (level > bk_verbosity && (!bk_log_file || level > log_level)) return;
   va_list ap;
   va_start(ap, fmt);
-  vfprintf(stderr, fmt, ap);
+  if (level > bk_verbosity) {
+    vfprintf(bk_log_file, fmt, ap);
+    fputc('\n', bk_log_file);
+  } else {
+    emit("", fmt, ap);
+  }
   va_end(ap);
-  fputc('\n', stderr);
 }
 
 void bk_warn(const char *fmt, ...) {
   va_list ap;
   va_start(ap, fmt);
-  fputs("warning: ", stderr);
-  vfprintf(stderr, fmt, ap);
+  emit("warning: ", fmt, ap);
   va_end(ap);
-  fputc('\n', stderr);
+}
+
+static void report(const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  emit("", fmt, ap);
+  va_end(ap);
+}
+
+void bk_report(const char *command, const char *msg) { report("baker %s: %s", command, msg); }
+
+int bk_log_open(const char *path, bk_error_t *err) {
+  FILE *f = fopen(path, "a");
+  if (!f)
+    return bk_fail(err, BK_ERR_INPUT, "--log %s: cannot open for appending: %s", path,
+                   strerror(errno));
+  if (bk_log_file) fclose(bk_log_file);
+  bk_log_file = f;
+  return BK_OK;
 }
 
 int bk_common_option(const char *arg) {
   if (!strcmp(arg, "--progress")) bk_progress_forced = 1;
+  else if (!strcmp(arg, "--progress=json")) bk_progress_json = 1;
   else if (!strcmp(arg, "-q") || !strcmp(arg, "--quiet")) bk_verbosity = 0;
   else if (!strcmp(arg, "-v") || !strcmp(arg, "--verbose")) bk_verbosity = 2;
   else return 0;
@@ -105,7 +148,20 @@ void bk_progress_begin(bk_progress_t *p, const char *label, uint64_t total) {
   p->label = label;
   p->total = total;
   p->start_ms = p->last_ms = bk_now_ms();
-  p->enabled = bk_progress_forced || (bk_verbosity >= 1 && isatty(STDERR_FILENO));
+  p->enabled = bk_progress_forced || bk_progress_json ||
+               (bk_verbosity >= 1 && isatty(STDERR_FILENO));
+}
+
+static void progress_json(const bk_progress_t *p, double frac, double eta) {
+  char eta_s[32] = "null", frame[16] = "null";
+  if (frac > 0.0) snprintf(eta_s, sizeof eta_s, "%.3f", eta);
+  if (bk_progress_frame != BK_NO_FRAME) snprintf(frame, sizeof frame, "%d", bk_progress_frame);
+  fputs("{\"stage\":\"", stderr);
+  for (const char *c = p->label; *c; c++) /* labels are ours, but stay valid JSON */
+    if (*c == '"' || *c == '\\') fputc('\\', stderr), fputc(*c, stderr);
+    else fputc((unsigned char)*c < 32 ? '?' : *c, stderr);
+  fprintf(stderr, "\",\"fraction\":%.6f,\"eta_s\":%s,\"frame\":%s}\n", frac, eta_s, frame);
+  fflush(stderr);
 }
 
 void bk_progress_update(bk_progress_t *p, uint64_t done) {
@@ -116,6 +172,10 @@ void bk_progress_update(bk_progress_t *p, uint64_t done) {
   double frac = p->total ? (double)done / (double)p->total : 1.0;
   double elapsed = (now - p->start_ms) / 1000.0;
   double eta = frac > 0.0 ? elapsed * (1.0 - frac) / frac : 0.0;
+  if (bk_progress_json) {
+    progress_json(p, frac, eta);
+    return;
+  }
   /* a pipe gets whole lines, a terminal one line redrawn in place */
   fprintf(stderr, isatty(STDERR_FILENO) ? "\r%-22s %5.1f%%  %6.1fs elapsed, ~%.1fs left   "
                                         : "%-22s %5.1f%%  %6.1fs elapsed, ~%.1fs left\n",
@@ -126,7 +186,7 @@ void bk_progress_update(bk_progress_t *p, uint64_t done) {
 void bk_progress_end(bk_progress_t *p) {
   if (!p->enabled) return;
   bk_progress_update(p, p->total);
-  if (isatty(STDERR_FILENO)) fputc('\n', stderr);
+  if (isatty(STDERR_FILENO) && !bk_progress_json) fputc('\n', stderr);
 }
 
 /* --- timings ---------------------------------------------------------------- */

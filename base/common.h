@@ -34,9 +34,16 @@ extern int bk_verbosity;
 void bk_log(int level, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 void bk_warn(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 
-/* The verbosity flags every command takes (--progress, -q/--quiet,
- * -v/--verbose): applies `arg` and returns 1 when it is one of them. */
+/* The verbosity flags every command takes (--progress, --progress=json,
+ * -q/--quiet, -v/--verbose): applies `arg` and returns 1 when it is one of
+ * them. */
 int bk_common_option(const char *arg);
+
+/* --log FILE: every message (bk_log, bk_warn, bk_report) is appended to FILE
+ * as well as written to stderr. BK_ERR_INPUT when FILE cannot be opened. */
+int bk_log_open(const char *path, bk_error_t *err);
+/* A command's closing error, "baker bake: MSG", on stderr and in the log. */
+void bk_report(const char *command, const char *msg);
 
 double bk_now_ms(void); /* monotonic clock */
 
@@ -51,8 +58,14 @@ uint64_t bk_physical_memory(void);
 const char *bk_format_bytes(double bytes, char *buf, size_t len);
 
 /* Progress on a terminal (stderr is a tty and verbosity >= 1), or when forced
- * with --progress; silent in a pipe. Updates at most ~10 times a second. */
+ * with --progress; silent in a pipe. Updates at most ~10 times a second.
+ * --progress=json writes one object per line instead, for a farm's monitor:
+ * {"stage":"photon march","fraction":0.25,"eta_s":12.5,"frame":3}
+ * (eta_s null until known, frame null outside a frame batch). */
 extern int bk_progress_forced;
+extern int bk_progress_json;
+extern int bk_progress_frame; /* BK_NO_FRAME outside a batch */
+#define BK_NO_FRAME (-2147483647 - 1)
 typedef struct bk_progress {
   const char *label;
   uint64_t total;

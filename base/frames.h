@@ -1,7 +1,9 @@
 /* frames.h: frame ranges and frame patterns in file paths.
  *
  * In: a range spec from --frames ("A", "A-B" or "A-BxS"; frames may be
- * negative, e.g. "-10--1x3") and paths holding a frame pattern. Out: the list
+ * negative, e.g. "-10--1x3"), or a frame list in the syntax of fileseq,
+ * Deadline and OpenJD: comma-separated "A", "A-B", "A-BxS" and "A-B:S"
+ * ("1-3,7,10-20x2", "1-20:2"), and paths holding a frame pattern. Out: the list
  * of frames and each frame's path. Patterns (DESIGN.md §6):
  *   a run of k '#'  -> the frame zero padded to k digits ("####" -> 0042,
  *                      Nuke/Blender style; "#" -> 42);
@@ -30,6 +32,20 @@ typedef struct frames_range {
  * "--frames") for anything else, B < A, S < 1 or more than FRAMES_MAX_COUNT
  * frames. */
 int frames_parse(const char *spec, const char *where, frames_range_t *out, bk_error_t *err);
+
+/* A frame list: the frames in the order the spec names them, each once (a
+ * frame named again later, as in "1-5,3", keeps its first place). */
+typedef struct frames_list {
+  int *frames;
+  int count;
+} frames_list_t;
+
+/* Parses a comma list of "A", "A-B", "A-BxS" and "A-B:S" (blanks around
+ * the commas allowed). BK_ERR_INPUT naming `where` and the bad element for
+ * anything else, B < A, S < 1, an empty element, or more than
+ * FRAMES_MAX_COUNT frames in all; BK_ERR_RUNTIME when out of memory. */
+int frames_parse_list(const char *spec, const char *where, frames_list_t *out, bk_error_t *err);
+void frames_list_free(frames_list_t *l);
 
 /* Number of frames in the range and the i-th of them (0-based). */
 int frames_count(const frames_range_t *r);

@@ -1,8 +1,10 @@
 /* parallel.c: one range of a loop per core (see parallel.h). */
-#define _DEFAULT_SOURCE /* sysconf */
+#define _DEFAULT_SOURCE /* sysconf, setenv */
 #include "parallel.h"
 
 #include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <unistd.h>
 
 #define BK_MAX_THREADS 64
@@ -13,6 +15,17 @@ typedef struct bk_range_job {
   size_t lo, hi;
 } bk_range_job_t;
 
+static int thread_limit; /* 0: one per core */
+
+void bk_set_threads(int n) {
+  char v[16];
+  thread_limit = n > 0 ? n : 0;
+  if (n <= 0) return;
+  snprintf(v, sizeof v, "%d", n);
+  setenv("POCL_MAX_PTHREAD_COUNT", v, 1);
+  setenv("POCL_CPU_MAX_CU_COUNT", v, 1);
+}
+
 static void *range_run(void *arg) {
   bk_range_job_t *j = arg;
   j->fn(j->ctx, j->lo, j->hi);
@@ -21,6 +34,7 @@ static void *range_run(void *arg) {
 
 void bk_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi), void *ctx) {
   long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+  if (thread_limit > 0 && cpus > thread_limit) cpus = thread_limit;
   int threads = cpus < 1 ? 1 : cpus > BK_MAX_THREADS ? BK_MAX_THREADS : (int)cpus;
   if (grain < 1) grain = 1;
   if ((size_t)threads > n / grain) threads = n / grain > 0 ? (int)(n / grain) : 1;

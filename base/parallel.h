@@ -16,6 +16,11 @@ extern "C" {
 #endif
 
 #define BK_GRAIN 65536
+/* --threads N: at most n threads in bk_parallel (0: one per core), and the
+ * same cap for PoCL's CPU device (POCL_MAX_PTHREAD_COUNT, which PoCL 3 reads
+ * when its platform is created, and POCL_CPU_MAX_CU_COUNT, its name since
+ * PoCL 4): call before any OpenCL use. */
+void bk_set_threads(int n);
 void bk_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi), void *ctx);
 
 #ifdef __cplusplus
