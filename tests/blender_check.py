@@ -117,6 +117,20 @@ def check_meshes():
     print("ok   the scene's mesh comes in as glass of n 1.5, Y-up turned to Z-up")
 
 
+def check_operator(vdb, scene):
+    """The add-on as Blender runs it: registered, in File > Import, the operator."""
+    fresh()
+    baker_import.register()
+    try:
+        assert baker_import._menu in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
+        rc = bpy.ops.import_scene.baked_lighting(filepath=vdb, scene_path=scene, camera=True)
+        assert rc == {"FINISHED"}, "operator returned %s" % rc
+        assert bpy.context.scene.camera and any(o.type == "VOLUME" for o in bpy.data.objects)
+    finally:
+        baker_import.unregister()
+    print("ok   File > Import > Baked lighting (.vdb) makes the volume and camera")
+
+
 def main():
     shutil.rmtree(WORK, ignore_errors=True)
     os.makedirs(WORK)
@@ -128,6 +142,7 @@ def main():
     cyc = os.path.join(WORK, "cycles.exr")
     render_cycles(vdb, scene, cyc)
     err = compare(cyc, view)
+    check_operator(vdb, scene)
     check_sequence()
     check_meshes()
     if err >= LIMIT:
