@@ -28,7 +28,7 @@ typedef struct bake_job {
   pm_stats_t stats;
   ad_stats_t astats;
   float *extinction, *density, *ext_grey, *sca_grey;
-  float *radiance, *photon_count, *photon_weight, *filter_radius;
+  float *radiance, *photon_count, *photon_weight, *filter_radius, *emission;
 } bake_job_t;
 
 static int expand_scene_paths(scene_t *s, int frame, bk_error_t *err);
@@ -151,35 +151,51 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
                  &j->timings, err);
 }
 
-#define BAKE_MAX_GRIDS 11
+/* The source term of L = ∫ T σs L̄ dt per channel, σs ⊙ L̄ (W·m⁻³·sr⁻¹): a
+ * renderer that takes the volume as emissive and absorbing (Blender, Houdini)
+ * reads it as emission with `extinction` as absorption and no scattering. */
+static int derive_emission(const volume_t *v, const float *radiance, float **emission,
+                           bk_error_t *err) {
+  size_t n = grid_count(&v->dims);
+  *emission = bk_calloc(n * 3, sizeof(float), "emission grid", err);
+  if (!*emission) return err->code;
+  for (size_t i = 0; i < 3 * n; i++) (*emission)[i] = v->sigma_s[i] * radiance[i];
+  return BK_OK;
+}
 
-/* Stage 3: the grids of DESIGN.md §5 in file order; *count of them. */
+#define BAKE_MAX_GRIDS 12
+
+/* Stage 3: the grids of DESIGN.md §5 in file order; *count of them. Each
+ * background is the value outside the grid: the medium's n for `ior`, 0 for
+ * the rest (the bake holds no light or matter outside its box). */
 static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], int *count,
                              bk_error_t *err) {
   const volume_t *vol = &j->vol;
   size_t n = grid_count(&vol->dims);
   int rc = derive_medium_grids(vol, &j->extinction, &j->density, err);
+  if (!rc) rc = derive_emission(vol, j->radiance, &j->emission, err);
   if (rc) return rc;
   int g = 0;
-  grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, vol->ior, 0};
+  grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, vol->ior, 0, j->scene.medium_ior};
   if (vol->grey) {
     j->ext_grey = first_channel(j->extinction, n, err);
     j->sca_grey = first_channel(vol->sigma_s, n, err);
     if (!j->ext_grey || !j->sca_grey) return err->code;
-    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_FLOAT, j->ext_grey, 0};
-    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_FLOAT, j->sca_grey, 0};
+    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_FLOAT, j->ext_grey, 0, 0.0f};
+    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_FLOAT, j->sca_grey, 0, 0.0f};
   } else {
-    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, j->extinction, 1};
-    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_VEC3, vol->sigma_s, 1};
+    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, j->extinction, 1, 0.0f};
+    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_VEC3, vol->sigma_s, 1, 0.0f};
   }
-  grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, j->density, 0};
-  grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, j->radiance, 1};
+  grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, j->density, 0, 0.0f};
+  grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, j->radiance, 1, 0.0f};
+  grids[g++] = (vdbio_grid_t){"emission", VDBIO_VEC3, j->emission, 1, 0.0f};
   if (j->photon_count)
-    grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, j->photon_count, 0};
+    grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, j->photon_count, 0, 0.0f};
   if (j->photon_weight)
-    grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, j->photon_weight, 0};
+    grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, j->photon_weight, 0, 0.0f};
   if (j->filter_radius)
-    grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, j->filter_radius, 0};
+    grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, j->filter_radius, 0, 0.0f};
   *count = g;
   return BK_OK;
 }
@@ -256,6 +272,7 @@ static void bake_job_free(bake_job_t *j) {
   free(j->photon_count);
   free(j->photon_weight);
   free(j->filter_radius);
+  free(j->emission);
   clh_release(&j->cl);
   vox_free(&j->vol);
   if (j->scene_loaded) scene_free(&j->scene);

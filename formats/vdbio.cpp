@@ -172,6 +172,8 @@ static int vdbio_read_grid(vdb::io::File &file, const char *path, const char *wh
  * reader of one grid. Exceptions are the caller's to catch. */
 static int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
                            vdb::GridBase::Ptr &grid, int *found, bk_error_t *err) {
+  if (vdbio_is_nano_file(path))
+    return nvdbio_load_grid(path, where, grid_name, grid, found, err);
   vdb::io::File file(path);
   int rc = vdbio_open(file, path, where, err);
   if (rc)
@@ -470,20 +472,30 @@ int vdbio_list_grids(const char *path, char ***names, char ***types, int *count,
   char **n = NULL, **t = NULL;
   int got = 0;
   try {
-    vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, NULL, err)))
-      return rc;
-    vdb::GridPtrVecPtr grids = file.readAllGridMetadata();
-    file.close();
-    const size_t total = grids->size();
+    std::vector<std::string> gn, gt;
+    if (vdbio_is_nano_file(path)) {
+      if ((rc = nvdbio_list(path, gn, gt, err)))
+        return rc;
+    } else {
+      vdb::io::File file(path);
+      if ((rc = vdbio_open(file, path, NULL, err)))
+        return rc;
+      vdb::GridPtrVecPtr grids = file.readAllGridMetadata(); /* owns what the loop reads */
+      for (const vdb::GridBase::Ptr &g : *grids) {
+        gn.push_back(g->getName());
+        gt.push_back(g->valueType());
+      }
+      file.close();
+    }
+    const size_t total = gn.size();
     n = (char **)bk_calloc(total, sizeof(char *), path, err);
     t = (char **)bk_calloc(total, sizeof(char *), path, err);
     if (!n || !t) {
       rc = BK_ERR_RUNTIME;
     } else {
-      for (const vdb::GridBase::Ptr &g : *grids) {
-        n[got] = strdup(g->getName().c_str());
-        t[got] = strdup(g->valueType().c_str());
+      for (size_t i = 0; i < total; i++) {
+        n[got] = strdup(gn[i].c_str());
+        t[got] = strdup(gt[i].c_str());
         got++;
         if (!n[got - 1] || !t[got - 1]) {
           rc = bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory listing grids", path);
@@ -523,6 +535,8 @@ int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk
   out[0] = 0;
   vdbio_init();
   int rc = BK_OK;
+  if (vdbio_is_nano_file(path))
+    return BK_OK; /* NanoVDB files carry no file metadata */
   try {
     vdb::io::File file(path);
     if ((rc = vdbio_open(file, path, NULL, err)))

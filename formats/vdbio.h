@@ -1,14 +1,19 @@
 /* vdbio.h: OpenVDB files, behind a C interface.
  *
- * Writing: dense x-fastest arrays on a grid_dims_t become sparse fog-volume
- * grids (zero background, voxels at zero left inactive) with a linear,
- * cell-centred transform: index (i,j,k) maps to the centre of our voxel
- * (i,j,k). The file is written under a temporary name and renamed.
+ * Writing: dense x-fastest arrays on a grid_dims_t become sparse grids (voxels
+ * at zero left inactive, then the background set to the grid's value outside
+ * the box) with a linear, cell-centred transform: index (i,j,k) maps to the
+ * centre of our voxel (i,j,k). Float grids are fog volumes; Vec3f grids have
+ * no class (NanoVDB allows fog volumes of scalars only) and vector_type
+ * invariant. A path ending in ".nvdb" is written as NanoVDB (nvdbio.cpp),
+ * which keeps the grids but not the file metadata. The file is written under
+ * a temporary name and renamed.
  *
  * Reading: a grid from any file (ours or another tool's) is resampled
  * trilinearly through its own transform, either at the voxel centres of one of
  * our grids (ior_vdb, density_vdb) or densely over its own active bounding box
- * (the viewing pass). Corrupt or truncated files, missing grids and grids of
+ * (the viewing pass). ".nvdb" files are read through NanoVDB's conversion
+ * back to OpenVDB grids, so every reader takes both. Corrupt or truncated files, missing grids and grids of
  * the wrong type are BK_ERR_INPUT with a message naming the file and grid. */
 #ifndef BAKER_VDBIO_H
 #define BAKER_VDBIO_H
@@ -26,6 +31,7 @@ typedef struct vdbio_grid {
   vdbio_type_t type;
   const float *data;      /* grid_count(dims) * type floats */
   int vector_invariant;   /* Vec3 only: VEC_INVARIANT (radiance, colours) */
+  float background;       /* the value outside the grid (every channel); 0 for most */
 } vdbio_grid_t;
 
 typedef enum { VDBIO_META_STRING, VDBIO_META_INT, VDBIO_META_FLOAT } vdbio_meta_kind_t;
@@ -43,6 +49,9 @@ typedef struct vdbio_write_opts {
   int half_float;                  /* save floats as 16-bit */
 } vdbio_write_opts_t;
 
+/* Besides the caller's metadata the file gets "creator", "voxel_centering"
+ * and "grid_bounds_min"/"grid_bounds_max" (Vec3d: the world box the voxels
+ * cover), unless the caller gave its own. */
 int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *grids,
                 int grid_count, const vdbio_meta_t *meta, int meta_count,
                 const vdbio_write_opts_t *opts, bk_error_t *err);

@@ -6,6 +6,7 @@
 #include "vdbio_internal.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/ChangeBackground.h>
 #include <openvdb/tools/Dense.h>
 
 #include <cmath>
@@ -28,10 +29,13 @@ static vdb::math::Transform::Ptr vdbio_cell_centred_transform(const grid_dims_t 
   return xf;
 }
 
-/* Dense x-fastest array -> sparse grid; exact zeros stay inactive background
- * (tolerance 0). copyFromDense only reads the array, hence the const_cast. */
+/* Dense x-fastest array -> sparse grid; exact zeros stay inactive (tolerance
+ * 0), then the background (and those inactive values) become `bg`, the value
+ * outside the grid. The active voxels do not depend on bg, so a grid whose
+ * background changes keeps its voxels. copyFromDense only reads the array,
+ * hence the const_cast. */
 template <typename GridT>
-static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *data) {
+static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *data, float bg) {
   using ValueT = typename GridT::ValueType;
   static_assert(sizeof(ValueT) % sizeof(float) == 0, "float or Vec3s");
   const vdb::CoordBBox box(vdb::Coord(0, 0, 0), vdb::Coord(d->nx - 1, d->ny - 1, d->nz - 1));
@@ -39,6 +43,8 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *d
       box, reinterpret_cast<ValueT *>(const_cast<float *>(data)));
   typename GridT::Ptr grid = GridT::create(vdb::zeroVal<ValueT>());
   vdb::tools::copyFromDense(dense, *grid, vdb::zeroVal<ValueT>());
+  if (bg != 0.0f)
+    vdb::tools::changeBackground(grid->tree(), ValueT(bg));
   return grid;
 }
 
@@ -71,8 +77,11 @@ static int vdbio_check_write_args(const char *path, const grid_dims_t *dims,
   return BK_OK;
 }
 
-/* The dense arrays as sparse fog-volume grids sharing the cell-centred
- * transform. Throws what OpenVDB throws (the caller catches). */
+/* The dense arrays as sparse grids sharing the cell-centred transform. Only
+ * scalar grids are fog volumes: NanoVDB (and so nanovdb_validate, pbrt-v4,
+ * Blender's NanoVDB path) rejects the fog class on vectors, which get no
+ * class and vector_type invariant. Throws what OpenVDB throws (the caller
+ * catches). */
 static vdb::GridPtrVec vdbio_make_grids(const grid_dims_t *dims, const vdbio_grid_t *grids,
                                         int grid_count, bool half) {
   vdb::math::Transform::Ptr xf = vdbio_cell_centred_transform(dims);
@@ -80,17 +89,19 @@ static vdb::GridPtrVec vdbio_make_grids(const grid_dims_t *dims, const vdbio_gri
   for (int g = 0; g < grid_count; g++) {
     vdb::GridBase::Ptr base;
     if (grids[g].type == VDBIO_FLOAT) {
-      base = vdbio_from_dense<vdb::FloatGrid>(dims, grids[g].data);
+      base = vdbio_from_dense<vdb::FloatGrid>(dims, grids[g].data, grids[g].background);
+      base->setGridClass(vdb::GRID_FOG_VOLUME);
     } else {
-      vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, grids[g].data);
+      vdb::Vec3SGrid::Ptr v =
+          vdbio_from_dense<vdb::Vec3SGrid>(dims, grids[g].data, grids[g].background);
       /* unset means the OpenVDB default, which is also invariant; set it
-       * explicitly so readers see the metadata */
+       * explicitly so readers (Houdini) see the metadata */
       if (grids[g].vector_invariant)
         v->setVectorType(vdb::VEC_INVARIANT);
+      v->setGridClass(vdb::GRID_UNKNOWN);
       base = v;
     }
     base->setName(grids[g].name);
-    base->setGridClass(vdb::GRID_FOG_VOLUME);
     base->setTransform(xf->copy());
     base->setSaveFloatAsHalf(half);
     out.push_back(base);
@@ -98,10 +109,10 @@ static vdb::GridPtrVec vdbio_make_grids(const grid_dims_t *dims, const vdbio_gri
   return out;
 }
 
-/* The file's metadata: the caller's entries, then a creator and the voxel
- * centring unless the caller gave its own. */
-static int vdbio_file_meta(const char *path, const vdbio_meta_t *meta, int meta_count,
-                           vdb::MetaMap &file_meta, bk_error_t *err) {
+/* The file's metadata: the caller's entries, then a creator, the voxel
+ * centring and the world box as vectors unless the caller gave its own. */
+static int vdbio_file_meta(const char *path, const grid_dims_t *d, const vdbio_meta_t *meta,
+                           int meta_count, vdb::MetaMap &file_meta, bk_error_t *err) {
   for (int m = 0; m < meta_count; m++) {
     switch (meta[m].kind) {
     case VDBIO_META_STRING:
@@ -122,6 +133,13 @@ static int vdbio_file_meta(const char *path, const vdbio_meta_t *meta, int meta_
     file_meta.insertMeta("creator", vdb::StringMetadata("baker " BAKER_VERSION));
   if (!file_meta["voxel_centering"])
     file_meta.insertMeta("voxel_centering", vdb::StringMetadata(VDBIO_CENTERING));
+  const vdb::Vec3d lo(d->origin[0], d->origin[1], d->origin[2]);
+  const vdb::Vec3d size(d->nx * (double)d->voxel_size, d->ny * (double)d->voxel_size,
+                        d->nz * (double)d->voxel_size);
+  if (!file_meta["grid_bounds_min"])
+    file_meta.insertMeta("grid_bounds_min", vdb::Vec3DMetadata(lo));
+  if (!file_meta["grid_bounds_max"])
+    file_meta.insertMeta("grid_bounds_max", vdb::Vec3DMetadata(lo + size));
   return BK_OK;
 }
 
@@ -155,13 +173,17 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
   try {
     vdb::GridPtrVec out = vdbio_make_grids(dims, grids, grid_count, opts && opts->half_float);
     vdb::MetaMap file_meta;
-    rc = vdbio_file_meta(path, meta, meta_count, file_meta, err);
+    rc = vdbio_file_meta(path, dims, meta, meta_count, file_meta, err);
     if (rc)
       return rc;
-    vdb::io::File file(tmp);
-    file.setCompression(vdbio_compression(path, opts));
-    file.write(out, file_meta);
-    file.close();
+    if (vdbio_is_nano_path(path)) {
+      nvdbio_write(tmp, out);
+    } else {
+      vdb::io::File file(tmp);
+      file.setCompression(vdbio_compression(path, opts));
+      file.write(out, file_meta);
+      file.close();
+    }
   } catch (const std::bad_alloc &) {
     remove(tmp);
     return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while writing the VDB file", path);

@@ -8,6 +8,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(
   build-essential cmake ccache pkg-config
   libopenvdb-dev libopenvdb-tools python3-openvdb python3-numpy python3-matplotlib
+  libnanovdb-dev libnanovdb-tools
   libopenmesh-dev libopenexr-dev libpng-dev
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
   clang

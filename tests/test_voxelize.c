@@ -739,7 +739,7 @@ static void case_medium(void) {
         ior[idx] = k < 4 ? 0.0f : 1.0f + 0.01f * (float)k;
         rho[idx] = 0.1f * (float)i;
       }
-  vdbio_grid_t g_ior = {"ior", VDBIO_FLOAT, ior, 0}, g_rho = {"density", VDBIO_FLOAT, rho, 0};
+  vdbio_grid_t g_ior = {"ior", VDBIO_FLOAT, ior, 0, 0.0f}, g_rho = {"density", VDBIO_FLOAT, rho, 0, 0.0f};
   char p_ior[4096], p_rho[4096];
   tu_path(p_ior, sizeof p_ior, "field_ior.vdb");
   tu_path(p_rho, sizeof p_rho, "field_density.vdb");
