@@ -47,3 +47,4 @@ for f in "$B/libexec/baker" "$B"/lib/x86_64-linux-gnu/*.so* "$B"/lib/x86_64-linu
   [ -z "$bad" ] || fail "ldd $f resolves outside the bundle: $bad"
 done
 echo "bundle: ok ($(du -sm "$B" | cut -f1) MiB unpacked)"
+rm -rf "$WORK/node" "$WORK/pocl-cache" # 400 MiB; a failure leaves them to look at
