@@ -11,6 +11,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "clcache.h"
+
 #ifndef CL_PLATFORM_NOT_FOUND_KHR
 #define CL_PLATFORM_NOT_FOUND_KHR -1001
 #endif
@@ -411,6 +413,8 @@ done:
   free(bin);
 }
 
+int clh_cache_dir(char *out, size_t len) { return cache_dir(out, len); }
+
 /* --- program builds --------------------------------------------------------- */
 
 static char *build_log(clh_context_t *cl, cl_program prog) {
@@ -458,6 +462,7 @@ static cl_program clh_load_cached(clh_context_t *cl, const char *name, const cha
       cl->stats.cache_hits++;
       cl->stats.last_hit = 1;
       cl->stats.last_ms = bk_now_ms() - t0;
+      clc_touch(path); /* its mtime is its last use: pruning goes oldest first */
       bk_log(2, "%s: kernel cache hit %016llx (%.1f ms)", name, (unsigned long long)key,
              cl->stats.last_ms);
       free(bin);
@@ -556,7 +561,10 @@ int clh_build_source(clh_context_t *cl, const char *name, const char *text, cons
     goto error; /* the cleanup block */
   }
   rc = clh_compile(cl, name, src, opts, t0, out, err);
-  if (rc == BK_OK && use_cache) cache_store(dir, path, key, *out);
+  if (rc == BK_OK && use_cache) {
+    cache_store(dir, path, key, *out);
+    clc_prune(dir, clc_max_bytes(), path); /* the cap, least recently used first */
+  }
 
 error:
   free(src);

@@ -78,6 +78,11 @@ void clh_list_devices(FILE *out);
 int clh_build(clh_context_t *cl, const char *file, const char *options, cl_program *out,
               bk_error_t *err);
 
+/* The binary cache's directory (as clh_build chooses it) into out; 0 when the
+ * cache is off. Entries beyond $BAKER_CACHE_MAX_MB go, least recently used
+ * first (clcache.h). */
+int clh_cache_dir(char *out, size_t len);
+
 /* What clh_build does once it has the text: `name` is only used in messages
  * ("kernels/x.cl"); includes resolve from the embedded kernels. Lets tests
  * build a source that is not in kernels/. */

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "bake.h"
+#include "cache_cmd.h"
 #include "clhost.h"
 #include "base/common.h"
 #include "view.h"
@@ -16,6 +17,7 @@ static void usage(FILE *out) {
           "  baker bake SCENE.json -o OUT.vdb [options]   voxelize, trace photons, write OpenVDB\n"
           "  baker view IN.vdb -o OUT.exr [options]       render a baked VDB to OpenEXR/PNG\n"
           "  baker devices                                list OpenCL platforms and devices\n"
+          "  baker cache [--clear]                        kernel cache: path, size; empty it\n"
           "  baker --version | --help\n"
           "\n"
           "`baker bake --help` and `baker view --help` list every option.\n"
@@ -31,6 +33,7 @@ int main(int argc, char **argv) {
   const char *cmd = argv[1];
   if (!strcmp(cmd, "bake")) return bake_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "view")) return view_main(argc - 1, argv + 1);
+  if (!strcmp(cmd, "cache")) return cache_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "devices")) {
     clh_list_devices(stdout);
     return BK_OK;

@@ -12,6 +12,8 @@ PACKAGES=(
   libopenmesh-dev libopenexr-dev libpng-dev
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
   clang
+  # farm recipes tested for real, and the relocatable bundle (about 10 s to install)
+  slurm-wlm munge parallel patchelf
 )
 
 missing=()
