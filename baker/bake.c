@@ -11,10 +11,11 @@
 #include <unistd.h>
 
 #include "adaptive.h"
-#include "clhost.h"
 #include "base/common.h"
 #include "base/frames.h"
 #include "base/grid.h"
+#include "budget.h"
+#include "clhost.h"
 #include "march.h"
 #include "voxelize.h"
 
@@ -112,6 +113,8 @@ static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene
   if ((rc = expand_scene_paths(&j->scene, frame, err))) return rc;
   bk_timings_add(&j->timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
                  j->scene.object_count, j->scene.light_count);
+  /* the whole bake's peak, before anything the size of the grid exists */
+  if ((rc = budget_check(&j->scene, opt->max_memory, err))) return rc;
   return vox_build(&j->scene, &j->vol, &j->timings, err);
 }
 

@@ -36,6 +36,7 @@ typedef struct bake_options {
   vdbio_write_opts_t write;
   int no_filter;            /* adaptive: skip the reconstruction filter */
   int write_filter_radius;  /* adaptive: also write the filter_radius grid (debug) */
+  uint64_t max_memory;      /* --max-memory in bytes; 0: what the machine has available */
 } bake_options_t;
 
 /* The command (bake_cmd.c): argv[0] is "bake", as main() passes argv + 1.

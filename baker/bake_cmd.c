@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "bake.h"
+#include "budget.h"
 #include "cmdline.h"
 #include "base/common.h"
 
@@ -57,6 +58,9 @@ static void bake_usage(FILE *out) {
           "  --device SPEC            OpenCL device: `P:D` indices or a name substring;\n"
           "                           default PoCL (CPU). `baker devices` lists them\n"
           "  --host                   march on the host in plain C instead of OpenCL\n"
+          "  --max-memory SIZE        refuse a bake whose estimated peak memory exceeds\n"
+          "                           SIZE (e.g. 8G, 500M) instead of the memory this\n"
+          "                           machine has available\n"
           "  --progress[=json]        show progress even when stderr is not a terminal;\n"
           "                           =json: one JSON object per line on stderr\n"
           "                           {\"stage\",\"fraction\",\"eta_s\",\"frame\"}\n"
@@ -91,7 +95,7 @@ static int parse_float(const char *s, float *out) {
 enum {
   OPT_FRAMES = CMD_FIRST_OWN, OPT_FORCE, OPT_MODE, OPT_PHOTONS, OPT_INTEGRATOR, OPT_STEP,
   OPT_SEED, OPT_RESOLUTION, OPT_COMPRESSION, OPT_NO_FILTER, OPT_WRITE_FILTER_RADIUS, OPT_HALF,
-  OPT_DEVICE, OPT_HOST, OPT_KEEP_GOING, OPT_SET
+  OPT_DEVICE, OPT_HOST, OPT_KEEP_GOING, OPT_SET, OPT_MAX_MEMORY
 };
 
 static const struct option bake_longopts[] = {
@@ -112,6 +116,7 @@ static const struct option bake_longopts[] = {
     {"host", no_argument, NULL, OPT_HOST},
     {"keep-going", no_argument, NULL, OPT_KEEP_GOING},
     {"set", required_argument, NULL, OPT_SET},
+    {"max-memory", required_argument, NULL, OPT_MAX_MEMORY},
     CMD_COMMON_LONGOPTS,
     {NULL, 0, NULL, 0}};
 
@@ -161,6 +166,9 @@ static int bake_option(bake_options_t *opt, const char **sets, int c, const char
   case OPT_DEVICE: opt->device = val; break;
   case OPT_HOST: opt->host_only = 1; break;
   case OPT_KEEP_GOING: opt->keep_going = 1; break;
+  case OPT_MAX_MEMORY:
+    if (!budget_parse_size(val, &opt->max_memory)) want = "a size such as 8G or 500M";
+    break;
   case OPT_SET:
     if (!strchr(val, '=') || val[0] == '=') want = "KEY=VALUE (e.g. medium.sigma_s=0.3)";
     else sets[opt->set_count++] = val;

@@ -11,7 +11,7 @@ PACKAGES=(
   libnanovdb-dev libnanovdb-tools
   libopenmesh-dev libopenexr-dev libpng-dev
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
-  clang
+  clang time
   # farm recipes tested for real, and the relocatable bundle (about 10 s to install)
   slurm-wlm munge parallel patchelf
 )

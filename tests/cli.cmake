@@ -24,3 +24,12 @@ add_test(NAME cli_view_equals_form
 set_tests_properties(cli_view_equals_form PROPERTIES FIXTURES_REQUIRED cli_equals)
 add_test(NAME cli_bake_version COMMAND $<TARGET_FILE:baker> bake --version)
 add_test(NAME cli_view_version COMMAND $<TARGET_FILE:baker> view --version)
+
+# The memory budget (baker/budget.h): refusal before any work, --max-memory,
+# and an estimate not below the real peak.
+foreach(case refuse max_memory honest)
+  add_test(NAME cli_budget_${case}
+           COMMAND bash ${BAKER_TEST_DIR}/budget.sh $<TARGET_FILE:baker>
+                   ${CMAKE_BINARY_DIR}/cli_budget ${CMAKE_SOURCE_DIR}/scenes ${case})
+endforeach()
+set_tests_properties(cli_budget_honest PROPERTIES SKIP_RETURN_CODE 77 RUN_SERIAL TRUE)

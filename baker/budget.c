@@ -1,0 +1,91 @@
+/* budget.c: the bake's peak memory before anything is allocated (see
+ * budget.h). */
+#include "budget.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {
+  grid_dims_t *d = &b->dims;
+  const char *where = s->where_resolution[0] ? s->where_resolution : s->path;
+  int rc = grid_dims_from_bounds(s->bounds_min, s->bounds_max, resolution, where, d, err);
+  if (rc != BK_OK) return rc;
+  b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
+  b->per_voxel = s->mode == MODE_ADAPTIVE ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES;
+  b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
+  return BK_OK;
+}
+
+uint64_t budget_available(uint64_t max_bytes) {
+  uint64_t avail = 0;
+  FILE *f = fopen("/proc/meminfo", "r");
+  if (f) {
+    char line[256];
+    unsigned long long kb;
+    while (fgets(line, sizeof line, f))
+      if (sscanf(line, "MemAvailable: %llu kB", &kb) == 1) avail = (uint64_t)kb * 1024;
+    fclose(f);
+  }
+  if (!avail) avail = bk_physical_memory();
+  return max_bytes > 0 && (avail == 0 || max_bytes < avail) ? max_bytes : avail;
+}
+
+/* The largest resolution <= hi whose estimate fits in limit; 0 if none. */
+static int largest_fitting(const scene_t *s, int hi, double limit) {
+  int lo = 0;
+  while (lo < hi) {
+    int mid = lo + (hi - lo + 1) / 2;
+    budget_t b;
+    bk_error_t e = {0};
+    if (budget_estimate(s, mid, &b, &e) == BK_OK && b.peak <= limit) lo = mid;
+    else hi = mid - 1;
+  }
+  return lo;
+}
+
+int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err) {
+  budget_t b;
+  int rc = budget_estimate(s, s->resolution, &b, err);
+  if (rc != BK_OK) return rc;
+  uint64_t limit = budget_available(max_bytes);
+  char need[32], have[32];
+  bk_log(2, "memory: estimated peak %s for %dx%dx%d voxels, %s available",
+         bk_format_bytes(b.peak, need, sizeof need), b.dims.nx, b.dims.ny, b.dims.nz,
+         bk_format_bytes((double)limit, have, sizeof have));
+  if (!limit || b.peak <= (double)limit) return BK_OK;
+  int fit = largest_fitting(s, s->resolution, (double)limit);
+  bk_format_bytes(b.peak, need, sizeof need);
+  bk_format_bytes((double)limit, have, sizeof have);
+  if (fit < 1)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: the bake would need about %s of memory; %s %s, less than the OpenCL "
+                   "runtime alone takes",
+                   s->path, need, max_bytes ? "--max-memory allows" : "this machine has", have);
+  return bk_fail(err, BK_ERR_INPUT,
+                 "%s: grid.resolution %d (%dx%dx%d voxels) would need about %s of memory at "
+                 "its peak (%.0f bytes per voxel and the OpenCL runtime); %s %s available. The "
+                 "largest grid.resolution that fits is %d",
+                 s->path, s->resolution, b.dims.nx, b.dims.ny, b.dims.nz, need, b.per_voxel,
+                 max_bytes ? "--max-memory allows" : "this machine has", have, fit);
+}
+
+int budget_parse_size(const char *text, uint64_t *bytes) {
+  char *end;
+  double v = strtod(text, &end);
+  if (end == text || !(v > 0.0) || !isfinite(v)) return 0;
+  double scale = 1.0;
+  switch (*end) {
+  case 'k': case 'K': scale = 1024.0; end++; break;
+  case 'm': case 'M': scale = 1024.0 * 1024; end++; break;
+  case 'g': case 'G': scale = 1024.0 * 1024 * 1024; end++; break;
+  case 't': case 'T': scale = 1024.0 * 1024 * 1024 * 1024; end++; break;
+  default: break;
+  }
+  if (*end == 'i') end++;
+  if (*end == 'B' || *end == 'b') end++;
+  if (*end || v * scale > 1.8e19) return 0;
+  *bytes = (uint64_t)(v * scale);
+  return 1;
+}

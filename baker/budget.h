@@ -1,0 +1,57 @@
+/* budget.h: the bake's peak memory, estimated once from the scene before
+ * anything is allocated, and checked against the memory this machine has
+ * available (or --max-memory).
+ *
+ * Model: peak = fixed + per_voxel × voxels. `fixed` covers the OpenCL
+ * runtime (PoCL and LLVM compiling a kernel: 120–260 MB measured);
+ * per_voxel is the write phase, the largest: the volume (n, σs, σa), the
+ * radiance and emission grids, the derived grids and every OpenVDB tree
+ * built before the first is written. Both are calibrated against the peak
+ * resident size of real bakes (docs/memory.md): the estimate is meant to be
+ * high, never low, so that a bake it accepts is not killed by the kernel's
+ * OOM killer minutes later. The march and voxelization keep their own
+ * checks as a second line. */
+#ifndef BAKER_BUDGET_H
+#define BAKER_BUDGET_H
+
+#include <stdint.h>
+
+#include "base/grid.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define BUDGET_FIXED_BYTES (320.0 * 1024 * 1024)
+#define BUDGET_REFERENCE_BYTES 100.0 /* per voxel, reference mode (measured 91-97) */
+#define BUDGET_ADAPTIVE_BYTES 118.0  /* per voxel, adaptive mode (measured 113) */
+
+typedef struct budget {
+  grid_dims_t dims;
+  double voxels;
+  double per_voxel;
+  double peak; /* bytes */
+} budget_t;
+
+/* The estimate for the scene's grid at `resolution` voxels along the
+ * longest side. BK_ERR_INPUT when the grid itself is invalid. */
+int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err);
+
+/* Bytes this process may still use: MemAvailable of /proc/meminfo, else
+ * the physical memory; capped by max_bytes when it is > 0. */
+uint64_t budget_available(uint64_t max_bytes);
+
+/* Refuses (BK_ERR_INPUT) a bake whose estimated peak exceeds what is
+ * available, naming the estimate, the limit and the largest resolution that
+ * would fit. */
+int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err);
+
+/* Parses a size for --max-memory: a number with an optional K, M, G or T
+ * (powers of 1024, an optional "iB" or "B"). Returns 0 when invalid. */
+int budget_parse_size(const char *text, uint64_t *bytes);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

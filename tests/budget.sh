@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# The memory budget (baker/budget.h): a bake that will not fit is refused at
+# once, before any work, with the estimate and the largest resolution that
+# fits; --max-memory caps it; and the estimate is not below the real peak.
+# Usage: budget.sh BAKER WORKDIR SCENES CASE
+set -u
+baker=$1 work=$2 scenes=$3 case=$4
+mkdir -p "$work" && cd "$work" || exit 1
+fail() { echo "FAIL: $*"; exit 1; }
+case $case in
+refuse)
+  t0=$(date +%s%N)
+  "$baker" bake "$scenes/sphere.json" -o big.vdb --force --resolution 1500 2> err.txt
+  rc=$? t1=$(date +%s%N)
+  ms=$(( (t1 - t0) / 1000000 ))
+  cat err.txt
+  [ $rc = 2 ] || fail "exit $rc, want 2"
+  [ $ms -lt 1000 ] || fail "refusal took $ms ms"
+  grep -q "largest grid.resolution that fits is [0-9]" err.txt || fail "no largest resolution"
+  grep -q "1500x1500x1500 voxels" err.txt || fail "no grid size"
+  [ ! -e big.vdb ] || fail "output written"
+  echo "refused in $ms ms" ;;
+max_memory)
+  "$baker" bake "$scenes/sphere.json" -o small.vdb --force --photons 1000 --resolution 96 \
+    --max-memory 300M 2> err.txt
+  rc=$?; cat err.txt
+  [ $rc = 2 ] && grep -q -- "--max-memory allows 300.0 MiB" err.txt || fail "exit $rc"
+  "$baker" bake "$scenes/sphere.json" -o small.vdb --force --photons 1000 --resolution 96 \
+    --max-memory=2G -q || fail "2G refused"
+  "$baker" bake "$scenes/sphere.json" -o small.vdb --force --max-memory lots 2> err.txt
+  [ $? = 2 ] && grep -q "expected a size" err.txt || fail "bad size accepted" ;;
+honest)
+  [ -x /usr/bin/time ] || { echo "SKIP: GNU time (/usr/bin/time) is not installed"; exit 77; }
+  for r in 128 176; do
+    /usr/bin/time -f "peak_kb %M" "$baker" bake "$scenes/sphere.json" -o h.vdb --force -v \
+      --photons 20000 --resolution $r 2> err.txt || fail "bake $r failed"
+    est=$(sed -n 's/^memory: estimated peak \([0-9.]*\) \(MiB\|GiB\).*/\1 \2/p' err.txt)
+    peak=$(sed -n 's/^peak_kb //p' err.txt)
+    python3 - "$r" "$est" "$peak" <<'PY' || fail "estimate not honest at $r"
+import sys
+r, (v, unit), peak_kb = sys.argv[1], sys.argv[2].split(), float(sys.argv[3])
+est = float(v) * (1024 if unit == "GiB" else 1) * 1024 * 1024
+peak = peak_kb * 1024
+print(f"{r}^3: estimated {est / 2**20:.0f} MiB, peak RSS {peak / 2**20:.0f} MiB, ratio {est / peak:.2f}")
+sys.exit(0 if peak <= est <= 2.0 * peak else 1)
+PY
+  done ;;
+*) fail "unknown case $case" ;;
+esac
