@@ -73,24 +73,6 @@ static void bake_usage(FILE *out) {
           "Exit status: 0 success, 2 bad input or usage, 1 runtime failure.\n");
 }
 
-/* Parses a whole-string number; 0 on junk. */
-static int parse_ll(const char *s, long long *out) {
-  char *end;
-  errno = 0;
-  long long v = strtoll(s, &end, 10);
-  if (errno || end == s || *end) return 0;
-  *out = v;
-  return 1;
-}
-static int parse_float(const char *s, float *out) {
-  char *end;
-  errno = 0;
-  float v = strtof(s, &end);
-  if (errno || end == s || *end) return 0;
-  *out = v;
-  return 1;
-}
-
 /* values of the long-only options */
 enum {
   OPT_FRAMES = CMD_FIRST_OWN, OPT_FORCE, OPT_MODE, OPT_PHOTONS, OPT_INTEGRATOR, OPT_STEP,
@@ -135,7 +117,7 @@ static int bake_option(bake_options_t *opt, const char **sets, int c, const char
     else want = "reference or adaptive";
     break;
   case OPT_PHOTONS:
-    if (!parse_ll(val, &ll) || ll < 1) want = "a positive photon count";
+    if (!cmd_parse_ll(val, &ll) || ll < 1) want = "a positive photon count";
     else opt->photons = ll;
     break;
   case OPT_INTEGRATOR:
@@ -144,14 +126,14 @@ static int bake_option(bake_options_t *opt, const char **sets, int c, const char
     else want = "euler or rk4";
     break;
   case OPT_STEP:
-    if (!parse_float(val, &opt->step) || !(opt->step > 0.0f)) want = "a positive step in voxels";
+    if (!cmd_parse_float(val, &opt->step) || !(opt->step > 0.0f)) want = "a positive step in voxels";
     break;
   case OPT_SEED:
-    if (!parse_ll(val, &ll) || ll < 0 || ll > UINT_MAX) want = "a seed in 0..4294967295";
+    if (!cmd_parse_ll(val, &ll) || ll < 0 || ll > UINT_MAX) want = "a seed in 0..4294967295";
     else opt->seed = ll;
     break;
   case OPT_RESOLUTION:
-    if (!parse_ll(val, &ll) || ll < 1 || ll > INT_MAX) want = "a positive voxel count";
+    if (!cmd_parse_ll(val, &ll) || ll < 1 || ll > INT_MAX) want = "a positive voxel count";
     else opt->resolution = (int)ll;
     break;
   case OPT_COMPRESSION:

@@ -2,6 +2,7 @@
 #include "cmdline.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -99,3 +100,21 @@ int cmd_next(cmd_parser_t *p, bk_error_t *err) {
 }
 
 void cmd_print_version(void) { printf("baker %s\n", BAKER_VERSION); }
+
+int cmd_parse_ll(const char *s, long long *out) {
+  char *end;
+  errno = 0;
+  long long v = strtoll(s, &end, 10);
+  if (errno || end == s || *end) return 0;
+  *out = v;
+  return 1;
+}
+
+int cmd_parse_float(const char *s, float *out) {
+  char *end;
+  errno = 0;
+  float v = strtof(s, &end);
+  if (end == s || *end != 0 || errno == ERANGE || !isfinite(v)) return 0;
+  *out = v;
+  return 1;
+}

@@ -62,4 +62,9 @@ int cmd_next(cmd_parser_t *p, bk_error_t *err);
 /* "baker VERSION" on stdout, as `baker --version`. */
 void cmd_print_version(void);
 
+/* Whole-string numbers for option values: 0 on junk, overflow or (floats)
+ * a value that is not finite. */
+int cmd_parse_ll(const char *s, long long *out);
+int cmd_parse_float(const char *s, float *out);
+
 #endif

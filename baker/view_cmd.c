@@ -75,15 +75,6 @@ void view_usage(FILE *out) {
           VIEW_DEFAULT_FOV, VIEW_DEFAULT_WIDTH, VIEW_DEFAULT_HEIGHT, VIEW_DEFAULT_STEP);
 }
 
-static int parse_float(const char *s, float *out) {
-  char *end;
-  errno = 0;
-  float v = strtof(s, &end);
-  if (end == s || *end != 0 || errno == ERANGE || !isfinite(v)) return 0;
-  *out = v;
-  return 1;
-}
-
 static int parse_vec3(const char *s, float out[3]) {
   char buf[256];
   if (strlen(s) >= sizeof buf) return 0;
@@ -93,7 +84,7 @@ static int parse_vec3(const char *s, float out[3]) {
     char *comma = strchr(p, ',');
     if ((a < 2) != (comma != NULL)) return 0;
     if (comma) *comma = 0;
-    if (!parse_float(p, &out[a])) return 0;
+    if (!cmd_parse_float(p, &out[a])) return 0;
     p = comma ? comma + 1 : p;
   }
   return 1;
@@ -154,7 +145,7 @@ static int view_cam_option(view_cam_overrides_t *o, int c, const char *val, cons
     o->has_up = 1;
     return 1;
   case OPT_FOV:
-    if (!parse_float(val, &o->fov) || !(o->fov > 0.0f && o->fov < 180.0f))
+    if (!cmd_parse_float(val, &o->fov) || !(o->fov > 0.0f && o->fov < 180.0f))
       *want = "a vertical field of view in degrees in (0, 180)";
     o->has_fov = 1;
     return 1;
@@ -183,7 +174,7 @@ static int view_option(view_opts_t *o, int c, const char *name, const char *val,
       want = "three non-negative numbers R,G,B";
     o->has_bg = 1;
   } else if (c == OPT_EXPOSURE) {
-    if (!parse_float(val, &o->exposure) || fabsf(o->exposure) > 64.0f)
+    if (!cmd_parse_float(val, &o->exposure) || fabsf(o->exposure) > 64.0f)
       want = "an exposure in stops in [-64, 64]";
   } else if (c == OPT_INTEGRATOR) {
     if (!strcmp(val, "euler")) o->integrator = VIEW_EULER;
@@ -191,7 +182,7 @@ static int view_option(view_opts_t *o, int c, const char *name, const char *val,
     else want = "euler or rk4";
     o->has_integrator = 1;
   } else if (c == OPT_STEP) {
-    if (!parse_float(val, &o->step) || !(o->step >= VIEW_STEP_MIN && o->step <= VIEW_STEP_MAX))
+    if (!cmd_parse_float(val, &o->step) || !(o->step >= VIEW_STEP_MIN && o->step <= VIEW_STEP_MAX))
       want = "a step in voxels in [0.01, 16]";
     o->has_step = 1;
   } else if (c == OPT_FRAMES) {
