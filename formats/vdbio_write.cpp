@@ -177,6 +177,7 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
     rc = vdbio_file_meta(path, meta, meta_count, file_meta, err);
     if (rc)
       return rc;
+    vdbio_add_checksums(dims, grids, grid_count, opts && opts->half_float, file_meta);
     vdbio_checked_archive archive;
     archive.setCompression(vdbio_compression(path, opts));
     if (int e = archive.write_file(tmp, out, file_meta)) {
