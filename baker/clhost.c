@@ -2,6 +2,7 @@
  * expanded by clsource.c) and the on-disk binary cache. */
 #define _POSIX_C_SOURCE 200809L
 #include "clhost.h"
+#include "clenv.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -120,6 +121,7 @@ static int clh_enumerate(clh_dev_entry_t *list, int cap, int *count, bk_error_t 
   cl_platform_id plats[CLH_MAX_PLATFORMS];
   cl_uint np = 0;
   *count = 0;
+  clh_prepare_env(); /* PoCL reads POCL_CACHE_DIR when first touched */
   cl_int rc = clGetPlatformIDs(CLH_MAX_PLATFORMS, plats, &np);
   if (rc == CL_PLATFORM_NOT_FOUND_KHR || (rc == CL_SUCCESS && np == 0))
     return bk_fail(err, BK_ERR_RUNTIME, "%s", no_platform_msg);
@@ -307,38 +309,6 @@ void clh_release(clh_context_t *cl) {
  * against a renamed or foreign file; the size against truncation. */
 static const char cache_magic[8] = {'B', 'K', 'C', 'L', 'B', 'I', 'N', '1'};
 
-/* mkdir -p; returns 0 on success. */
-static int mkdir_p(const char *path) {
-  char tmp[4096];
-  size_t n = strlen(path);
-  if (n == 0 || n >= sizeof tmp) return -1;
-  memcpy(tmp, path, n + 1);
-  for (char *p = tmp + 1; *p; p++) {
-    if (*p != '/') continue;
-    *p = 0;
-    if (mkdir(tmp, 0755) != 0 && errno != EEXIST) return -1;
-    *p = '/';
-  }
-  if (mkdir(tmp, 0755) != 0 && errno != EEXIST) return -1;
-  struct stat st;
-  return (stat(tmp, &st) == 0 && S_ISDIR(st.st_mode)) ? 0 : -1;
-}
-
-/* The cache directory per clhost.h, or 0 when caching is off. */
-static int cache_dir(char *out, size_t len) {
-  const char *off = getenv("BAKER_NO_CACHE");
-  if (off && off[0] && strcmp(off, "0") != 0) return 0;
-  const char *d = getenv("BAKER_CACHE_DIR");
-  const char *x = getenv("XDG_CACHE_HOME");
-  const char *h = getenv("HOME");
-  int w;
-  if (d && d[0]) w = snprintf(out, len, "%s", d);
-  else if (x && x[0]) w = snprintf(out, len, "%s/baker", x);
-  else if (h && h[0]) w = snprintf(out, len, "%s/.cache/baker", h);
-  else return 0;
-  return w > 0 && (size_t)w < len;
-}
-
 static unsigned char *cache_load(const char *path, uint64_t key, size_t *size) {
   FILE *f = fopen(path, "rb");
   if (!f) return NULL;
@@ -381,7 +351,7 @@ static void cache_store(const char *dir, const char *path, uint64_t key, cl_prog
     bk_log(2, "kernel cache: clGetProgramInfo(CL_PROGRAM_BINARIES) failed; not caching");
     goto done;
   }
-  if (mkdir_p(dir) != 0) {
+  if (clh_mkdir_p(dir) != 0) {
     bk_log(2, "kernel cache: cannot create %s (%s); not caching", dir, strerror(errno));
     goto done;
   }
@@ -413,7 +383,6 @@ done:
   free(bin);
 }
 
-int clh_cache_dir(char *out, size_t len) { return cache_dir(out, len); }
 
 /* --- program builds --------------------------------------------------------- */
 
@@ -552,7 +521,7 @@ int clh_build_source(clh_context_t *cl, const char *name, const char *text, cons
   uint64_t key = clh_cache_key(cl, src, opts);
   cl->stats.last_key = key;
   cl->stats.last_hit = 0;
-  int use_cache = cache_dir(dir, sizeof dir);
+  int use_cache = clh_cache_dir(dir, sizeof dir);
   if (use_cache) snprintf(path, sizeof path, "%s/%016llx.clbin", dir, (unsigned long long)key);
   double t0 = bk_now_ms();
 

@@ -1,4 +1,4 @@
-/* main.c: the `baker` command: dispatches to `bake` and `view`.
+/* main.c: the `baker` command: dispatches to `bake`, `view` and `verify`.
  * Exit status: 0 success, 2 bad input or usage, 1 runtime failure. */
 #include <stdio.h>
 #include <string.h>
@@ -7,6 +7,7 @@
 #include "cache_cmd.h"
 #include "clhost.h"
 #include "base/common.h"
+#include "verify.h"
 #include "view.h"
 
 static void usage(FILE *out) {
@@ -16,6 +17,7 @@ static void usage(FILE *out) {
           "usage:\n"
           "  baker bake SCENE.json -o OUT.vdb [options]   voxelize, trace photons, write OpenVDB\n"
           "  baker view IN.vdb -o OUT.exr [options]       render a baked VDB to OpenEXR/PNG\n"
+          "  baker verify FILE.vdb...                     check every grid against its checksum\n"
           "  baker devices                                list OpenCL platforms and devices\n"
           "  baker cache [--clear]                        kernel cache: path, size; empty it\n"
           "  baker --version | --help\n"
@@ -34,6 +36,7 @@ int main(int argc, char **argv) {
   if (!strcmp(cmd, "bake")) return bake_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "view")) return view_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "cache")) return cache_main(argc - 1, argv + 1);
+  if (!strcmp(cmd, "verify")) return verify_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "devices")) {
     clh_list_devices(stdout);
     return BK_OK;

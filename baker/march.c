@@ -159,6 +159,21 @@ static void report_prepare(const pm_setup_t *s, bk_timings_t *timings, double ms
                  s->lights.count, s->channels == 1 ? "1 channel (one colour)" : "RGB");
 }
 
+/* n changes across a band of ior_smoothing voxels around each surface; a
+ * step longer than the band can land on both sides of it and never sample
+ * the gradient, so refraction silently disappears (at 20+ voxels almost all
+ * of it). Warned about, not refused or clamped: a coarse step is a
+ * legitimate quick preview, and clamping would change a bake the user asked
+ * for. */
+static void warn_coarse_step(const scene_t *scene, int has_refraction) {
+  if (!has_refraction || !(scene->step > scene->ior_smoothing)) return;
+  bk_warn("%s: photons.step is %g voxels, longer than the refractive objects' smoothing band "
+          "(grid.ior_smoothing = %g voxels): photons step over the surfaces and lose most of "
+          "their refraction; use a step of at most %g voxels (0.5 is the default)",
+          scene->path, (double)scene->step, (double)scene->ior_smoothing,
+          (double)scene->ior_smoothing / 2.0);
+}
+
 int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timings_t *timings,
                pm_stats_t *stats, bk_error_t *err) {
   memset(s, 0, sizeof *s);
@@ -171,6 +186,7 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   /* what the volume allows the kernel to skip: part of the octree stage */
   double t0 = bk_now_ms();
   scan_volume(vol, s->voxels, &s->has_refraction, &s->homogeneous, &s->grey);
+  warn_coarse_step(scene, s->has_refraction);
   double ms_scan = bk_now_ms() - t0;
   t0 = bk_now_ms();
   rc = ph_prepare(scene, d, (uint64_t)scene->photon_count, scene->seed, &s->lights, err);

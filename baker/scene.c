@@ -19,6 +19,14 @@
 static const sc_range_t R_ANY = {-SC_NOLIM, SC_NOLIM, 0, 0, 0, 1};
 static const sc_range_t R_NONNEG = {0, SC_NOLIM, 0, 0, 0, 1};
 static const sc_range_t R_POSITIVE = {0, SC_NOLIM, 1, 0, 0, 1};
+/* Light intensity (W/sr) and irradiance (W/m^2), refused at load rather
+ * than caught as Inf after the bake: a voxel's radiance can exceed the
+ * light's value by the path bound over the squared voxel size (march.c's
+ * fixed-point scale: L <= I * path / h^2), and at 1e38 even the photon power
+ * overflows a float, so the bake would run for nothing. 1e20 leaves a factor
+ * 3e18 below FLT_MAX for that geometry (voxels down to 1 um, paths up to 1e6
+ * voxels) and is 1e16 times a lighthouse. */
+static const sc_range_t R_LIGHT = {0, 1e20, 0, 0, 0, 0};
 static const sc_range_t R_IOR = {1, 10, 0, 0, 0, 0};
 static const sc_range_t R_SMOOTHING = {0, 64, 1, 0, 0, 0};
 static const sc_range_t R_ANGLE = {0, 90, 1, 0, 0, 0};
@@ -153,7 +161,7 @@ static int sc_light_position(void *ctx, const char *key, float out[3]) {
 }
 static int sc_light_colour(void *ctx, const char *key, float out[3]) {
   const sc_light_ctx_t *x = ctx;
-  return sc_opt_floats(x->c, x->v, x->path, key, &R_NONNEG, 3, 1, out);
+  return sc_opt_floats(x->c, x->v, x->path, key, &R_LIGHT, 3, 1, out);
 }
 static int sc_light_angle(void *ctx, const char *key, float *out) {
   const sc_light_ctx_t *x = ctx;

@@ -1,6 +1,7 @@
 /* common.c: errors, logging, progress, timings, safe sizes, atomic output. */
 #define _POSIX_C_SOURCE 200809L
 #include "base/common.h"
+#include "base/outfile.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -283,15 +284,23 @@ int bk_check_output_dir(const char *path, bk_error_t *err) {
     return bk_fail(err, BK_ERR_INPUT, "%s: output directory %s is not writable", path, dir);
   close(fd);
   unlink(temp);
+  bk_clean_stale_temps(dir);
   return BK_OK;
 }
 
 int bk_commit_temp(const char *temp_path, const char *final_path, bk_error_t *err) {
+  /* a full disk may only show at write-back: fail while the old file stands */
+  int rc = bk_fsync_path(temp_path, final_path, err);
+  if (rc) {
+    remove(temp_path);
+    return rc;
+  }
   if (rename(temp_path, final_path) != 0) {
     int e = errno;
     remove(temp_path);
     return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot rename %s into place: %s", final_path,
                    temp_path, strerror(e));
   }
+  bk_fsync_dir_of(final_path);
   return BK_OK;
 }

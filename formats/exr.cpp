@@ -7,15 +7,21 @@
 #include <ImfDoubleAttribute.h>
 #include <ImfRgbaFile.h>
 #include <ImfStandardAttributes.h>
+#include <ImfIO.h>
 #include <ImfStringAttribute.h>
 #include <ImfVecAttribute.h>
 #include <Imath/ImathMatrix.h>
 #include <Imath/half.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <fcntl.h>
+#include <unistd.h>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -53,6 +59,47 @@ Imath::M44f world_to_camera(const exr_info_t *in) {
   return m;
 }
 
+// OpenEXR's own file stream checks each write but not the flush at close,
+// so the tail of a file on a full disk is lost silently. This one writes
+// straight through write(2) and keeps the errno of the first failure.
+class FdOStream : public Imf::OStream {
+public:
+  explicit FdOStream(const char *path)
+      : Imf::OStream(path), fd_(open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)) {
+    if (fd_ < 0) error_ = errno;
+  }
+  ~FdOStream() override { close_file(); }
+  void write(const char c[], int n) override {
+    while (n > 0 && !error_) {
+      ssize_t w = ::write(fd_, c, (size_t)n);
+      if (w < 0 && errno == EINTR) continue;
+      if (w <= 0) {
+        error_ = w < 0 ? errno : EIO;
+        break;
+      }
+      c += w;
+      n -= (int)w;
+      pos_ += (uint64_t)w;
+    }
+    if (error_) throw std::runtime_error(std::strerror(error_));
+  }
+  uint64_t tellp() override { return pos_; }
+  void seekp(uint64_t pos) override {
+    if (!error_ && lseek(fd_, (off_t)pos, SEEK_SET) < 0) error_ = errno;
+    if (error_) throw std::runtime_error(std::strerror(error_));
+    pos_ = pos;
+  }
+  int close_file() {
+    if (fd_ >= 0 && close(fd_) != 0 && !error_) error_ = errno;
+    fd_ = -1;
+    return error_;
+  }
+
+private:
+  int fd_;
+  int error_ = 0;
+  uint64_t pos_ = 0;
+};
 } // namespace
 
 extern "C" int exr_write_rgba(const char *path, int width, int height, const float *rgba,
@@ -88,9 +135,13 @@ extern "C" int exr_write_rgba(const char *path, int width, int height, const flo
     {
       /* ZIP blocks are compressed on every core (OpenEXR's own thread pool) */
       int threads = (int)std::thread::hardware_concurrency();
-      Imf::RgbaOutputFile file(temp, header, Imf::WRITE_RGBA, threads > 1 ? threads : 0);
-      file.setFrameBuffer(px.data(), 1, (size_t)width);
-      file.writePixels(height);
+      FdOStream os(temp);
+      {
+        Imf::RgbaOutputFile file(os, header, Imf::WRITE_RGBA, threads > 1 ? threads : 0);
+        file.setFrameBuffer(px.data(), 1, (size_t)width);
+        file.writePixels(height);
+      } // writes the line offsets
+      if (int e = os.close_file()) throw std::runtime_error(std::strerror(e));
     } // closes the file before the rename
   } catch (const std::exception &e) {
     std::remove(temp);

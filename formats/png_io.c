@@ -20,7 +20,11 @@ typedef struct png_err_ctx {
 
 static void on_png_error(png_structp png, png_const_charp msg) {
   png_err_ctx_t *ctx = png_get_error_ptr(png);
-  snprintf(ctx->msg, sizeof ctx->msg, "%s", msg);
+  /* libpng's "Write Error" hides why: the failed fwrite left it in errno */
+  if (errno)
+    snprintf(ctx->msg, sizeof ctx->msg, "%s: %s", msg, strerror(errno));
+  else
+    snprintf(ctx->msg, sizeof ctx->msg, "%s", msg);
   png_longjmp(png, 1);
 }
 static void on_png_warning(png_structp png, png_const_charp msg) { (void)png; (void)msg; }
@@ -60,6 +64,7 @@ int png_write_preview(const char *path, int width, int height, const float *rgba
     goto error;
   }
   png_init_io(png, f);
+  errno = 0;
   png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, 8, PNG_COLOR_TYPE_RGB,
                PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);

@@ -83,7 +83,7 @@ public:
 
 /* Opens `path` fully (no delayed loading); BK_ERR_INPUT when it is missing,
  * is not a VDB file or is truncated. Exceptions are the caller's to catch. */
-static int vdbio_open(vdb::io::File &file, const char *path, const char *where, bk_error_t *err) {
+int vdbio_open(vdb::io::File &file, const char *path, const char *where, bk_error_t *err) {
   /* io::File says only "could not open"; errno says why */
   FILE *probe = fopen(path, "rb");
   if (!probe)

@@ -89,6 +89,28 @@ int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_d
                           vdbio_dense_t *out, int *found, bk_error_t *err);
 void vdbio_dense_free(vdbio_dense_t *d);
 
+/* Checksums (written by vdbio_write, checked by vdbio_verify). The file
+ * metadata holds checksum_box = "NX NY NZ" and, per grid, checksum_<name> =
+ * 16 hex digits: 64-bit FNV-1a over 32-bit words (h ^= word; h *= 2^40 +
+ * 2^8 + 0xb3, from 14695981039346656037) of the grid's values over the index
+ * box [0,NX) x [0,NY) x [0,NZ), x fastest then y then z, channels
+ * interleaved, each value as its IEEE-754 bits after three rules that make
+ * the written and the read values agree: a voxel whose channels are all 0 or
+ * NaN hashes as zeros (it is stored as inactive background), -0 hashes as
+ * +0, and with half-float output the value is first rounded to half; the
+ * grid's background value (one word per channel) ends the hash. Outside the
+ * box, the grid must hold only its background. */
+typedef enum { VDBIO_VERIFY_OK = 0, VDBIO_VERIFY_CORRUPT = 1, VDBIO_VERIFY_UNCHECKED = 2 }
+    vdbio_verify_status_t;
+typedef struct vdbio_verify_grid {
+  char name[256];
+  vdbio_verify_status_t status;
+  char detail[512]; /* why CORRUPT or UNCHECKED */
+} vdbio_verify_grid_t;
+/* Recomputes every grid's checksum; *grids (caller frees) gets one entry per
+ * grid in file order. BK_ERR_INPUT when the file cannot be opened or read. */
+int vdbio_verify(const char *path, vdbio_verify_grid_t **grids, int *count, bk_error_t *err);
+
 /* Reads a string or number metadata entry from the file as text ("" if absent). */
 int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk_error_t *err);
 

@@ -25,4 +25,14 @@ int nvdbio_list(const char *path, std::vector<std::string> &names,
 int nvdbio_load_grid(const char *path, const char *where, const char *grid_name,
                      openvdb::GridBase::Ptr &grid, int *found, bk_error_t *err);
 
+/* Opens `path` fully (no delayed loading) after checking its layout;
+ * BK_ERR_INPUT when it is missing, not a VDB file or truncated. */
+int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_error_t *err);
+
+/* Adds checksum_<grid> for every grid, and checksum_box, to the file
+ * metadata (vdbio_checksum.cpp; the rule is in vdbio.h). `half`: the values
+ * are stored as 16-bit floats, so the checksum covers the rounded values. */
+void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int grid_count,
+                         bool half, openvdb::MetaMap &file_meta);
+
 #endif

@@ -4,13 +4,16 @@
  * bk_error_t; the file is written under a temporary name and renamed, so a
  * failed write never leaves a half file where the output should be. */
 #include "vdbio_internal.h"
+#include "fdstream.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/ChangeBackground.h>
 #include <openvdb/tools/Dense.h>
 
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <new>
 #include <set>
 #include <string>
@@ -143,6 +146,22 @@ static int vdbio_file_meta(const char *path, const grid_dims_t *d, const vdbio_m
   return BK_OK;
 }
 
+/* io::File::write opens its own std::ofstream and never checks it, so a full
+ * disk gives a short file that looks written. The same archive writer, onto
+ * a stream whose failures we see (Archive::write is protected). */
+class vdbio_checked_archive : public vdb::io::Archive {
+public:
+  /* 0, or the errno of the first failed write or close. */
+  int write_file(const char *tmp, const vdb::GridPtrVec &grids, const vdb::MetaMap &meta) const {
+    bk_fd_streambuf sb(tmp);
+    std::ostream os(&sb);
+    if (!sb.error()) vdb::io::Archive::write(os, grids, /*seekable=*/true, meta);
+    os.flush();
+    int e = sb.close_file();
+    return e ? e : (os.fail() ? EIO : 0);
+  }
+};
+
 /* Zip by default; Blosc only where this OpenVDB was built with it. */
 static uint32_t vdbio_compression(const char *path, const vdbio_write_opts_t *opts) {
   uint32_t comp = vdb::io::COMPRESS_ZIP | vdb::io::COMPRESS_ACTIVE_MASK;
@@ -177,12 +196,15 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
     if (rc)
       return rc;
     if (vdbio_is_nano_path(path)) {
-      nvdbio_write(tmp, out);
+      nvdbio_write(tmp, out); /* NanoVDB files carry no file metadata, so no checksums */
     } else {
-      vdb::io::File file(tmp);
-      file.setCompression(vdbio_compression(path, opts));
-      file.write(out, file_meta);
-      file.close();
+      vdbio_add_checksums(dims, grids, grid_count, opts && opts->half_float, file_meta);
+      vdbio_checked_archive archive;
+      archive.setCompression(vdbio_compression(path, opts));
+      if (int e = archive.write_file(tmp, out, file_meta)) {
+        remove(tmp);
+        return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write %s: %s", path, tmp, strerror(e));
+      }
     }
   } catch (const std::bad_alloc &) {
     remove(tmp);

@@ -1,0 +1,205 @@
+/* vdbio_checksum.cpp: per-grid checksums in the file metadata, and their
+ * check (`baker verify`). The rule is documented in vdbio.h; the writer
+ * hashes the dense arrays it stores, the checker the values it reads back
+ * over the same box, through the one function below. */
+#include "vdbio_internal.h"
+
+#include <openvdb/tools/Dense.h>
+
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <new>
+#include <string>
+#include <vector>
+
+namespace vdb = openvdb;
+
+static const uint64_t CK_OFFSET = 14695981039346656037ull, CK_PRIME = 1099511628211ull;
+
+/* One value's bits under the rules of vdbio.h. */
+static inline uint32_t ck_bits(float v, bool half) {
+  if (half) v = static_cast<float>(vdb::math::half(v));
+  if (v == 0.0f) v = 0.0f; /* -0 -> +0 */
+  uint32_t u;
+  std::memcpy(&u, &v, sizeof u);
+  return u;
+}
+
+/* FNV-1a over 32-bit words of `voxels` voxels of `ch` channels. */
+static uint64_t ck_hash(const float *data, size_t voxels, int ch, bool half, uint64_t h) {
+  for (size_t i = 0; i < voxels; i++) {
+    const float *v = data + i * (size_t)ch;
+    bool background = true; /* copyFromDense's test at tolerance 0 */
+    for (int c = 0; c < ch; c++) background = background && !(std::fabs(v[c]) > 0.0f);
+    for (int c = 0; c < ch; c++) {
+      h ^= background ? 0u : ck_bits(v[c], half);
+      h *= CK_PRIME;
+    }
+  }
+  return h;
+}
+
+/* The grid's background (its value outside the box, the same in every
+ * channel when written) ends the hash, so that a changed background is a
+ * changed checksum. */
+static uint64_t ck_mix_background(uint64_t h, const float *bg, int ch) {
+  for (int c = 0; c < ch; c++) {
+    h ^= ck_bits(bg[c], false);
+    h *= CK_PRIME;
+  }
+  return h;
+}
+
+static std::string ck_hex(uint64_t h) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%016" PRIx64, h);
+  return buf;
+}
+
+void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int count,
+                         bool half, vdb::MetaMap &file_meta) {
+  const size_t n = grid_count(dims);
+  char box[96];
+  std::snprintf(box, sizeof box, "%d %d %d", dims->nx, dims->ny, dims->nz);
+  file_meta.insertMeta("checksum_box", vdb::StringMetadata(box));
+  for (int g = 0; g < count; g++) {
+    const int ch = grids[g].type == VDBIO_VEC3 ? 3 : 1;
+    const float bg[3] = {grids[g].background, grids[g].background, grids[g].background};
+    const uint64_t h = ck_mix_background(ck_hash(grids[g].data, n, ch, half, CK_OFFSET), bg, ch);
+    file_meta.insertMeta(std::string("checksum_") + grids[g].name, vdb::StringMetadata(ck_hex(h)));
+  }
+}
+
+/* --- checking ---------------------------------------------------------------- */
+
+/* The hash of a grid read back, over the box, one z slice at a time (a
+ * slice of dense values at most, whatever the grid's size). */
+template <typename GridT>
+static uint64_t ck_grid_hash(const GridT &grid, int nx, int ny, int nz, int ch) {
+  using ValueT = typename GridT::ValueType;
+  std::vector<float> slice((size_t)nx * (size_t)ny * (size_t)ch);
+  uint64_t h = CK_OFFSET;
+  for (int z = 0; z < nz; z++) {
+    const vdb::CoordBBox box(vdb::Coord(0, 0, z), vdb::Coord(nx - 1, ny - 1, z));
+    vdb::tools::Dense<ValueT, vdb::tools::LayoutXYZ> dense(
+        box, reinterpret_cast<ValueT *>(slice.data()));
+    vdb::tools::copyToDense(grid, dense);
+    h = ck_hash(slice.data(), (size_t)nx * (size_t)ny, ch, false, h);
+  }
+  const ValueT b = grid.background();
+  return ck_mix_background(h, reinterpret_cast<const float *>(&b), ch);
+}
+
+/* Everything the grid stores outside the box (inactive tiles of its internal
+ * nodes) must be the background the writer left there (its value is part
+ * of the hash): a renderer sampling there sees those values, and
+ * uncompressed files are mostly such tiles. The hash covers the box; this
+ * covers the rest. */
+template <typename GridT>
+static bool ck_outside_is_background(const GridT &grid, int nx, int ny, int nz) {
+  using ValueT = typename GridT::ValueType;
+  const ValueT bg = grid.background();
+  const vdb::CoordBBox box(vdb::Coord(0, 0, 0), vdb::Coord(nx - 1, ny - 1, nz - 1));
+  for (auto it = grid.tree().cbeginValueAll(); it; ++it) {
+    if (it.getDepth() == (int)GridT::TreeType::DEPTH - 1 && box.isInside(it.getCoord()))
+      continue; /* a voxel in the box: hashed */
+    vdb::CoordBBox b;
+    it.getBoundingBox(b);
+    if (!box.isInside(b) && !(*it == bg))
+      return false;
+  }
+  return true;
+}
+
+static std::string ck_meta(const vdb::MetaMap &meta, const std::string &key) {
+  vdb::Metadata::ConstPtr m = meta[key];
+  return m ? m->str() : std::string();
+}
+
+/* One grid: read, hash, compare. Read errors of one grid are that grid's
+ * corruption (the file itself opened). */
+static void ck_verify_grid(vdb::io::File &file, const std::string &name, const vdb::MetaMap &meta,
+                           const int box[3], vdbio_verify_grid_t *out) {
+  std::snprintf(out->name, sizeof out->name, "%s", name.c_str());
+  const std::string want = ck_meta(meta, "checksum_" + name);
+  if (want.empty() || box[0] < 1) {
+    out->status = VDBIO_VERIFY_UNCHECKED;
+    std::snprintf(out->detail, sizeof out->detail, "no checksum recorded");
+    return;
+  }
+  uint64_t h = 0;
+  try {
+    vdb::GridBase::Ptr g = file.readGrid(name);
+    bool outside_ok = true;
+    if (vdb::FloatGrid::Ptr f = vdb::gridPtrCast<vdb::FloatGrid>(g)) {
+      h = ck_grid_hash(*f, box[0], box[1], box[2], 1);
+      outside_ok = ck_outside_is_background(*f, box[0], box[1], box[2]);
+    } else if (vdb::Vec3SGrid::Ptr v = vdb::gridPtrCast<vdb::Vec3SGrid>(g)) {
+      h = ck_grid_hash(*v, box[0], box[1], box[2], 3);
+      outside_ok = ck_outside_is_background(*v, box[0], box[1], box[2]);
+    } else {
+      out->status = VDBIO_VERIFY_CORRUPT;
+      std::snprintf(out->detail, sizeof out->detail, "unexpected type %s", g->valueType().c_str());
+      return;
+    }
+    if (!outside_ok) {
+      out->status = VDBIO_VERIFY_CORRUPT;
+      std::snprintf(out->detail, sizeof out->detail,
+                    "values other than the background outside the %dx%dx%d box it was written over", box[0],
+                    box[1], box[2]);
+      return;
+    }
+  } catch (const std::bad_alloc &) {
+    throw;
+  } catch (const std::exception &e) {
+    out->status = VDBIO_VERIFY_CORRUPT;
+    std::snprintf(out->detail, sizeof out->detail, "cannot be read: %s", e.what());
+    return;
+  }
+  const std::string got = ck_hex(h);
+  out->status = got == want ? VDBIO_VERIFY_OK : VDBIO_VERIFY_CORRUPT;
+  if (got != want)
+    std::snprintf(out->detail, sizeof out->detail, "checksum %s, recorded %s", got.c_str(),
+                  want.c_str());
+}
+
+int vdbio_verify(const char *path, vdbio_verify_grid_t **grids, int *count, bk_error_t *err) {
+  *grids = nullptr;
+  *count = 0;
+  vdbio_init();
+  int rc = BK_OK;
+  try {
+    vdb::io::File file(path);
+    if ((rc = vdbio_open(file, path, nullptr, err)))
+      return rc;
+    vdb::MetaMap::Ptr meta = file.getMetadata();
+    int box[3] = {0, 0, 0};
+    if (std::sscanf(ck_meta(*meta, "checksum_box").c_str(), "%d %d %d", &box[0], &box[1],
+                    &box[2]) != 3 || box[1] < 1 || box[2] < 1)
+      box[0] = 0;
+    std::vector<std::string> names;
+    for (vdb::io::File::NameIterator it = file.beginName(); it != file.endName(); ++it)
+      names.push_back(*it);
+    *grids = static_cast<vdbio_verify_grid_t *>(
+        bk_calloc(names.size() ? names.size() : 1, sizeof(vdbio_verify_grid_t), path, err));
+    if (!*grids)
+      return BK_ERR_RUNTIME;
+    for (size_t i = 0; i < names.size(); i++)
+      ck_verify_grid(file, names[i], *meta, box, &(*grids)[i]);
+    *count = (int)names.size();
+    file.close();
+  } catch (const std::bad_alloc &) {
+    rc = bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while verifying", path);
+  } catch (const std::exception &e) {
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: %s", path, e.what());
+  }
+  if (rc) {
+    std::free(*grids);
+    *grids = nullptr;
+    *count = 0;
+  }
+  return rc;
+}

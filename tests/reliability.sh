@@ -1,0 +1,107 @@
+#!/usr/bin/env bash
+# Reliability faults (issue 17), one case per run; docs/reliability.md says
+# what each injects and what must survive.
+# Usage: reliability.sh BAKER WORKDIR SCENES SHIM CASE
+set -u
+BAKER=$1 WORK=$2/$5 SCENES=$3 SHIM=$4 CASE=$5
+rm -rf "$WORK" && mkdir -p "$WORK" && cd "$WORK" || exit 1
+fail() { echo "FAIL ($CASE): $*"; exit 1; }
+# a small scene beside its mesh: 16^3 voxels, a refractive cube, a spot light
+cp -r "$SCENES/meshes" . && cp "$SCENES/cube.json" scene.json
+small=(--resolution 16 --photons 2000 -q)
+bake() { "$BAKER" bake scene.json "${small[@]}" "$@"; }
+# the old file must survive byte for byte, and no temporary file may stay
+check_kept() { # file reference status stderr-file
+  [ "$3" = 1 ] || fail "exit status $3, expected 1"
+  grep -q "No space left on device" "$4" || fail "the reason is not named: $(cat "$4")"
+  cmp -s "$1" "$2" || fail "$1 changed"
+  ls -A | grep -q '\.tmp[0-9]' && fail "a temporary file was left: $(ls -A | grep tmp)"
+  echo "ok: exit 1, $(basename "$1") unchanged; $(tail -n1 "$4")"
+}
+shim() { LD_PRELOAD=$SHIM BK_SHIM_MATCH=$1 "${@:2}"; }
+
+case "$CASE" in
+  enospc_vdb|fsync_vdb)
+    bake -o out.vdb --compression none || fail "first bake"
+    cp out.vdb good.vdb
+    if [ "$CASE" = enospc_vdb ]; then
+      BK_SHIM_ENOSPC_AFTER=4096 shim /.out.vdb.tmp bake -o out.vdb --force --seed 7 2> err.txt
+    else
+      BK_SHIM_FSYNC_ERRNO=28 shim /.out.vdb.tmp bake -o out.vdb --force --seed 7 2> err.txt
+    fi
+    check_kept out.vdb good.vdb $? err.txt;;
+  enospc_exr|enospc_png)
+    bake -o in.vdb || fail "bake"
+    view() { "$BAKER" view in.vdb -o v.exr --png v.png --resolution 32x24 -q "$@"; }
+    view || fail "first view"
+    cp v.exr good.exr && cp v.png good.png
+    ext=${CASE#enospc_}
+    BK_SHIM_ENOSPC_AFTER=1000 shim "/.v.$ext.tmp" view --exposure 2 2> err.txt
+    check_kept "v.$ext" "good.$ext" $? err.txt;;
+  stale_temp)
+    # a PID that surely is dead (above pid_max would be refused by the
+    # parser's 9 digits; a finished child's PID is dead)
+    sh -c 'exit 0' & dead=$!; wait $dead
+    sleep 300 & live=$!
+    printf 'left by a killed bake' > ".out.vdb.tmp$dead"
+    printf 'being written' > ".other.vdb.tmp$live"
+    printf 'not ours' > ".notes.tmpfile"
+    touch -d '1 hour ago' ".out.vdb.tmp$dead" ".other.vdb.tmp$live" .notes.tmpfile
+    bake -o out.vdb; rc=$?
+    kill $live
+    [ $rc = 0 ] || fail "bake exited $rc"
+    [ -e ".out.vdb.tmp$dead" ] && fail "the dead process's temporary file is still there"
+    [ -e ".other.vdb.tmp$live" ] || fail "a live process's temporary file was removed"
+    [ -e .notes.tmpfile ] || fail "an unrelated file was removed"
+    echo "ok: .out.vdb.tmp$dead removed, .other.vdb.tmp$live kept";;
+  no_home)
+    # as another user PoCL cannot use root's /tmp/pocl: the case that aborts
+    run=(env -i PATH=/usr/bin:/bin)
+    if [ "$(id -u)" = 0 ] && command -v setpriv > /dev/null; then
+      chmod 1777 . && run+=(setpriv --reuid=65534 --regid=65534 --clear-groups)
+    fi
+    "${run[@]}" "$BAKER" bake scene.json "${small[@]}" -o out.vdb 2> err.txt
+    rc=$?
+    [ $rc = 0 ] || fail "exit $rc without HOME: $(cat err.txt)"
+    [ -s out.vdb ] || fail "no output"
+    echo "ok: baked without HOME (${run[*]})";;
+  huge_intensity)
+    sed 's/"intensity": \[10, 10, 10\]/"intensity": [1e38, 1e38, 1e38]/' "$SCENES/cube.json" > scene.json
+    bake -o out.vdb 2> err.txt; rc=$?
+    [ $rc = 2 ] || fail "exit $rc, expected 2: $(cat err.txt)"
+    for w in scene.json "lights\[0\].intensity" "1e+20" "1e38"; do
+      grep -q "$w" err.txt || fail "message lacks '$w': $(cat err.txt)"
+    done
+    [ -e out.vdb ] && fail "an output was written"
+    echo "ok: $(cat err.txt)";;
+  coarse_step)
+    bake -o out.vdb --step 50 2> err.txt; rc=$?
+    [ $rc = 0 ] || fail "exit $rc: $(cat err.txt)"
+    grep -q "photons.step" err.txt && grep -q "ior_smoothing" err.txt ||
+      fail "no warning about the step: $(cat err.txt)"
+    bake -o fine.vdb --step 0.5 2> err2.txt || fail "fine bake"
+    grep -q "photons.step" err2.txt && fail "a fine step was warned about"
+    echo "ok: $(cat err.txt)";;
+  verify)
+    bake -o out.vdb --compression none || fail "bake"
+    "$BAKER" verify out.vdb > v.txt || fail "verify of an intact file: $(cat v.txt)"
+    grep -q "radiance.*OK" v.txt || fail "no line for radiance: $(cat v.txt)"
+    size=$(stat -c %s out.vdb) corrupt=0 unreadable=0 missed=0
+    # flip one byte at a time through the last half of the file (grid data)
+    for k in 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15; do
+      off=$(( size / 2 + k * (size / 2 - 16) / 16 ))
+      cp out.vdb bad.vdb
+      b=$(od -An -tu1 -j "$off" -N1 bad.vdb | tr -d ' ')
+      printf "$(printf '\\%03o' $(( b ^ 0x40 )))" | dd of=bad.vdb bs=1 seek="$off" conv=notrunc status=none
+      "$BAKER" verify bad.vdb > v.txt 2>&1; rc=$?
+      case $rc in
+        1) grep -q CORRUPT v.txt || fail "exit 1 without a CORRUPT grid"; corrupt=$((corrupt+1));;
+        2) unreadable=$((unreadable+1));;
+        *) missed=$((missed+1)); echo "not detected: byte $off";;
+      esac
+    done
+    [ $corrupt -ge 1 ] || fail "no flip was reported as CORRUPT"
+    "$BAKER" verify nothere.vdb > /dev/null 2>&1; [ $? = 2 ] || fail "missing file is not exit 2"
+    echo "ok: 15 flips: $corrupt CORRUPT, $unreadable unreadable, $missed missed";;
+  *) echo "unknown case $CASE"; exit 1;;
+esac
