@@ -22,8 +22,8 @@
  * (zip decodes faster than 10 MB/s of input on any machine we know).
  *
  * Caveat: the child of a process that already ran TBB work inherits TBB's
- * state without its worker threads; oneTBB 2021 starts fresh workers in the
- * child (tested by a multi-frame bake with a VDB medium, tests/isolate.sh). */
+ * state without its worker threads (a multi-frame bake with a VDB medium
+ * forks after frame 1's write). Not yet tested; the alarm bounds a hang. */
 #include "vdbio_internal.h"
 
 #include <cerrno>
