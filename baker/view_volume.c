@@ -214,15 +214,23 @@ static int load_select(view_load_t *L, bk_error_t *err) {
   return BK_OK;
 }
 
-/* Each grid over its own active box; the radiance transform sets the voxel. */
+/* Each grid over its own active box, its checksum checked when the file
+ * records one (a corrupt grid is refused, naming it; a file without
+ * checksums is warned about once); the radiance transform sets the voxel. */
 static int load_read_own(view_load_t *L, bk_error_t *err) {
-  int rc;
+  int rc, unchecked = 0;
   for (int g = 0; g < G_COUNT; g++) {
     if (!L->present[g]) continue;
-    if ((rc = vdbio_read_dense(L->path, L->gname[g], 0, &L->own[g], err))) return rc;
+    int checked = 0;
+    if ((rc = vdbio_read_dense_verified(L->path, L->gname[g], 0, &L->own[g], &checked, err)))
+      return rc;
+    unchecked += !checked;
     L->ch[g] = L->own[g].channels;
     L->empty[g] = dense_is_empty(&L->own[g]);
   }
+  if (unchecked)
+    bk_warn("%s: the file records no checksums for %d of its grids (written by another tool or "
+            "an older baker): corruption cannot be detected", L->path, unchecked);
   return check_similarity(L->own[G_RAD].index_to_world, L->path, &L->scale, err);
 }
 

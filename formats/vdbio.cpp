@@ -171,7 +171,8 @@ static int vdbio_read_grid(vdb::io::File &file, const char *path, const char *wh
 /* vdbio_open, then vdbio_read_grid, then closes the file: the start of every
  * reader of one grid. Exceptions are the caller's to catch. */
 static int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
-                           vdb::GridBase::Ptr &grid, int *found, bk_error_t *err) {
+                           vdb::GridBase::Ptr &grid, int *found, bk_error_t *err,
+                           vdb::MetaMap::Ptr *meta = nullptr) {
   if (vdbio_is_nano_file(path))
     return nvdbio_load_grid(path, where, grid_name, grid, found, err);
   vdb::io::File file(path);
@@ -179,6 +180,8 @@ static int vdbio_load_grid(const char *path, const char *where, const char *grid
   if (rc)
     return rc;
   rc = vdbio_read_grid(file, path, where, grid_name, grid, found, err);
+  if (!rc && meta)
+    *meta = file.getMetadata();
   file.close();
   return rc;
 }
@@ -186,8 +189,8 @@ static int vdbio_load_grid(const char *path, const char *where, const char *grid
 /* The catch block every reader ends with. */
 #define VDBIO_CATCH_READ(path, where)                                                              \
   catch (const std::bad_alloc &) {                                                                 \
-    rc = bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while reading the VDB file",              \
-                 vdbio_prefix(path, where).c_str());                                               \
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: out of memory while reading the VDB file (corrupt "       \
+                 "sizes, or more than this machine can hold)", vdbio_prefix(path, where).c_str());  \
   }                                                                                                \
   catch (const std::exception &e) {                                                                \
     rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: %s",                                \
@@ -216,7 +219,7 @@ static void vdbio_resample(const GridT &g, const grid_dims_t &d, float *out) {
   });
 }
 
-int vdbio_resample_float(const char *path, const char *grid_name, const grid_dims_t *dims,
+int vdbio_resample_float_direct(const char *path, const char *grid_name, const grid_dims_t *dims,
                          float *out, const char *where, bk_error_t *err) {
   if (!path || !dims || !out || dims->nx < 1 || dims->ny < 1 || dims->nz < 1)
     return bk_fail(err, BK_ERR_RUNTIME, "%s: vdbio_resample_float: invalid arguments",
@@ -315,6 +318,26 @@ static void vdbio_fill_any(const vdb::GridBase::Ptr &g, const vdb::Coord &min,
     vdbio_fill(*vdb::gridConstPtrCast<vdb::Vec3DGrid>(g), min, like, d);
 }
 
+/* The grid's checksum against the file's record: *checked = 1 when there is
+ * one and it matches, 0 when the file has none; BK_ERR_INPUT naming the grid
+ * when it does not match. */
+static int vdbio_read_checked(const vdb::GridBase::Ptr &g, const vdb::MetaMap *meta,
+                              const char *path, const char *name, int *checked, bk_error_t *err) {
+  std::string detail;
+  *checked = 0;
+  switch (vdbio_check_grid(*g, meta, name, detail)) {
+  case VDBIO_VERIFY_UNCHECKED:
+    return BK_OK;
+  case VDBIO_VERIFY_OK:
+    *checked = 1;
+    return BK_OK;
+  default:
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: grid \"%s\" is corrupt: %s (its checksum does not match; `baker "
+                   "verify` checks every grid)", path, name, detail.c_str());
+  }
+}
+
 /* Allocates d->data for d->nx*ny*nz*channels floats, refusing arrays that
  * would not fit in memory with the size they would need. */
 static int vdbio_alloc_dense(vdbio_dense_t *d, const char *path, const char *name,
@@ -333,8 +356,8 @@ static int vdbio_alloc_dense(vdbio_dense_t *d, const char *path, const char *nam
   return d->data ? BK_OK : BK_ERR_RUNTIME;
 }
 
-int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
-                     bk_error_t *err) {
+int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
+                            int *checked, bk_error_t *err) {
   if (!path || !out)
     return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_dense: invalid arguments");
   memset(out, 0, sizeof *out);
@@ -344,11 +367,14 @@ int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_den
   int rc = BK_OK;
   try {
     vdb::GridBase::Ptr g;
-    if ((rc = vdbio_load_grid(path, NULL, grid_name, g, NULL, err)))
+    vdb::MetaMap::Ptr meta;
+    if ((rc = vdbio_load_grid(path, NULL, grid_name, g, NULL, err, &meta)))
       return rc;
     const int ch = vdbio_channels(g, path, grid_name, err);
     if (!ch)
       return BK_ERR_INPUT;
+    if (checked && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
+      return rc;
     const vdb::math::Transform &xf = g->transform();
     if (!xf.isLinear())
       return bk_fail(err, BK_ERR_INPUT,
@@ -412,7 +438,7 @@ int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_den
   return rc;
 }
 
-int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_dense_t *like,
+int vdbio_read_dense_like_direct(const char *path, const char *grid_name, const vdbio_dense_t *like,
                           vdbio_dense_t *out, int *found, bk_error_t *err) {
   if (!path || !like || !out || !found || like->nx < 1 || like->ny < 1 || like->nz < 1)
     return bk_fail(err, BK_ERR_RUNTIME, "%s: vdbio_read_dense_like: invalid arguments",
@@ -460,7 +486,7 @@ void vdbio_dense_free(vdbio_dense_t *d) {
 
 /* --- listing and metadata ---------------------------------------------------- */
 
-int vdbio_list_grids(const char *path, char ***names, char ***types, int *count, bk_error_t *err) {
+int vdbio_list_grids_direct(const char *path, char ***names, char ***types, int *count, bk_error_t *err) {
   if (!path || !names || !count)
     return bk_fail(err, BK_ERR_RUNTIME, "vdbio_list_grids: invalid arguments");
   *names = NULL;
@@ -529,7 +555,7 @@ void vdbio_free_names(char **names, char **types, int count) {
   free(types);
 }
 
-int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk_error_t *err) {
+int vdbio_read_meta_direct(const char *path, const char *key, char *out, size_t len, bk_error_t *err) {
   if (!path || !key || !out || len == 0)
     return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_meta: invalid arguments");
   out[0] = 0;

@@ -14,7 +14,12 @@
  * our grids (ior_vdb, density_vdb) or densely over its own active bounding box
  * (the viewing pass). ".nvdb" files are read through NanoVDB's conversion
  * back to OpenVDB grids, so every reader takes both. Corrupt or truncated files, missing grids and grids of
- * the wrong type are BK_ERR_INPUT with a message naming the file and grid. */
+ * the wrong type are BK_ERR_INPUT with a message naming the file and grid.
+ *
+ * Every reader parses the file in a child process with memory and time
+ * limits (vdbio_isolate.cpp): a file that crashes OpenVDB, exhausts the
+ * memory this process may use or takes too long is BK_ERR_INPUT, and this
+ * process is untouched. */
 #ifndef BAKER_VDBIO_H
 #define BAKER_VDBIO_H
 
@@ -82,6 +87,11 @@ void vdbio_free_names(char **names, char **types, int count);
  * It must be float or Vec3f (else BK_ERR_INPUT naming the type found). */
 int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
                      bk_error_t *err);
+/* vdbio_read_dense, and the grid's checksum checked when the file records
+ * one: *checked = 1 when it was checked (and matched), 0 when the file has
+ * none; a mismatch is BK_ERR_INPUT naming the grid. */
+int vdbio_read_dense_verified(const char *path, const char *grid_name, int pad,
+                              vdbio_dense_t *out, int *checked, bk_error_t *err);
 /* Reads `grid_name` resampled into the index space of `like` (same box and
  * transform), through its own transform. *found = 0 when the file has no such
  * grid (not an error: callers decide). Float grids give 1 channel, Vec3f 3. */

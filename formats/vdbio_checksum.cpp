@@ -119,51 +119,65 @@ static std::string ck_meta(const vdb::MetaMap &meta, const std::string &key) {
   return m ? m->str() : std::string();
 }
 
+vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMap *meta,
+                                       const std::string &name, std::string &detail) {
+  const std::string want = meta ? ck_meta(*meta, "checksum_" + name) : std::string();
+  int box[3] = {0, 0, 0};
+  if (meta && (std::sscanf(ck_meta(*meta, "checksum_box").c_str(), "%d %d %d", &box[0], &box[1],
+                           &box[2]) != 3 || box[1] < 1 || box[2] < 1))
+    box[0] = 0;
+  if (want.empty() || box[0] < 1) {
+    detail = "no checksum recorded";
+    return VDBIO_VERIFY_UNCHECKED;
+  }
+  uint64_t h = 0;
+  bool outside_ok = true;
+  if (const vdb::FloatGrid *f = dynamic_cast<const vdb::FloatGrid *>(&g)) {
+    h = ck_grid_hash(*f, box[0], box[1], box[2], 1);
+    outside_ok = ck_outside_is_background(*f, box[0], box[1], box[2]);
+  } else if (const vdb::Vec3SGrid *v = dynamic_cast<const vdb::Vec3SGrid *>(&g)) {
+    h = ck_grid_hash(*v, box[0], box[1], box[2], 3);
+    outside_ok = ck_outside_is_background(*v, box[0], box[1], box[2]);
+  } else {
+    detail = "unexpected type " + g.valueType();
+    return VDBIO_VERIFY_CORRUPT;
+  }
+  char buf[160];
+  if (!outside_ok) {
+    std::snprintf(buf, sizeof buf,
+                  "values other than the background outside the %dx%dx%d box it was written over",
+                  box[0], box[1], box[2]);
+    detail = buf;
+    return VDBIO_VERIFY_CORRUPT;
+  }
+  const std::string got = ck_hex(h);
+  if (got == want)
+    return VDBIO_VERIFY_OK;
+  detail = "checksum " + got + ", recorded " + want;
+  return VDBIO_VERIFY_CORRUPT;
+}
+
 /* One grid: read, hash, compare. Read errors of one grid are that grid's
  * corruption (the file itself opened). */
 static void ck_verify_grid(vdb::io::File &file, const std::string &name, const vdb::MetaMap &meta,
-                           const int box[3], vdbio_verify_grid_t *out) {
+                           vdbio_verify_grid_t *out) {
   std::snprintf(out->name, sizeof out->name, "%s", name.c_str());
-  const std::string want = ck_meta(meta, "checksum_" + name);
-  if (want.empty() || box[0] < 1) {
-    out->status = VDBIO_VERIFY_UNCHECKED;
-    std::snprintf(out->detail, sizeof out->detail, "no checksum recorded");
-    return;
-  }
-  uint64_t h = 0;
+  std::string detail;
   try {
-    vdb::GridBase::Ptr g = file.readGrid(name);
-    bool outside_ok = true;
-    if (vdb::FloatGrid::Ptr f = vdb::gridPtrCast<vdb::FloatGrid>(g)) {
-      h = ck_grid_hash(*f, box[0], box[1], box[2], 1);
-      outside_ok = ck_outside_is_background(*f, box[0], box[1], box[2]);
-    } else if (vdb::Vec3SGrid::Ptr v = vdb::gridPtrCast<vdb::Vec3SGrid>(g)) {
-      h = ck_grid_hash(*v, box[0], box[1], box[2], 3);
-      outside_ok = ck_outside_is_background(*v, box[0], box[1], box[2]);
+    if (ck_meta(meta, "checksum_" + name).empty()) {
+      out->status = VDBIO_VERIFY_UNCHECKED;
+      detail = "no checksum recorded";
     } else {
-      out->status = VDBIO_VERIFY_CORRUPT;
-      std::snprintf(out->detail, sizeof out->detail, "unexpected type %s", g->valueType().c_str());
-      return;
-    }
-    if (!outside_ok) {
-      out->status = VDBIO_VERIFY_CORRUPT;
-      std::snprintf(out->detail, sizeof out->detail,
-                    "values other than the background outside the %dx%dx%d box it was written over", box[0],
-                    box[1], box[2]);
-      return;
+      vdb::GridBase::Ptr g = file.readGrid(name);
+      out->status = vdbio_check_grid(*g, &meta, name, detail);
     }
   } catch (const std::bad_alloc &) {
     throw;
   } catch (const std::exception &e) {
     out->status = VDBIO_VERIFY_CORRUPT;
-    std::snprintf(out->detail, sizeof out->detail, "cannot be read: %s", e.what());
-    return;
+    detail = std::string("cannot be read: ") + e.what();
   }
-  const std::string got = ck_hex(h);
-  out->status = got == want ? VDBIO_VERIFY_OK : VDBIO_VERIFY_CORRUPT;
-  if (got != want)
-    std::snprintf(out->detail, sizeof out->detail, "checksum %s, recorded %s", got.c_str(),
-                  want.c_str());
+  std::snprintf(out->detail, sizeof out->detail, "%s", detail.c_str());
 }
 
 int vdbio_verify(const char *path, vdbio_verify_grid_t **grids, int *count, bk_error_t *err) {
@@ -176,10 +190,6 @@ int vdbio_verify(const char *path, vdbio_verify_grid_t **grids, int *count, bk_e
     if ((rc = vdbio_open(file, path, nullptr, err)))
       return rc;
     vdb::MetaMap::Ptr meta = file.getMetadata();
-    int box[3] = {0, 0, 0};
-    if (std::sscanf(ck_meta(*meta, "checksum_box").c_str(), "%d %d %d", &box[0], &box[1],
-                    &box[2]) != 3 || box[1] < 1 || box[2] < 1)
-      box[0] = 0;
     std::vector<std::string> names;
     for (vdb::io::File::NameIterator it = file.beginName(); it != file.endName(); ++it)
       names.push_back(*it);
@@ -188,7 +198,7 @@ int vdbio_verify(const char *path, vdbio_verify_grid_t **grids, int *count, bk_e
     if (!*grids)
       return BK_ERR_RUNTIME;
     for (size_t i = 0; i < names.size(); i++)
-      ck_verify_grid(file, names[i], *meta, box, &(*grids)[i]);
+      ck_verify_grid(file, names[i], *meta, &(*grids)[i]);
     *count = (int)names.size();
     file.close();
   } catch (const std::bad_alloc &) {

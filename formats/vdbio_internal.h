@@ -35,4 +35,25 @@ int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_
 void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int grid_count,
                          bool half, openvdb::MetaMap &file_meta);
 
+/* One grid against the checksum the file metadata records for it (the rule
+ * is in vdbio.h); `detail` says why CORRUPT or UNCHECKED (meta NULL: no
+ * file metadata, UNCHECKED). */
+vdbio_verify_status_t vdbio_check_grid(const openvdb::GridBase &grid, const openvdb::MetaMap *meta,
+                                       const std::string &name, std::string &detail);
+
+/* The readers themselves (vdbio.cpp), in this process. The functions of
+ * vdbio.h run them in an isolated child (vdbio_isolate.cpp). checked ==
+ * NULL: no checksum check. */
+int vdbio_resample_float_direct(const char *path, const char *grid_name, const grid_dims_t *dims,
+                                float *out, const char *where, bk_error_t *err);
+int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
+                            int *checked, bk_error_t *err);
+int vdbio_read_dense_like_direct(const char *path, const char *grid_name,
+                                 const vdbio_dense_t *like, vdbio_dense_t *out, int *found,
+                                 bk_error_t *err);
+int vdbio_list_grids_direct(const char *path, char ***names, char ***types, int *count,
+                            bk_error_t *err);
+int vdbio_read_meta_direct(const char *path, const char *key, char *out, size_t len,
+                           bk_error_t *err);
+
 #endif

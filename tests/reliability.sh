@@ -103,5 +103,30 @@ case "$CASE" in
     [ $corrupt -ge 1 ] || fail "no flip was reported as CORRUPT"
     "$BAKER" verify nothere.vdb > /dev/null 2>&1; [ $? = 2 ] || fail "missing file is not exit 2"
     echo "ok: 15 flips: $corrupt CORRUPT, $unreadable unreadable, $missed missed";;
+  view_checksum)
+    bake -o out.vdb --compression none || fail "bake"
+    "$BAKER" view out.vdb -o ok.exr --resolution 64x48 -q 2> e.txt || fail "view of an intact file"
+    grep -q checksum e.txt && fail "a warning for a file with checksums: $(cat e.txt)"
+    size=$(stat -c %s out.vdb) refused=0
+    # flips verify reports CORRUPT in a grid the view reads must be refused, naming it
+    for k in $(seq 1 40); do
+      off=$(( size / 4 + k * (size * 3 / 4 - 16) / 41 ))
+      cp out.vdb bad.vdb
+      b=$(od -An -tu1 -j "$off" -N1 bad.vdb | tr -d ' ')
+      printf "$(printf '\\%03o' $(( b ^ 0x40 )))" | dd of=bad.vdb bs=1 seek="$off" conv=notrunc status=none
+      "$BAKER" verify bad.vdb > v.txt 2>&1
+      g=$(sed -n 's/^bad.vdb: \(radiance\|ior\|extinction\|scattering\) CORRUPT (\(checksum\|values\).*/\1/p' v.txt | head -1)
+      [ -n "$g" ] || continue
+      "$BAKER" view bad.vdb -o bad.exr --resolution 64x48 -q 2> e.txt; rc=$?
+      [ $rc = 2 ] || fail "byte $off: verify says $g CORRUPT, view exit $rc"
+      grep -q "bad.vdb" e.txt && grep -q "\"$g\"" e.txt || fail "byte $off: $g not named: $(cat e.txt)"
+      refused=$((refused+1))
+    done
+    [ $refused -ge 3 ] || fail "only $refused flips hit a grid the view reads"
+    # a file without checksums (the key renamed): rendered, with one warning
+    python3 -c "import sys; d=open('out.vdb','rb').read().replace(b'checksum_radiance', b'checksxm_radiance'); open('old.vdb','wb').write(d)"
+    "$BAKER" view old.vdb -o old.exr --resolution 64x48 -q 2> e.txt || fail "view without checksums: $(cat e.txt)"
+    [ "$(grep -c 'no checksums' e.txt)" = 1 ] || fail "not one warning: $(cat e.txt)"
+    echo "ok: $refused corrupt grids refused by view, one warning without checksums";;
   *) echo "unknown case $CASE"; exit 1;;
 esac

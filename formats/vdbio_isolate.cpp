@@ -1,0 +1,462 @@
+/* vdbio_isolate.cpp: every VDB read runs in a child process (fork) with
+ * memory and time limits, and hands its result back through a pipe.
+ *
+ * Why a child rather than checking declared sizes before OpenVDB allocates:
+ * the sizes are not the only danger. Corrupt blosc data makes OpenVDB's
+ * bloscFromStream write past a heap buffer (issue 17): a memory-corrupting
+ * bug inside the library, which no check of ours in front of it can rule
+ * out for every byte it will decode (zip and blosc streams, metadata strings,
+ * node masks, NanoVDB's conversion), and the next such bug would be found
+ * the same way. A child confines whatever happens: a crash is a signal, an
+ * absurd allocation fails at the child's RLIMIT_AS, a loop ends at its
+ * alarm, and this process only ever sees a status, a message and arrays it
+ * checks before allocating. The cost is one fork and one copy of the
+ * result through a pipe per read (1-2 ms for a 32^3 grid).
+ *
+ * Limits. Memory: what this process can still hold (MemAvailable, at least
+ * ISO_MIN_MEMORY) plus ISO_AS_SLACK for address space that is reserved but
+ * not used (the libraries' mappings, thread stacks, malloc arenas); never
+ * above the limit the parent already runs under. Not set under
+ * AddressSanitizer, whose shadow memory needs terabytes of address space.
+ * Time: ISO_BASE_SECONDS plus one second per ISO_BYTES_PER_SECOND of file
+ * (zip decodes faster than 10 MB/s of input on any machine we know).
+ *
+ * Caveat: the child of a process that already ran TBB work inherits TBB's
+ * state without its worker threads (a multi-frame bake with a VDB medium
+ * forks after frame 1's write). Not yet tested; the alarm bounds a hang. */
+#include "vdbio_internal.h"
+
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#if defined(__SANITIZE_ADDRESS__)
+#define ISO_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define ISO_ASAN 1
+#endif
+#endif
+
+#define ISO_MIN_MEMORY (1ull << 30)    /* a small good file must read on a loaded machine */
+#define ISO_AS_SLACK (1ull << 30)      /* reserved, unused address space (see above) */
+#define ISO_BASE_SECONDS 60u           /* process start, OpenVDB's initialize, TBB */
+#define ISO_BYTES_PER_SECOND (10u << 20)
+
+/* --- the pipe ------------------------------------------------------------------ */
+
+static bool iso_write(int fd, const void *p, size_t n) {
+  const char *c = static_cast<const char *>(p);
+  while (n) {
+    ssize_t w = write(fd, c, n);
+    if (w < 0 && errno == EINTR)
+      continue;
+    if (w <= 0)
+      return false;
+    c += w;
+    n -= (size_t)w;
+  }
+  return true;
+}
+
+static bool iso_read(int fd, void *p, size_t n) {
+  char *c = static_cast<char *>(p);
+  while (n) {
+    ssize_t r = read(fd, c, n);
+    if (r < 0 && errno == EINTR)
+      continue;
+    if (r <= 0)
+      return false;
+    c += r;
+    n -= (size_t)r;
+  }
+  return true;
+}
+
+static bool iso_write_string(int fd, const char *s) {
+  const uint32_t n = (uint32_t)strlen(s);
+  return iso_write(fd, &n, sizeof n) && iso_write(fd, s, n);
+}
+
+/* A string of at most `max` bytes (the child is trusted with nothing). */
+static bool iso_read_string(int fd, std::string &s, uint32_t max) {
+  uint32_t n;
+  if (!iso_read(fd, &n, sizeof n) || n > max)
+    return false;
+  s.resize(n);
+  return n == 0 || iso_read(fd, &s[0], n);
+}
+
+/* --- one job: work in the child, send, receive in the parent ------------------ */
+
+struct iso_job {
+  virtual ~iso_job() {}
+  virtual int work(bk_error_t *err) = 0;        /* child: read the file */
+  virtual bool send(int fd) = 0;                /* child: the result */
+  virtual int recv(int fd, bk_error_t *err) = 0; /* parent: the result, checked; -1 short */
+};
+
+static uint64_t iso_mem_available(void) {
+  FILE *f = fopen("/proc/meminfo", "r");
+  unsigned long long kb = 0;
+  char line[256];
+  while (f && fgets(line, sizeof line, f))
+    if (sscanf(line, "MemAvailable: %llu kB", &kb) == 1)
+      break;
+  if (f)
+    fclose(f);
+  return (uint64_t)kb * 1024u;
+}
+
+static unsigned iso_seconds(const char *path) {
+  struct stat st;
+  const uint64_t size = stat(path, &st) == 0 ? (uint64_t)st.st_size : 0;
+  return ISO_BASE_SECONDS + (unsigned)(size / ISO_BYTES_PER_SECOND);
+}
+
+/* The child's limits; computed in the parent (no allocation after fork). */
+struct iso_limits {
+  uint64_t memory; /* 0: none */
+  unsigned seconds;
+};
+
+static iso_limits iso_limits_for(const char *path) {
+  iso_limits l;
+  l.seconds = iso_seconds(path);
+  l.memory = 0;
+#ifndef ISO_ASAN
+  uint64_t avail = iso_mem_available();
+  if (avail) {
+    l.memory = (avail > ISO_MIN_MEMORY ? avail : ISO_MIN_MEMORY) + ISO_AS_SLACK;
+    struct rlimit cur;
+    if (getrlimit(RLIMIT_AS, &cur) == 0 && cur.rlim_cur != RLIM_INFINITY &&
+        (uint64_t)cur.rlim_cur < l.memory)
+      l.memory = (uint64_t)cur.rlim_cur;
+  }
+#endif
+  return l;
+}
+
+static void iso_apply(const iso_limits &l) {
+  struct rlimit r;
+  r.rlim_cur = r.rlim_max = 0;
+  setrlimit(RLIMIT_CORE, &r); /* a crash is expected; no core file */
+  if (l.memory && getrlimit(RLIMIT_AS, &r) == 0) {
+    r.rlim_cur = (rlim_t)l.memory;
+    setrlimit(RLIMIT_AS, &r);
+  }
+  signal(SIGPIPE, SIG_DFL);
+  signal(SIGALRM, SIG_DFL);
+  alarm(l.seconds);
+}
+
+[[noreturn]] static void iso_child(iso_job &job, int fd, const iso_limits &l) {
+  iso_apply(l);
+  bk_error_t e;
+  memset(&e, 0, sizeof e);
+  int rc;
+  try {
+    rc = job.work(&e);
+  } catch (...) { /* the readers catch everything; this is a last line */
+    rc = bk_fail(&e, BK_ERR_INPUT, "the VDB reader failed");
+  }
+  int32_t head = rc;
+  bool ok = iso_write(fd, &head, sizeof head) && iso_write_string(fd, rc ? e.msg : "");
+  if (ok && !rc)
+    ok = job.send(fd);
+  _exit(ok ? 0 : 3); /* no destructors: the parent owns every resource */
+}
+
+/* Why the child ended without a result, for the message. */
+static std::string iso_why(int status, const iso_limits &l) {
+  char buf[160];
+  if (WIFSIGNALED(status) && WTERMSIG(status) == SIGALRM)
+    snprintf(buf, sizeof buf, "took longer than %u s", l.seconds);
+  else if (WIFSIGNALED(status))
+    snprintf(buf, sizeof buf, "crashed the reader (%s)", strsignal(WTERMSIG(status)));
+  else if (WIFEXITED(status))
+    snprintf(buf, sizeof buf, "stopped the reader (exit %d)", WEXITSTATUS(status));
+  else
+    snprintf(buf, sizeof buf, "stopped the reader");
+  return buf;
+}
+
+static int iso_wait(pid_t pid) {
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  return status;
+}
+
+/* Reads the child's answer: its status and message, then the result. */
+static int iso_parent(iso_job &job, int fd, pid_t pid, const char *path, const iso_limits &l,
+                      bk_error_t *err) {
+  int32_t head;
+  std::string msg;
+  int rc = -1;
+  if (iso_read(fd, &head, sizeof head) && iso_read_string(fd, msg, sizeof err->msg)) {
+    if (head != BK_OK)
+      rc = bk_fail(err, head == BK_ERR_RUNTIME ? BK_ERR_RUNTIME : BK_ERR_INPUT, "%s",
+                   msg.c_str());
+    else
+      rc = job.recv(fd, err);
+  }
+  if (rc > 0) /* a refusal is final; the child may still be writing */
+    kill(pid, SIGKILL);
+  const int status = iso_wait(pid);
+  if (rc >= 0 && (rc != BK_OK || (WIFEXITED(status) && WEXITSTATUS(status) == 0)))
+    return rc;
+  return bk_fail(err, BK_ERR_INPUT,
+                 "%s: the VDB file is corrupt: reading it %s (limits: %.0f MiB of memory, %u s)",
+                 path, iso_why(status, l).c_str(), (double)l.memory / 1048576.0, l.seconds);
+}
+
+static int iso_run(iso_job &job, const char *path, bk_error_t *err) {
+  const iso_limits l = iso_limits_for(path);
+  int fds[2];
+  if (pipe(fds) != 0)
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot create a pipe: %s", path, strerror(errno));
+  fflush(NULL); /* the child must not write the parent's buffered output again */
+  const pid_t pid = fork();
+  if (pid < 0) {
+    close(fds[0]);
+    close(fds[1]);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot start the VDB reader: %s", path,
+                   strerror(errno));
+  }
+  if (pid == 0) {
+    close(fds[0]);
+    iso_child(job, fds[1], l);
+  }
+  close(fds[1]);
+  const int rc = iso_parent(job, fds[0], pid, path, l, err);
+  close(fds[0]);
+  return rc;
+}
+
+/* --- the readers of vdbio.h ----------------------------------------------------- */
+
+/* A dense grid: its description, then its values. */
+struct iso_dense_job : iso_job {
+  const char *path, *name;
+  int pad;
+  const vdbio_dense_t *like; /* NULL: read over its own box */
+  vdbio_dense_t *out;
+  int want_check, checked = 0, found = 0;
+
+  int work(bk_error_t *err) override {
+    if (like)
+      return vdbio_read_dense_like_direct(path, name, like, out, &found, err);
+    found = 1;
+    return vdbio_read_dense_direct(path, name, pad, out, want_check ? &checked : NULL, err);
+  }
+  bool send(int fd) override {
+    int32_t flags[2] = {found, checked};
+    if (!iso_write(fd, flags, sizeof flags) || !iso_write(fd, out, sizeof *out))
+      return false;
+    const size_t n = (size_t)out->nx * out->ny * out->nz * out->channels;
+    return !found || iso_write(fd, out->data, n * sizeof(float));
+  }
+  int recv(int fd, bk_error_t *err) override {
+    int32_t flags[2];
+    if (!iso_read(fd, flags, sizeof flags) || !iso_read(fd, out, sizeof *out))
+      return -1;
+    out->data = NULL;
+    found = flags[0] != 0;
+    checked = flags[1] != 0;
+    if (!found)
+      return BK_OK;
+    const int d[3] = {out->nx, out->ny, out->nz};
+    for (int a = 0; a < 3; a++)
+      if (d[a] < 1 || d[a] > GRID_MAX_AXIS)
+        return -1; /* the child's own checks allow no such box */
+    if (out->channels != 1 && out->channels != 3)
+      return -1;
+    grid_dims_t gd;
+    memset(&gd, 0, sizeof gd);
+    gd.nx = d[0];
+    gd.ny = d[1];
+    gd.nz = d[2];
+    const std::string where = std::string(path) + ": grid \"" + name + "\"";
+    int rc = grid_check_memory(&gd, sizeof(float) * (size_t)out->channels, where.c_str(), err);
+    if (rc)
+      return rc;
+    const size_t n = grid_count(&gd) * (size_t)out->channels;
+    out->data = (float *)bk_calloc(n, sizeof(float), where.c_str(), err);
+    if (!out->data)
+      return BK_ERR_RUNTIME;
+    if (iso_read(fd, out->data, n * sizeof(float)))
+      return BK_OK;
+    vdbio_dense_free(out);
+    return -1;
+  }
+};
+
+static int iso_dense(iso_dense_job &job, vdbio_dense_t *out, bk_error_t *err) {
+  memset(out, 0, sizeof *out);
+  job.out = out;
+  int rc = iso_run(job, job.path, err);
+  if (rc)
+    vdbio_dense_free(out);
+  return rc;
+}
+
+int vdbio_read_dense_verified(const char *path, const char *grid_name, int pad,
+                              vdbio_dense_t *out, int *checked, bk_error_t *err) {
+  if (!path || !grid_name || !out)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_dense: invalid arguments");
+  iso_dense_job job;
+  job.path = path;
+  job.name = grid_name;
+  job.pad = pad;
+  job.like = NULL;
+  job.want_check = checked != NULL;
+  int rc = iso_dense(job, out, err);
+  if (checked)
+    *checked = job.checked;
+  return rc;
+}
+
+int vdbio_read_dense(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
+                     bk_error_t *err) {
+  return vdbio_read_dense_verified(path, grid_name, pad, out, NULL, err);
+}
+
+int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_dense_t *like,
+                          vdbio_dense_t *out, int *found, bk_error_t *err) {
+  if (!path || !grid_name || !like || !out || !found)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_dense_like: invalid arguments");
+  iso_dense_job job;
+  job.path = path;
+  job.name = grid_name;
+  job.pad = 0;
+  job.like = like;
+  job.want_check = 0;
+  int rc = iso_dense(job, out, err);
+  *found = rc ? 0 : job.found;
+  return rc;
+}
+
+/* A caller's array of known size: the child fills its copy of it. */
+struct iso_array_job : iso_job {
+  const char *path, *name, *where;
+  const grid_dims_t *dims;
+  float *out;
+  int work(bk_error_t *err) override {
+    return vdbio_resample_float_direct(path, name, dims, out, where, err);
+  }
+  bool send(int fd) override { return iso_write(fd, out, grid_count(dims) * sizeof(float)); }
+  int recv(int fd, bk_error_t *) override {
+    return iso_read(fd, out, grid_count(dims) * sizeof(float)) ? BK_OK : -1;
+  }
+};
+
+int vdbio_resample_float(const char *path, const char *grid_name, const grid_dims_t *dims,
+                         float *out, const char *where, bk_error_t *err) {
+  if (!path || !dims || !out || dims->nx < 1 || dims->ny < 1 || dims->nz < 1)
+    return vdbio_resample_float_direct(path, grid_name, dims, out, where, err); /* its message */
+  iso_array_job job;
+  job.path = path;
+  job.name = grid_name;
+  job.where = where;
+  job.dims = dims;
+  job.out = out;
+  return iso_run(job, path, err);
+}
+
+/* The grid names and types. */
+struct iso_list_job : iso_job {
+  const char *path;
+  char **names = NULL, **types = NULL;
+  int count = 0;
+  std::vector<std::string> n, t;
+  int work(bk_error_t *err) override {
+    return vdbio_list_grids_direct(path, &names, &types, &count, err);
+  }
+  bool send(int fd) override {
+    int32_t c = count;
+    bool ok = iso_write(fd, &c, sizeof c);
+    for (int i = 0; ok && i < count; i++)
+      ok = iso_write_string(fd, names[i]) && iso_write_string(fd, types[i]);
+    return ok;
+  }
+  int recv(int fd, bk_error_t *) override {
+    int32_t c;
+    if (!iso_read(fd, &c, sizeof c) || c < 0 || c > (1 << 20))
+      return -1;
+    n.resize((size_t)c);
+    t.resize((size_t)c);
+    for (int32_t i = 0; i < c; i++)
+      if (!iso_read_string(fd, n[i], 1u << 16) || !iso_read_string(fd, t[i], 1u << 16))
+        return -1;
+    return BK_OK;
+  }
+};
+
+int vdbio_list_grids(const char *path, char ***names, char ***types, int *count, bk_error_t *err) {
+  if (!path || !names || !count)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_list_grids: invalid arguments");
+  *names = NULL;
+  if (types)
+    *types = NULL;
+  *count = 0;
+  iso_list_job job;
+  job.path = path;
+  int rc = iso_run(job, path, err);
+  if (rc)
+    return rc;
+  const size_t c = job.n.size();
+  char **n = (char **)bk_calloc(c ? c : 1, sizeof(char *), path, err);
+  char **t = (char **)bk_calloc(c ? c : 1, sizeof(char *), path, err);
+  bool ok = n && t;
+  for (size_t i = 0; ok && i < c; i++)
+    ok = (n[i] = strdup(job.n[i].c_str())) && (t[i] = strdup(job.t[i].c_str()));
+  if (!ok) {
+    vdbio_free_names(n, t, n && t ? (int)c : 0);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory listing grids", path);
+  }
+  *names = n;
+  *count = (int)c;
+  if (types)
+    *types = t;
+  else
+    vdbio_free_names(NULL, t, (int)c);
+  return BK_OK;
+}
+
+/* One metadata value as text, into the caller's buffer. */
+struct iso_meta_job : iso_job {
+  const char *path, *key;
+  char *out;
+  size_t len;
+  int work(bk_error_t *err) override { return vdbio_read_meta_direct(path, key, out, len, err); }
+  bool send(int fd) override { return iso_write_string(fd, out); }
+  int recv(int fd, bk_error_t *) override {
+    std::string s;
+    if (!iso_read_string(fd, s, (uint32_t)len))
+      return -1;
+    snprintf(out, len, "%s", s.c_str());
+    return BK_OK;
+  }
+};
+
+int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk_error_t *err) {
+  if (!path || !key || !out || len == 0)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_meta: invalid arguments");
+  out[0] = 0;
+  iso_meta_job job;
+  job.path = path;
+  job.key = key;
+  job.out = out;
+  job.len = len;
+  return iso_run(job, path, err);
+}
