@@ -198,13 +198,40 @@ bool check_coords(const std::string tok[3], int line, const std::string &who, st
   return true;
 }
 
-// OBJ: every "v x y z" line. Returns the number of v lines through *count.
+// An OBJ face line's vertex references ("f 1 2/7 -1//3"): at least one, each
+// starting with its vertex index. OpenMesh 9 asserts (SIGABRT, the process
+// dies) on a face that yields no vertex, e.g. "f" alone or "f /13"
+// (found by fuzz_mesh_obj).
+bool check_obj_face(text_cursor &c, std::string *msg) {
+  int line = c.line, refs = 0;
+  for (std::string t = c.token(false, false); !t.empty(); t = c.token(false, false), refs++) {
+    if (t[0] == '#') break; // a trailing comment
+    size_t d = (t[0] == '-' || t[0] == '+') ? 1 : 0;
+    if (d >= t.size() || !isdigit((unsigned char)t[d])) {
+      *msg = std::to_string(line) + ": face vertex \"" + t.substr(0, 40) +
+             "\" does not start with a vertex number";
+      return false;
+    }
+  }
+  if (refs == 0) *msg = std::to_string(line) + ": face without vertices";
+  return refs > 0;
+}
+
+bool is_obj_keyword(const char *p, char k) {
+  return p[0] == k && (p[1] == ' ' || p[1] == '\t' || p[1] == '\r' || p[1] == '\n' || !p[1]);
+}
+
+// OBJ: every "v x y z" and "f ..." line. Returns the number of v lines
+// through *count.
 bool prescan_obj(const char *text, int *count, std::string *msg) {
   text_cursor c{text, 1};
   int n = 0;
   while (*c.p) {
     c.skip_space_in_line();
-    if (c.p[0] == 'v' && (c.p[1] == ' ' || c.p[1] == '\t')) {
+    if (is_obj_keyword(c.p, 'f')) {
+      c.p++;
+      if (!check_obj_face(c, msg)) return false;
+    } else if (c.p[0] == 'v' && (c.p[1] == ' ' || c.p[1] == '\t')) {
       int line = c.line;
       c.p++;
       n++;
@@ -277,7 +304,12 @@ bool prescan_ply(const char *text, std::string *msg) {
   bool ascii = false;
   for (;;) {
     c.skip_space(false);
-    if (!*c.p) return true; // no end_header: OpenMesh reports it
+    // OpenMesh 9 loops forever on a header without end_header (found by
+    // fuzz_mesh_ply_*); a NUL byte ends the header text here as well.
+    if (!*c.p) {
+      *msg = std::to_string(c.line) + ": the PLY header has no end_header line";
+      return false;
+    }
     std::string kw = c.token(false, false);
     if (kw == "format") {
       ascii = c.token(false, false) == "ascii";
