@@ -249,10 +249,48 @@ bool prescan_obj(const char *text, int *count, std::string *msg) {
 // ASCII OFF: header "OFF" (or COFF, NOFF, CNOFF...), counts, then vertices.
 // Vertex numbers are 0-based, as OFF faces use them. OpenMesh's OFF reader
 // knows no '#' comments (it reads garbage after one), so they are refused.
-bool prescan_off(const char *text, std::string *msg) {
+// An OFF keyword: [ST][C][N][4][n]OFF, in that order.
+bool is_off_keyword(const std::string &head) {
+  static const char *const prefixes[] = {"ST", "C", "N", "4", "n"};
+  size_t at = 0;
+  for (const char *pre : prefixes)
+    if (head.compare(at, strlen(pre), pre) == 0) at += strlen(pre);
+  return head.compare(at, std::string::npos, "OFF") == 0;
+}
+
+bool is_count(const std::string &tok) {
+  if (tok.empty() || tok.size() > 10) return false;
+  for (char ch : tok)
+    if (!isdigit((unsigned char)ch)) return false;
+  return true;
+}
+
+// OpenMesh reserves memory for the declared counts before it reads a vertex
+// (fuzz_mesh_off: a garbled header made it ask for 4.7 GB), so the counts
+// must fit in the file: a vertex takes at least 6 bytes ("0 0 0\n"), a
+// face 4 ("1 0\n").
+bool check_off_counts(const std::string counts[3], size_t len, int line, std::string *msg) {
+  if (!is_count(counts[0]) || !is_count(counts[1]) || !is_count(counts[2])) {
+    *msg = std::to_string(line) + ": expected three counts after the OFF header, found \"" +
+           counts[0].substr(0, 20) + " " + counts[1].substr(0, 20) + " " +
+           counts[2].substr(0, 20) + "\"";
+    return false;
+  }
+  double need = 6.0 * atof(counts[0].c_str()) + 4.0 * atof(counts[1].c_str());
+  if (need <= (double)len) return true;
+  *msg = std::to_string(line) + ": " + counts[0] + " vertices and " + counts[1] +
+         " faces cannot fit in a file of " + std::to_string(len) + " bytes";
+  return false;
+}
+
+bool prescan_off(const char *text, size_t len, std::string *msg) {
   text_cursor c{text, 1};
   std::string head = c.token(true, false);
-  if (head.size() < 3 || head.compare(head.size() - 3, 3, "OFF") != 0) return true; // OpenMesh decides
+  if (!is_off_keyword(head)) {
+    *msg = std::to_string(c.line) + ": expected an OFF header ([ST][C][N][4][n]OFF), found \"" +
+           head.substr(0, 20) + "\"";
+    return false;
+  }
   if (head.find('4') != std::string::npos || head.find('n') != std::string::npos) return true;
   const char *save = c.p;
   int save_line = c.line;
@@ -268,6 +306,7 @@ bool prescan_off(const char *text, std::string *msg) {
       return false;
     }
   }
+  if (!check_off_counts(counts, len, c.line, msg)) return false;
   double nv = 0;
   if (!parse_number(counts[0], &nv) || nv < 0 || nv > 1e9) return true; // OpenMesh reports it
   for (long i = 0; i < (long)nv; i++) {
@@ -424,7 +463,7 @@ int prescan_file(const char *path, mesh_format fmt, int *obj_vertex_lines, bk_er
   bool ok = true;
   switch (fmt) {
   case FMT_OBJ: ok = prescan_obj(text, obj_vertex_lines, &msg); break;
-  case FMT_OFF: ok = prescan_off(text, &msg); break;
+  case FMT_OFF: ok = prescan_off(text, len, &msg); break;
   case FMT_PLY: ok = prescan_ply(text, &msg); break;
   case FMT_STL: ok = prescan_stl(text, len, &msg); break;
   default: break;
