@@ -453,6 +453,16 @@ bool prescan_stl(const char *text, size_t len, std::string *msg) {
 // Missing or unreadable files are named here, before OpenMesh tries, and the
 // same read feeds the pre-scan; an OBJ's "v" lines are counted into
 // obj_vertex_lines so that vertices OpenMesh drops can be noticed.
+// A text format's pre-scan stops at a NUL byte while OpenMesh reads on, so
+// an OBJ (text only) with one is refused (fuzz_mesh_obj hid a bad face
+// behind one).
+bool no_nul(const char *text, size_t len, std::string *msg) {
+  const char *nul = (const char *)memchr(text, 0, len);
+  if (!nul) return true;
+  *msg = " a NUL byte at offset " + std::to_string(nul - text) + " (not a text file)";
+  return false;
+}
+
 int prescan_file(const char *path, mesh_format fmt, int *obj_vertex_lines, bk_error_t *err) {
   char *text = nullptr;
   size_t len = 0;
@@ -462,7 +472,7 @@ int prescan_file(const char *path, mesh_format fmt, int *obj_vertex_lines, bk_er
   std::string msg;
   bool ok = true;
   switch (fmt) {
-  case FMT_OBJ: ok = prescan_obj(text, obj_vertex_lines, &msg); break;
+  case FMT_OBJ: ok = no_nul(text, len, &msg) && prescan_obj(text, obj_vertex_lines, &msg); break;
   case FMT_OFF: ok = prescan_off(text, len, &msg); break;
   case FMT_PLY: ok = prescan_ply(text, &msg); break;
   case FMT_STL: ok = prescan_stl(text, len, &msg); break;
