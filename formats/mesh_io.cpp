@@ -325,6 +325,18 @@ bool prescan_off(const char *text, size_t len, std::string *msg) {
   return true;
 }
 
+// OpenMesh 9 loops forever, its error messages piling up, on a header line
+// it cannot parse (fuzz_mesh_ply_ascii: "property flotex_indices").
+bool is_ply_type(const std::string &t) {
+  static const char *const types[] = {"char",  "uchar",  "short",   "ushort",  "int",
+                                      "uint",  "float",  "double",  "int8",    "uint8",
+                                      "int16", "uint16", "int32",   "uint32",  "float32",
+                                      "float64"};
+  for (const char *k : types)
+    if (t == k) return true;
+  return false;
+}
+
 // ASCII PLY: the x, y, z properties of the "vertex" element; elements before it
 // are skipped token by token (list properties carry their own count).
 bool prescan_ply(const char *text, std::string *msg) {
@@ -363,15 +375,20 @@ bool prescan_ply(const char *text, std::string *msg) {
       std::string type = c.token(false, false);
       prop pr;
       pr.list = type == "list";
-      if (pr.list) {
-        c.token(false, false);
-        c.token(false, false);
-      }
+      bool typed = pr.list ? is_ply_type(c.token(false, false)) && is_ply_type(c.token(false, false))
+                           : is_ply_type(type);
       pr.name = c.token(false, false);
+      if (!typed || pr.name.empty()) {
+        *msg = std::to_string(c.line) + ": a PLY property needs a known type and a name";
+        return false;
+      }
       elems.back().props.push_back(pr);
     } else if (kw == "end_header") {
       c.next_line();
       break;
+    } else if (kw != "format" && kw != "comment" && kw != "obj_info") {
+      *msg = std::to_string(c.line) + ": unknown PLY header line \"" + kw.substr(0, 20) + "\"";
+      return false;
     }
     c.next_line();
   }
