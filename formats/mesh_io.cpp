@@ -198,13 +198,40 @@ bool check_coords(const std::string tok[3], int line, const std::string &who, st
   return true;
 }
 
-// OBJ: every "v x y z" line. Returns the number of v lines through *count.
+// An OBJ face line's vertex references ("f 1 2/7 -1//3"): at least one, each
+// starting with its vertex index. OpenMesh 9 asserts (SIGABRT, the process
+// dies) on a face that yields no vertex, e.g. "f" alone or "f /13"
+// (found by fuzz_mesh_obj).
+bool check_obj_face(text_cursor &c, std::string *msg) {
+  int line = c.line, refs = 0;
+  for (std::string t = c.token(false, false); !t.empty(); t = c.token(false, false), refs++) {
+    if (t[0] == '#') break; // a trailing comment
+    size_t d = (t[0] == '-' || t[0] == '+') ? 1 : 0;
+    if (d >= t.size() || !isdigit((unsigned char)t[d])) {
+      *msg = std::to_string(line) + ": face vertex \"" + t.substr(0, 40) +
+             "\" does not start with a vertex number";
+      return false;
+    }
+  }
+  if (refs == 0) *msg = std::to_string(line) + ": face without vertices";
+  return refs > 0;
+}
+
+bool is_obj_keyword(const char *p, char k) {
+  return p[0] == k && (p[1] == ' ' || p[1] == '\t' || p[1] == '\r' || p[1] == '\n' || !p[1]);
+}
+
+// OBJ: every "v x y z" and "f ..." line. Returns the number of v lines
+// through *count.
 bool prescan_obj(const char *text, int *count, std::string *msg) {
   text_cursor c{text, 1};
   int n = 0;
   while (*c.p) {
     c.skip_space_in_line();
-    if (c.p[0] == 'v' && (c.p[1] == ' ' || c.p[1] == '\t')) {
+    if (is_obj_keyword(c.p, 'f')) {
+      c.p++;
+      if (!check_obj_face(c, msg)) return false;
+    } else if (c.p[0] == 'v' && (c.p[1] == ' ' || c.p[1] == '\t')) {
       int line = c.line;
       c.p++;
       n++;
@@ -222,10 +249,48 @@ bool prescan_obj(const char *text, int *count, std::string *msg) {
 // ASCII OFF: header "OFF" (or COFF, NOFF, CNOFF...), counts, then vertices.
 // Vertex numbers are 0-based, as OFF faces use them. OpenMesh's OFF reader
 // knows no '#' comments (it reads garbage after one), so they are refused.
-bool prescan_off(const char *text, std::string *msg) {
+// An OFF keyword: [ST][C][N][4][n]OFF, in that order.
+bool is_off_keyword(const std::string &head) {
+  static const char *const prefixes[] = {"ST", "C", "N", "4", "n"};
+  size_t at = 0;
+  for (const char *pre : prefixes)
+    if (head.compare(at, strlen(pre), pre) == 0) at += strlen(pre);
+  return head.compare(at, std::string::npos, "OFF") == 0;
+}
+
+bool is_count(const std::string &tok) {
+  if (tok.empty() || tok.size() > 10) return false;
+  for (char ch : tok)
+    if (!isdigit((unsigned char)ch)) return false;
+  return true;
+}
+
+// OpenMesh reserves memory for the declared counts before it reads a vertex
+// (fuzz_mesh_off: a garbled header made it ask for 4.7 GB), so the counts
+// must fit in the file: a vertex takes at least 6 bytes ("0 0 0\n"), a
+// face 4 ("1 0\n").
+bool check_off_counts(const std::string counts[3], size_t len, int line, std::string *msg) {
+  if (!is_count(counts[0]) || !is_count(counts[1]) || !is_count(counts[2])) {
+    *msg = std::to_string(line) + ": expected three counts after the OFF header, found \"" +
+           counts[0].substr(0, 20) + " " + counts[1].substr(0, 20) + " " +
+           counts[2].substr(0, 20) + "\"";
+    return false;
+  }
+  double need = 6.0 * atof(counts[0].c_str()) + 4.0 * atof(counts[1].c_str());
+  if (need <= (double)len) return true;
+  *msg = std::to_string(line) + ": " + counts[0] + " vertices and " + counts[1] +
+         " faces cannot fit in a file of " + std::to_string(len) + " bytes";
+  return false;
+}
+
+bool prescan_off(const char *text, size_t len, std::string *msg) {
   text_cursor c{text, 1};
   std::string head = c.token(true, false);
-  if (head.size() < 3 || head.compare(head.size() - 3, 3, "OFF") != 0) return true; // OpenMesh decides
+  if (!is_off_keyword(head)) {
+    *msg = std::to_string(c.line) + ": expected an OFF header ([ST][C][N][4][n]OFF), found \"" +
+           head.substr(0, 20) + "\"";
+    return false;
+  }
   if (head.find('4') != std::string::npos || head.find('n') != std::string::npos) return true;
   const char *save = c.p;
   int save_line = c.line;
@@ -241,6 +306,7 @@ bool prescan_off(const char *text, std::string *msg) {
       return false;
     }
   }
+  if (!check_off_counts(counts, len, c.line, msg)) return false;
   double nv = 0;
   if (!parse_number(counts[0], &nv) || nv < 0 || nv > 1e9) return true; // OpenMesh reports it
   for (long i = 0; i < (long)nv; i++) {
@@ -257,6 +323,18 @@ bool prescan_off(const char *text, std::string *msg) {
     c.next_line(); // normals, colours and texture coordinates follow on the line
   }
   return true;
+}
+
+// OpenMesh 9 loops forever, its error messages piling up, on a header line
+// it cannot parse (fuzz_mesh_ply_ascii: "property flotex_indices").
+bool is_ply_type(const std::string &t) {
+  static const char *const types[] = {"char",  "uchar",  "short",   "ushort",  "int",
+                                      "uint",  "float",  "double",  "int8",    "uint8",
+                                      "int16", "uint16", "int32",   "uint32",  "float32",
+                                      "float64"};
+  for (const char *k : types)
+    if (t == k) return true;
+  return false;
 }
 
 // ASCII PLY: the x, y, z properties of the "vertex" element; elements before it
@@ -277,7 +355,12 @@ bool prescan_ply(const char *text, std::string *msg) {
   bool ascii = false;
   for (;;) {
     c.skip_space(false);
-    if (!*c.p) return true; // no end_header: OpenMesh reports it
+    // OpenMesh 9 loops forever on a header without end_header (found by
+    // fuzz_mesh_ply_*); a NUL byte ends the header text here as well.
+    if (!*c.p) {
+      *msg = std::to_string(c.line) + ": the PLY header has no end_header line";
+      return false;
+    }
     std::string kw = c.token(false, false);
     if (kw == "format") {
       ascii = c.token(false, false) == "ascii";
@@ -292,15 +375,20 @@ bool prescan_ply(const char *text, std::string *msg) {
       std::string type = c.token(false, false);
       prop pr;
       pr.list = type == "list";
-      if (pr.list) {
-        c.token(false, false);
-        c.token(false, false);
-      }
+      bool typed = pr.list ? is_ply_type(c.token(false, false)) && is_ply_type(c.token(false, false))
+                           : is_ply_type(type);
       pr.name = c.token(false, false);
+      if (!typed || pr.name.empty()) {
+        *msg = std::to_string(c.line) + ": a PLY property needs a known type and a name";
+        return false;
+      }
       elems.back().props.push_back(pr);
     } else if (kw == "end_header") {
       c.next_line();
       break;
+    } else if (kw != "format" && kw != "comment" && kw != "obj_info") {
+      *msg = std::to_string(c.line) + ": unknown PLY header line \"" + kw.substr(0, 20) + "\"";
+      return false;
     }
     c.next_line();
   }
@@ -382,6 +470,16 @@ bool prescan_stl(const char *text, size_t len, std::string *msg) {
 // Missing or unreadable files are named here, before OpenMesh tries, and the
 // same read feeds the pre-scan; an OBJ's "v" lines are counted into
 // obj_vertex_lines so that vertices OpenMesh drops can be noticed.
+// A text format's pre-scan stops at a NUL byte while OpenMesh reads on, so
+// an OBJ (text only) with one is refused (fuzz_mesh_obj hid a bad face
+// behind one).
+bool no_nul(const char *text, size_t len, std::string *msg) {
+  const char *nul = (const char *)memchr(text, 0, len);
+  if (!nul) return true;
+  *msg = " a NUL byte at offset " + std::to_string(nul - text) + " (not a text file)";
+  return false;
+}
+
 int prescan_file(const char *path, mesh_format fmt, int *obj_vertex_lines, bk_error_t *err) {
   char *text = nullptr;
   size_t len = 0;
@@ -391,8 +489,8 @@ int prescan_file(const char *path, mesh_format fmt, int *obj_vertex_lines, bk_er
   std::string msg;
   bool ok = true;
   switch (fmt) {
-  case FMT_OBJ: ok = prescan_obj(text, obj_vertex_lines, &msg); break;
-  case FMT_OFF: ok = prescan_off(text, &msg); break;
+  case FMT_OBJ: ok = no_nul(text, len, &msg) && prescan_obj(text, obj_vertex_lines, &msg); break;
+  case FMT_OFF: ok = prescan_off(text, len, &msg); break;
   case FMT_PLY: ok = prescan_ply(text, &msg); break;
   case FMT_STL: ok = prescan_stl(text, len, &msg); break;
   default: break;

@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# ctest's fuzz cases (tests/fuzz.cmake).
+#   ctest_fuzz.sh short BINDIR TARGET TESTDIR WORKDIR SECONDS
+#     a short libFuzzer run of TARGET from its seed corpus (fixed seed);
+#     exit 77 (skipped) when the target was not built: clang's libFuzzer is
+#     missing or BAKER_FUZZ is off.
+#   ctest_fuzz.sh replay REPLAY-BINARY TARGET TESTDIR
+#     every saved input under tests/data/fuzz/TARGET through the target's
+#     code built without libFuzzer (a crash fails the test).
+set -u
+mode=$1
+if [ "$mode" = replay ]; then
+  bin=$2 target=$3 testdir=$4
+  dir=$testdir/data/fuzz/$target
+  inputs=$(find "$dir" -type f 2>/dev/null | sort)
+  [ -n "$inputs" ] || { echo "no saved inputs for $target under $dir"; exit 0; }
+  # shellcheck disable=SC2086
+  exec "$bin" $inputs
+fi
+
+bindir=$2 target=$3 testdir=$4 work=$5 seconds=$6
+if [ ! -x "$bindir/$target" ]; then
+  echo "SKIPPED: $target not built: clang's libFuzzer (clang -fsanitize=fuzzer) was not usable at configure time, or BAKER_FUZZ=OFF"
+  exit 77
+fi
+run=$work/$target
+rm -rf "$run" && mkdir -p "$run/corpus" "$run/crashes"
+cp "$testdir/fuzz/corpus/$target"/* "$run/corpus/"
+"$bindir/$target" -seed=1 -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+  -print_final_stats=1 -artifact_prefix="$run/crashes/" "$run/corpus" >"$run/log" 2>&1
+rc=$?
+tail -n 12 "$run/log"
+# Known OpenVDB bugs on corrupt input (issue 17 item 2, the VDB read path,
+# fixed apart): blosc data overflowing a heap buffer in bloscFromStream, and
+# corrupt zip/blosc sizes making OpenVDB's io code allocate gigabytes. They
+# do not fail the short run; the input is kept and the finding printed.
+known_openvdb() {
+  [ "$target" = fuzz_vdb ] || return 1
+  grep -q 'bloscFromStream' "$run/log" && return 0
+  grep -q 'out-of-memory' "$run/log" && grep -q 'openvdb::.*io::' "$run/log"
+}
+if [ $rc -ne 0 ] && known_openvdb; then
+  echo "KNOWN OpenVDB bug, not failing this run (issue 17 item 2; docs/reliability.md):"
+  grep -m 5 -E '^(==.*ERROR|SUMMARY)' "$run/log"
+  exit 0
+fi
+if [ $rc -ne 0 ]; then
+  echo "FAILED: $target found a crash (rc $rc); full log $run/log, input in $run/crashes/"
+  grep -m 40 -E '^(==|SUMMARY|    #[0-9]+ )' "$run/log"
+fi
+exit $rc
