@@ -57,10 +57,13 @@ static int choose_frames(const bake_options_t *opt, frames_list_t *list, bk_erro
     rc = frames_parse_list("0", "frame", list, err);
   }
   if (rc) return rc;
-  if (list->count > 1 && !patterned)
-    return bk_fail(err, BK_ERR_INPUT,
-                   "%s: %d frames would all write this one file; put #### or $F4 in the "
-                   "output path", opt->out_path, list->count);
+  if (list->count > 1 && !patterned) {
+    bk_fail(err, BK_ERR_INPUT,
+            "%s: %d frames would all write this one file; put #### or $F4 in the "
+            "output path", opt->out_path, list->count);
+    frames_list_free(list); /* the caller frees the list only on success */
+    return BK_ERR_INPUT;
+  }
   return BK_OK;
 }
 
