@@ -10,7 +10,8 @@ cd "$(dirname "$0")/.."
 root=$PWD
 supp=$root/tests/sanitizers
 
-cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBAKER_SANITIZE=ON >/dev/null
+# the fuzz targets are ASan builds of their own already (tests/fuzz.cmake, run by scripts/test.sh)
+cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBAKER_SANITIZE=ON -DBAKER_FUZZ=OFF >/dev/null
 cmake --build build-asan -j"$(nproc)"
 
 # Options, read by every sanitized process the tests start (baker, test_*):
