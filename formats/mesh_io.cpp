@@ -367,8 +367,14 @@ bool prescan_ply(const char *text, std::string *msg) {
     } else if (kw == "element") {
       element e;
       e.name = c.token(false, false);
+      std::string count = c.token(false, false);
       double n = 0;
-      if (!parse_number(c.token(false, false), &n) || n < 0) return true;
+      /* OpenMesh reads "nan" or "-1" as a huge count and reserves for it */
+      if (!parse_number(count, &n) || !(n >= 0) || n != std::floor(n)) {
+        *msg = std::to_string(c.line) + ": element " + e.name +
+               ": the count must be a whole number >= 0, found '" + count + "'";
+        return false;
+      }
       e.count = (long)n;
       elems.push_back(e);
     } else if (kw == "property" && !elems.empty()) {
@@ -451,7 +457,18 @@ bool prescan_stl(const char *text, size_t len, std::string *msg) {
     }
   }
   text_cursor c{text, 1};
-  if (c.token(true, false) != "solid") return true;
+  if (c.token(true, false) != "solid") {
+    /* binary by its header, but the facet count does not match the size:
+     * OpenMesh reads nothing and would only say "no triangles" */
+    uint32_t n = 0;
+    if (len >= 84) memcpy(&n, text + 80, 4);
+    *msg = len < 84 ? " too short for a binary STL (" + std::to_string(len) + " bytes, at least 84)"
+                    : " binary STL declares " + std::to_string(n) + " facets (" +
+                          std::to_string(84 + 50 * (uint64_t)n) + " bytes) but is " +
+                          std::to_string(len) + " bytes long, room for " +
+                          std::to_string((len - 84) / 50) + " facets";
+    return false;
+  }
   long k = 0;
   for (;;) {
     std::string t = c.token(true, false);

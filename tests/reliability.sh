@@ -74,6 +74,23 @@ case "$CASE" in
     done
     [ -e out.vdb ] && fail "an output was written"
     echo "ok: $(cat err.txt)";;
+  mesh_headers)
+    # audit item 5: a PLY header "element face nan" made the bake allocate
+    # 19 GB for a minute; a binary STL claiming 1e8 facets but holding 2 was
+    # reported as "contains no triangles"
+    printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face nan\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > bad.ply
+    python3 -c "
+import struct, sys
+tri = struct.pack('<12fH', 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0)
+open('bad.stl', 'wb').write(b'x' * 80 + struct.pack('<I', 100000000) + tri * 2)"
+    for m in ply stl; do
+      sed "s|\"mesh\": \"[^\"]*\"|\"mesh\": \"$PWD/bad.$m\"|" "$SCENES/cube.json" > scene.json
+      t0=$(date +%s%N); bake -o out.vdb 2> err.txt; rc=$?; ms=$(( ($(date +%s%N) - t0) / 1000000 ))
+      [ $rc = 2 ] || fail "$m: exit $rc, expected 2: $(cat err.txt)"
+      [ $ms -lt 5000 ] || fail "$m: refusal took $ms ms"
+      echo "ok ($ms ms): $(cat err.txt)"
+    done
+    grep -q "bad.stl: binary STL declares 100000000 facets" err.txt || fail "stl message";;
   coarse_step)
     bake -o out.vdb --step 50 2> err.txt; rc=$?
     [ $rc = 0 ] || fail "exit $rc: $(cat err.txt)"

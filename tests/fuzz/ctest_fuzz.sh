@@ -26,7 +26,7 @@ fi
 run=$work/$target
 rm -rf "$run" && mkdir -p "$run/corpus" "$run/crashes"
 cp "$testdir/fuzz/corpus/$target"/* "$run/corpus/"
-"$bindir/$target" -seed=1 -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+"$bindir/$target" -seed=1 -runs=1500 -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
   -print_final_stats=1 -artifact_prefix="$run/crashes/" "$run/corpus" >"$run/log" 2>&1
 rc=$?
 tail -n 12 "$run/log"
@@ -37,8 +37,25 @@ tail -n 12 "$run/log"
 known_openvdb() {
   [ "$target" = fuzz_vdb ] || return 1
   grep -q 'bloscFromStream' "$run/log" && return 0
+  # the parent waiting for its isolated reader (formats/vdbio_isolate.cpp),
+  # whose child OpenVDB keeps busy on corrupt data until the reader's own
+  # time limit; under ASan the child has no memory limit to stop it sooner
+  grep -q 'libFuzzer: timeout' "$run/log" && grep -q 'iso_read\|iso_wait' "$run/log" && return 0
   grep -q 'out-of-memory' "$run/log" && grep -q 'openvdb::.*io::' "$run/log"
 }
+# Known OpenMesh reader faults on corrupt headers the pre-scan does not yet
+# catch (docs/reliability.md, "What remains"): a PLY header it loops on, an
+# OFF or PLY count it reserves gigabytes for. A timeout or out-of-memory
+# inside OpenMesh does not fail the short run; a crash still does.
+known_openmesh() {
+  case $target in fuzz_mesh_*) ;; *) return 1 ;; esac
+  grep -qE 'libFuzzer: (timeout|out-of-memory)' "$run/log" && grep -q 'OpenMesh' "$run/log"
+}
+if [ $rc -ne 0 ] && known_openmesh; then
+  echo "KNOWN OpenMesh reader fault, not failing this run (docs/reliability.md):"
+  grep -m 3 -E '^(==.*ERROR|SUMMARY)' "$run/log"
+  exit 0
+fi
 if [ $rc -ne 0 ] && known_openvdb; then
   echo "KNOWN OpenVDB bug, not failing this run (issue 17 item 2; docs/reliability.md):"
   grep -m 5 -E '^(==.*ERROR|SUMMARY)' "$run/log"
