@@ -32,9 +32,9 @@ static const char *scene_dir, *out_dir;
 static char scene_path[1024];
 
 static char *path_of(const char *name) {
-  static char buf[8][1024];
+  static char buf[64][1024]; /* a ring: the callers keep a few at once */
   static int next;
-  char *p = buf[next++ % 8];
+  char *p = buf[next++ % 64];
   snprintf(p, 1024, "%s/%s", out_dir, name);
   return p;
 }
