@@ -129,7 +129,8 @@ static int check_complete(const merge_shard_t *sh, int n, bk_error_t *err) {
     for (long long k = 1; k <= N && at + 24 < sizeof missing; k++) {
       int seen = 0;
       for (int i = 0; i < n; i++) seen |= sh[i].index == k;
-      if (!seen) at += (size_t)snprintf(missing + at, sizeof missing - at, "%s%lld", at ? ", " : "", k);
+      if (!seen)
+        at += (size_t)snprintf(missing + at, sizeof missing - at, "%s%lld", at ? ", " : "", k);
     }
     return bk_fail(err, BK_ERR_INPUT, "%d of %lld shards given: missing shard(s) %s of %lld "
                    "(from %s)", n, N, missing, N, sh[0].path);
@@ -392,7 +393,8 @@ int merge_main(int argc, char **argv) {
     else if (c == CMD_POSITIONAL) sh[n++].path = p.arg;
   }
   if (!rc && (!out || n == 0)) {
-    fprintf(stderr, "baker merge: %s\n\n", !out ? "no output given (-o OUT.vdb)" : "no shards given");
+    fprintf(stderr, "baker merge: %s\n\n",
+            !out ? "no output given (-o OUT.vdb)" : "no shards given");
     merge_usage(stderr);
     rc = BK_ERR_INPUT;
   } else if (!rc) {

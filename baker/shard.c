@@ -62,7 +62,8 @@ int shard_march(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   ao.sums = &sh->sums;
   ao.first = sh->first;
   ao.last = sh->last;
-  snprintf(sh->filter, sizeof sh->filter, "filter=%d max_radius=%a noise_k=%a alpha=%a radius_grid=%d",
+  snprintf(sh->filter, sizeof sh->filter,
+           "filter=%d max_radius=%a noise_k=%a alpha=%a radius_grid=%d",
            ao.filter, (double)ao.max_radius, (double)ao.noise_k, (double)scene->alpha,
            opt->write_filter_radius ? 1 : 0);
   int rc = ad_bake(cl, scene, vol, &ao, NULL, NULL, NULL, NULL, astats, timings, err);

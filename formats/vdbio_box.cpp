@@ -104,7 +104,9 @@ int vdbio_read_meta_all_direct(const char *path, vdbio_meta_entry_t **entries, i
     vdb::MetaMap::Ptr meta = file.getMetadata();
     file.close();
     std::vector<vdbio_meta_entry_t> got;
-    for (auto it = meta ? meta->beginMeta() : vdb::MetaMap::MetaIterator(); meta && it != meta->endMeta(); ++it) {
+    if (!meta)
+      meta.reset(new vdb::MetaMap);
+    for (auto it = meta->beginMeta(); it != meta->endMeta(); ++it) {
       vdbio_meta_entry_t e;
       std::memset(&e, 0, sizeof e);
       std::snprintf(e.key, sizeof e.key, "%s", it->first.c_str());
