@@ -78,6 +78,11 @@ static int read_shard(merge_shard_t *s, bk_error_t *err) {
       return bk_fail(err, BK_ERR_INPUT, "%s: not a photon shard (%s missing or not a number)",
                      s->path, ints[i].key);
   }
+  if (s->count < 1 || s->count > SHARD_MAX_COUNT || s->photons < 0 || s->first < 0 ||
+      s->last < s->first)
+    return bk_fail(err, BK_ERR_INPUT, "%s: shard %lld/%lld of photons [%lld, %lld) of %lld: "
+                   "not a shard this baker writes", s->path, s->index, s->count, s->first,
+                   s->last, s->photons);
   if (s->stride < 1 || s->stride > SHARD_MAX_STRIDE || (s->channels != 1 && s->channels != 3))
     return bk_fail(err, BK_ERR_INPUT, "%s: shard_sum_stride %lld / shard_sum_channels %lld: "
                    "not a layout this baker writes", s->path, s->stride, s->channels);
