@@ -17,10 +17,10 @@
  * march's accumulator a Vec3f grid `shard_sum_S` holding the 64-bit sum as
  * three floats of 22, 22 and 20 bits (whole numbers below 2^22: exact in a
  * float, never -0 or NaN, so the writer's sparse grids and checksums keep
- * them bit for bit). Its metadata (SHARD_KEYS in shard.c, documented in
- * docs/farm.md) records the shard, the photon range, a key that hashes the
- * scene and the settings that change the result, and the scales that turn
- * sums into radiance. */
+ * them bit for bit). Its metadata (shard_meta; the keys are listed in
+ * README.md, "One frame on many machines") records the shard, the photon
+ * range, a key that hashes the scene and the settings that change the
+ * result, and the scales that turn sums into radiance. */
 #ifndef BAKER_SHARD_H
 #define BAKER_SHARD_H
 
