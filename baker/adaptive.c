@@ -142,6 +142,7 @@ typedef struct ad_run {
   float *tables;          /* one PDF table per light (at least one) */
   double pdf_min, pdf_max;
   int filter_on;
+  float alpha;            /* adaptive.alpha */
   double grey_k;          /* a grey march's radiance per counter, summed over RGB */
   float *raw;             /* the weighted march's radiance before the filter */
 } ad_run_t;
@@ -293,35 +294,20 @@ error:
   return rc;
 }
 
-/* Phase 2: warped Hammersley photons of weight 1/pdf. Out: the photon count
+/* After the weighted march: its sums acc unpacked into the photon count
  * and mean weight per voxel, and the radiance (r->raw, the march's channels,
  * when the filter follows; else `radiance`, RGB). */
-static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *weight,
-                          bk_error_t *err) {
-  ad_stats_t *stats = r->stats;
+static int unpack_phase(ad_run_t *r, const uint64_t *acc, float *radiance, float *count,
+                        float *weight, bk_error_t *err) {
   const size_t V = r->base.voxels;
-  double t0 = bk_now_ms();
-  int rc = pm_derive(&r->base, r->scene, (uint64_t)r->scene->photon_count, &r->main, err);
-  if (rc != BK_OK) return rc;
-  rc = pm_sample_tables(&r->main, r->tables, 1.0 / r->pdf_min, err);
-  if (rc != BK_OK) return rc;
-  stats->ms_generate += bk_now_ms() - t0;
-  t0 = bk_now_ms();
-  uint64_t *acc = bk_calloc(pm_acc_count(&r->main), sizeof(uint64_t), "adaptive accumulator", err);
-  if (!acc) return BK_ERR_RUNTIME;
-  if (r->main.lights.count > 0) {
-    rc = run_march(r->cl, &r->main, acc, &stats->march, err);
-    if (rc != BK_OK) goto error;
-  }
   const int C = r->main.channels;
-  r->filter_on = r->opt->filter && r->scene->alpha > 0.0f && r->levels > 0;
+  r->filter_on = r->opt->filter && r->alpha > 0.0f && r->levels > 0;
   /* grey: the filter works on the one channel the march carried (its
    * luminance is proportional), and colours the result after */
   r->grey_k = r->main.to_radiance[0] + r->main.to_radiance[1] + r->main.to_radiance[2];
-  rc = BK_ERR_RUNTIME;
   if (r->filter_on) {
     r->raw = bk_calloc(V, (size_t)C * sizeof(float), "adaptive raw radiance", err);
-    if (!r->raw) goto error;
+    if (!r->raw) return BK_ERR_RUNTIME;
     if (C == 1) {
       scale_job_t job = {acc, NULL, r->raw, {(float)r->grey_k, 0.0f, 0.0f}};
       bk_parallel(V, BK_GRAIN, grey_range, &job);
@@ -331,8 +317,36 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
     pm_to_radiance(&r->main, acc, radiance);
   }
   pm_unpack_weights(&r->main, acc, count, weight);
+  return BK_OK;
+}
+
+/* Phase 2: warped Hammersley photons of weight 1/pdf, then unpack_phase;
+ * a shard (r->opt->sums) marches its range and keeps the sums instead. */
+static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *weight,
+                          bk_error_t *err) {
+  ad_stats_t *stats = r->stats;
+  pm_sums_t *shard = r->opt->sums;
+  double t0 = bk_now_ms();
+  int rc = pm_derive(&r->base, r->scene, (uint64_t)r->scene->photon_count, &r->main, err);
+  if (rc != BK_OK) return rc;
+  rc = pm_sample_tables(&r->main, r->tables, 1.0 / r->pdf_min, err);
+  if (rc != BK_OK) return rc;
+  if (shard) pm_set_range(&r->main, r->opt->first, r->opt->last);
+  stats->ms_generate += bk_now_ms() - t0;
+  t0 = bk_now_ms();
+  uint64_t *acc = bk_calloc(pm_acc_count(&r->main), sizeof(uint64_t), "adaptive accumulator", err);
+  if (!acc) return BK_ERR_RUNTIME;
+  if (r->main.lights.count > 0) {
+    rc = run_march(r->cl, &r->main, acc, &stats->march, err);
+    if (rc != BK_OK) goto error;
+  }
+  if (shard) {
+    pm_sums_keep(&r->main, acc, shard);
+    acc = NULL;
+  } else {
+    rc = unpack_phase(r, acc, radiance, count, weight, err);
+  }
   stats->ms_march = bk_now_ms() - t0;
-  rc = BK_OK;
 error:
   free(acc);
   return rc;
@@ -344,7 +358,7 @@ static int filter_phase(ad_run_t *r, float *radiance, const float *count, const 
                         float *filter_radius, bk_error_t *err) {
   const size_t V = r->base.voxels;
   const int C = r->main.channels;
-  const float alpha = r->scene->alpha;
+  const float alpha = r->alpha;
   float *filtered = NULL;
   int rc = BK_OK;
   double t0 = bk_now_ms();
@@ -395,7 +409,7 @@ static void report(const ad_run_t *r, bk_timings_t *timings) {
                    stats->march.voxels / sec * 1e-6, where);
     if (r->filter_on)
       bk_timings_add(timings, "filtering", stats->ms_filter, "alpha %g, radius <= %g voxels%s",
-                     (double)r->scene->alpha, 0.5 * r->levels, where);
+                     (double)r->alpha, 0.5 * r->levels, where);
     else
       bk_timings_add(timings, "filtering", stats->ms_filter, "off");
   }
@@ -424,7 +438,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   int rc = check_bake_inputs(scene, opt, err);
   if (rc != BK_OK) return rc;
   r = (ad_run_t){.cl = cl, .scene = scene, .vol = vol, .opt = opt, .stats = stats,
-                 .levels = (int)(2.0f * opt->max_radius + 0.5f)};
+                 .alpha = scene->alpha, .levels = (int)(2.0f * opt->max_radius + 0.5f)};
   rc = pm_prepare(scene, vol, &r.base, NULL, &stats->march, err);
   if (rc != BK_OK) return rc;
   stats->ms_octree = stats->march.ms_octree;
@@ -437,11 +451,13 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   if (!r.tables) goto error;
   if ((rc = pilot_phase(&r, err)) != BK_OK || (rc = pdf_phase(&r, err)) != BK_OK) goto error;
   rc = BK_ERR_RUNTIME;
-  count = photon_count ? photon_count : bk_calloc(V, sizeof(float), "photon count grid", err);
-  weight = photon_weight ? photon_weight : bk_calloc(V, sizeof(float), "photon weight grid", err);
-  if (!count || !weight) goto error;
+  if (!opt->sums) { /* a shard unpacks nothing */
+    count = photon_count ? photon_count : bk_calloc(V, sizeof(float), "photon count grid", err);
+    weight = photon_weight ? photon_weight : bk_calloc(V, sizeof(float), "photon weight grid", err);
+    if (!count || !weight) goto error;
+  }
   if ((rc = weighted_phase(&r, radiance, count, weight, err)) != BK_OK ||
-      (rc = filter_phase(&r, radiance, count, weight, filter_radius, err)) != BK_OK)
+      (!opt->sums && (rc = filter_phase(&r, radiance, count, weight, filter_radius, err)) != BK_OK))
     goto error;
   report(&r, timings);
   rc = BK_OK;
@@ -453,5 +469,19 @@ error:
   if (count != photon_count) free(count);
   if (weight != photon_weight) free(weight);
   pm_setup_free(&r.base);
+  return rc;
+}
+
+int ad_finish(clh_context_t *cl, const grid_dims_t *dims, const pm_sums_t *sums,
+              const ad_bake_opts_t *opt, float alpha, float *radiance, float *photon_count,
+              float *photon_weight, float *filter_radius, ad_stats_t *stats, bk_error_t *err) {
+  ad_run_t r = {.cl = cl, .opt = opt, .stats = stats, .alpha = alpha,
+                .levels = (int)(2.0f * opt->max_radius + 0.5f)};
+  r.base.voxels = sums->voxels;
+  r.base.dims = *dims;
+  pm_sums_setup(sums, &r.main);
+  int rc = unpack_phase(&r, sums->acc, radiance, photon_count, photon_weight, err);
+  if (rc == BK_OK) rc = filter_phase(&r, radiance, photon_count, photon_weight, filter_radius, err);
+  free(r.raw);
   return rc;
 }

@@ -191,6 +191,13 @@ typedef struct ad_bake_opts {
   int pilot_cells;      /* the pilot grid's cells along the longest axis */
   float noise_k;        /* filter: the first step's noise allowance (kernels/adaptive_filter.h) */
   int importance;       /* AD_IMPORTANCE_*: what a selected cell spreads over its origins */
+  /* A photon shard (baker/shard.h): when sums is not NULL the pilot and the
+   * PDF are made as always (they are deterministic, so every shard gets the
+   * same tables), the weighted march traces only photons [first, last) of
+   * photons.count, and its raw sums go to *sums instead of becoming
+   * radiance: ad_finish does that after the shards are added up. */
+  pm_sums_t *sums;
+  uint64_t first, last;
 } ad_bake_opts_t;
 void ad_bake_defaults(ad_bake_opts_t *o);
 
@@ -216,6 +223,14 @@ typedef struct ad_stats {
 int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
             const ad_bake_opts_t *opt, float *radiance, float *photon_count, float *photon_weight,
             float *filter_radius, ad_stats_t *stats, bk_timings_t *timings, bk_error_t *err);
+
+/* What ad_bake does after the weighted march, on sums of it (a merge of
+ * photon shards): the photon count and mean weight per voxel, the radiance,
+ * and the filter with alpha (the scene's adaptive.alpha) as opt asks. On the
+ * host when cl is NULL. stats gets the filter's fields. */
+int ad_finish(clh_context_t *cl, const grid_dims_t *dims, const pm_sums_t *sums,
+              const ad_bake_opts_t *opt, float alpha, float *radiance, float *photon_count,
+              float *photon_weight, float *filter_radius, ad_stats_t *stats, bk_error_t *err);
 
 #ifdef __cplusplus
 }

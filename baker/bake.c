@@ -17,6 +17,7 @@
 #include "budget.h"
 #include "clhost.h"
 #include "march.h"
+#include "shard.h"
 #include "voxelize.h"
 
 /* One frame's state, from the scene to the grids written. */
@@ -30,6 +31,7 @@ typedef struct bake_job {
   ad_stats_t astats;
   float *extinction, *density, *ext_grey, *sca_grey;
   float *radiance, *photon_count, *photon_weight, *filter_radius, *emission;
+  shard_state_t shard;  /* --shard: the raw sums written instead of radiance */
 } bake_job_t;
 
 static int expand_scene_paths(scene_t *s, int frame, bk_error_t *err);
@@ -71,6 +73,9 @@ void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_
            scene_integrator_name(s->integrator), (double)s->step, s->seed, s->resolution,
            compression_name(opt->write.compression), opt->write.half_float ? 1 : 0,
            s->mode != MODE_ADAPTIVE ? "n/a" : opt->no_filter ? "off" : "on");
+  size_t at = strlen(out);
+  if (opt->shard_count && at < len)
+    snprintf(out + at, len - at, " shard=%d/%d", opt->shard_index, opt->shard_count);
 }
 
 /* sigma_t = sigma_s + sigma_a per channel, the grey density (mean of the
@@ -140,8 +145,11 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
  * pipeline; a scene without lights still gets an (empty) radiance grid. */
 static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *err) {
   size_t n = grid_count(&j->vol.dims);
-  j->radiance = bk_calloc(n * 3, sizeof(float), "radiance grid", err);
-  if (!j->radiance) return err->code;
+  if (opt->shard_count && j->scene.light_count == 0)
+    return bk_fail(err, BK_ERR_INPUT, "%s: --shard: the scene has no lights, so no photons to "
+                   "split; bake it whole", j->scene.path);
+  if (!opt->shard_count && !(j->radiance = bk_calloc(n * 3, sizeof(float), "radiance grid", err)))
+    return err->code;
   if (j->scene.light_count == 0) return BK_OK;
   if (!opt->host_only) {
     double t0 = bk_now_ms();
@@ -149,6 +157,9 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
     if (rc) return rc;
     bk_timings_add(&j->timings, "OpenCL init", bk_now_ms() - t0, "%s", j->cl.device_name);
   }
+  if (opt->shard_count)
+    return shard_march(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, opt, &j->shard,
+                       &j->stats, &j->astats, &j->timings, err);
   if (j->scene.mode == MODE_ADAPTIVE) return bake_adaptive(j, opt, err);
   return pm_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, j->radiance, &j->stats,
                  &j->timings, err);
@@ -157,54 +168,68 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
 /* The source term of L = ∫ T σs L̄ dt per channel, σs ⊙ L̄ (W·m⁻³·sr⁻¹): a
  * renderer that takes the volume as emissive and absorbing (Blender, Houdini)
  * reads it as emission with `extinction` as absorption and no scattering. */
-static int derive_emission(const volume_t *v, const float *radiance, float **emission,
-                           bk_error_t *err) {
-  size_t n = grid_count(&v->dims);
-  *emission = bk_calloc(n * 3, sizeof(float), "emission grid", err);
-  if (!*emission) return err->code;
-  for (size_t i = 0; i < 3 * n; i++) (*emission)[i] = v->sigma_s[i] * radiance[i];
-  return BK_OK;
+void bake_emission(const float *scattering, int sca_channels, const float *radiance, size_t voxels,
+                   float *emission) {
+  for (size_t i = 0; i < voxels; i++)
+    for (int c = 0; c < 3; c++)
+      emission[3 * i + c] = scattering[sca_channels == 3 ? 3 * i + c : i] * radiance[3 * i + c];
 }
 
-#define BAKE_MAX_GRIDS 12
+/* Each background is the value outside the grid: the medium's n for `ior`,
+ * 0 for the rest (the bake holds no light or matter outside its box). */
+int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
+  int g = 0;
+  const vdbio_type_t medium = a->sca_channels == 3 ? VDBIO_VEC3 : VDBIO_FLOAT;
+  const int inv = a->sca_channels == 3;
+  grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, a->ior, 0, a->medium_ior};
+  grids[g++] = (vdbio_grid_t){"extinction", medium, a->extinction, inv, 0.0f};
+  grids[g++] = (vdbio_grid_t){"scattering", medium, a->scattering, inv, 0.0f};
+  grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, a->density, 0, 0.0f};
+  if (a->radiance) grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, a->radiance, 1, 0.0f};
+  if (a->emission) grids[g++] = (vdbio_grid_t){"emission", VDBIO_VEC3, a->emission, 1, 0.0f};
+  if (a->photon_count)
+    grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, a->photon_count, 0, 0.0f};
+  if (a->photon_weight)
+    grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, a->photon_weight, 0, 0.0f};
+  if (a->filter_radius)
+    grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, a->filter_radius, 0, 0.0f};
+  return g;
+}
 
-/* Stage 3: the grids of DESIGN.md §5 in file order; *count of them. Each
- * background is the value outside the grid: the medium's n for `ior`, 0 for
- * the rest (the bake holds no light or matter outside its box). */
+/* Stage 3: the grids of DESIGN.md §5 in file order (bake_grid_list), for a
+ * shard the medium grids and the raw sums (shard.h); *count of them. For
+ * grey media the Vec3 grids collapse to floats (DESIGN §5 allows it, and
+ * renderers read a float `extinction` more widely). */
 static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], int *count,
                              bk_error_t *err) {
   const volume_t *vol = &j->vol;
   size_t n = grid_count(&vol->dims);
   int rc = derive_medium_grids(vol, &j->extinction, &j->density, err);
-  if (!rc) rc = derive_emission(vol, j->radiance, &j->emission, err);
   if (rc) return rc;
-  int g = 0;
-  grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, vol->ior, 0, j->scene.medium_ior};
+  if (j->radiance) {
+    j->emission = bk_calloc(n * 3, sizeof(float), "emission grid", err);
+    if (!j->emission) return err->code;
+    bake_emission(vol->sigma_s, 3, j->radiance, n, j->emission);
+  }
+  bake_arrays_t a = {vol->ior, j->extinction, vol->sigma_s, j->density, j->radiance, j->emission,
+                     j->photon_count, j->photon_weight, j->filter_radius, 3,
+                     j->scene.medium_ior};
   if (vol->grey) {
     j->ext_grey = first_channel(j->extinction, n, err);
     j->sca_grey = first_channel(vol->sigma_s, n, err);
     if (!j->ext_grey || !j->sca_grey) return err->code;
-    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_FLOAT, j->ext_grey, 0, 0.0f};
-    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_FLOAT, j->sca_grey, 0, 0.0f};
-  } else {
-    grids[g++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, j->extinction, 1, 0.0f};
-    grids[g++] = (vdbio_grid_t){"scattering", VDBIO_VEC3, vol->sigma_s, 1, 0.0f};
+    a.extinction = j->ext_grey;
+    a.scattering = j->sca_grey;
+    a.sca_channels = 1;
   }
-  grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, j->density, 0, 0.0f};
-  grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, j->radiance, 1, 0.0f};
-  grids[g++] = (vdbio_grid_t){"emission", VDBIO_VEC3, j->emission, 1, 0.0f};
-  if (j->photon_count)
-    grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, j->photon_count, 0, 0.0f};
-  if (j->photon_weight)
-    grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, j->photon_weight, 0, 0.0f};
-  if (j->filter_radius)
-    grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, j->filter_radius, 0, 0.0f};
-  *count = g;
+  *count = bake_grid_list(&a, grids);
+  if (j->shard.sums.acc)
+    return shard_grids(&j->shard, &vol->dims, grids, count, BAKE_MAX_GRIDS, err);
   return BK_OK;
 }
 
 /* Stage 4: the grids and the metadata that says how they were made. */
-static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char *scene_path,
+static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scene_path,
                       const char *out_path, int frame, const vdbio_grid_t *grids, int count,
                       bk_error_t *err) {
   const scene_t *s = &j->scene;
@@ -248,7 +273,13 @@ static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char
   };
   int meta_count = (int)(sizeof meta / sizeof meta[0]);
   if (s->mode != MODE_ADAPTIVE) meta_count -= 7;
-  return vdbio_write(out_path, &j->vol.dims, grids, count, meta, meta_count, &opt->write, err);
+  vdbio_meta_t all[sizeof meta / sizeof meta[0] + SHARD_META_MAX];
+  memcpy(all, meta, sizeof meta);
+  if (j->shard.sums.acc)
+    meta_count += shard_meta(&j->shard, opt, s, &j->vol.dims, all + meta_count);
+  vdbio_write_opts_t wo = opt->write;
+  if (j->shard.sums.acc) wo.half_float = 0; /* sums and medium go to the merge exactly */
+  return vdbio_write(out_path, &j->vol.dims, grids, count, all, meta_count, &wo, err);
 }
 
 static void bake_report(const bake_job_t *j, const char *scene_path, const char *out_path) {
@@ -276,6 +307,7 @@ static void bake_job_free(bake_job_t *j) {
   free(j->photon_weight);
   free(j->filter_radius);
   free(j->emission);
+  shard_free(&j->shard);
   clh_release(&j->cl);
   vox_free(&j->vol);
   if (j->scene_loaded) scene_free(&j->scene);

@@ -37,6 +37,9 @@ typedef struct bake_options {
   int no_filter;            /* adaptive: skip the reconstruction filter */
   int write_filter_radius;  /* adaptive: also write the filter_radius grid (debug) */
   uint64_t max_memory;      /* --max-memory in bytes; 0: what the machine has available */
+  int shard_index, shard_count; /* --shard I/N (1 <= I <= N): trace only the I-th of N
+                                   slices of the photons and write raw sums
+                                   (baker/shard.h); shard_count 0: the whole bake */
 } bake_options_t;
 
 /* The command (bake_cmd.c): argv[0] is "bake", as main() passes argv + 1.
@@ -59,6 +62,23 @@ int bake_load_scene(const bake_options_t *opt, const char *scene_path, scene_t *
  * compression=C half=H filter=F": recorded in each file's `bake_settings`
  * metadata and compared before a frame is skipped. */
 void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_t len);
+/* The output arrays of one frame (DESIGN.md §5), dense, x fastest; NULL:
+ * the grid is not written. scattering has sca_channels floats per voxel
+ * (1 when the medium is grey), extinction too; radiance and emission 3. */
+typedef struct bake_arrays {
+  const float *ior, *extinction, *scattering, *density, *radiance, *emission;
+  const float *photon_count, *photon_weight, *filter_radius;
+  int sca_channels;
+  float medium_ior;  /* the ior grid's background: n outside the box */
+} bake_arrays_t;
+#define BAKE_MAX_GRIDS 12
+/* The grids of a frame in file order, as `baker bake` and `baker merge`
+ * write them; returns their count. */
+int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]);
+/* emission = σs ⊙ radiance (3 floats per voxel; scattering sca_channels). */
+void bake_emission(const float *scattering, int sca_channels, const float *radiance, size_t voxels,
+                   float *emission);
+
 /* Bakes one frame; `frame` is recorded in the metadata. */
 int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
                bk_error_t *err);

@@ -9,6 +9,7 @@
 #include "bake.h"
 #include "budget.h"
 #include "cmdline.h"
+#include "shard.h"
 #include "base/common.h"
 
 static void bake_usage(FILE *out) {
@@ -58,6 +59,9 @@ static void bake_usage(FILE *out) {
           "  --device SPEC            OpenCL device: `P:D` indices or a name substring;\n"
           "                           default PoCL (CPU). `baker devices` lists them\n"
           "  --host                   march on the host in plain C instead of OpenCL\n"
+          "  --shard I/N              trace only the I-th of N slices of the photons and\n"
+          "                           write their raw sums (a shard); `baker merge` adds\n"
+          "                           the N shards into the bake, bit for bit\n"
           "  --max-memory SIZE        refuse a bake whose estimated peak memory exceeds\n"
           "                           SIZE (e.g. 8G, 500M) instead of the memory this\n"
           "                           machine has available\n"
@@ -77,7 +81,7 @@ static void bake_usage(FILE *out) {
 enum {
   OPT_FRAMES = CMD_FIRST_OWN, OPT_FORCE, OPT_MODE, OPT_PHOTONS, OPT_INTEGRATOR, OPT_STEP,
   OPT_SEED, OPT_RESOLUTION, OPT_COMPRESSION, OPT_NO_FILTER, OPT_WRITE_FILTER_RADIUS, OPT_HALF,
-  OPT_DEVICE, OPT_HOST, OPT_KEEP_GOING, OPT_SET, OPT_MAX_MEMORY
+  OPT_DEVICE, OPT_HOST, OPT_KEEP_GOING, OPT_SET, OPT_MAX_MEMORY, OPT_SHARD
 };
 
 static const struct option bake_longopts[] = {
@@ -99,6 +103,7 @@ static const struct option bake_longopts[] = {
     {"keep-going", no_argument, NULL, OPT_KEEP_GOING},
     {"set", required_argument, NULL, OPT_SET},
     {"max-memory", required_argument, NULL, OPT_MAX_MEMORY},
+    {"shard", required_argument, NULL, OPT_SHARD},
     CMD_COMMON_LONGOPTS,
     {NULL, 0, NULL, 0}};
 
@@ -151,6 +156,7 @@ static int bake_option(bake_options_t *opt, const char **sets, int c, const char
   case OPT_MAX_MEMORY:
     if (!budget_parse_size(val, &opt->max_memory)) want = "a size such as 8G or 500M";
     break;
+  case OPT_SHARD: return shard_parse(val, &opt->shard_index, &opt->shard_count, err);
   case OPT_SET:
     if (!strchr(val, '=') || val[0] == '=') want = "KEY=VALUE (e.g. medium.sigma_s=0.3)";
     else sets[opt->set_count++] = val;
@@ -199,6 +205,12 @@ static int bake_command(int argc, char **argv, const char **sets) {
     fprintf(stderr, "baker bake: %s\n\n",
             !opt.scene_path ? "no scene file given" : "no output given (-o OUT.vdb)");
     bake_usage(stderr);
+    return BK_ERR_INPUT;
+  }
+  size_t len = strlen(opt.out_path);
+  if (opt.shard_count && len >= 5 && !strcmp(opt.out_path + len - 5, ".nvdb")) {
+    bk_report("bake", "--shard: a shard is written as .vdb (its metadata goes to the merge; "
+                      "NanoVDB files carry none)");
     return BK_ERR_INPUT;
   }
   rc = bake_run(&opt, &err);

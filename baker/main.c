@@ -6,6 +6,7 @@
 #include "bake.h"
 #include "cache_cmd.h"
 #include "clhost.h"
+#include "merge.h"
 #include "base/common.h"
 #include "verify.h"
 #include "view.h"
@@ -17,6 +18,7 @@ static void usage(FILE *out) {
           "usage:\n"
           "  baker bake SCENE.json -o OUT.vdb [options]   voxelize, trace photons, write OpenVDB\n"
           "  baker view IN.vdb -o OUT.exr [options]       render a baked VDB to OpenEXR/PNG\n"
+          "  baker merge SHARD.vdb... -o OUT.vdb          add photon shards (bake --shard I/N)\n"
           "  baker verify FILE.vdb...                     check every grid against its checksum\n"
           "  baker devices                                list OpenCL platforms and devices\n"
           "  baker cache [--clear]                        kernel cache: path, size; empty it\n"
@@ -36,6 +38,7 @@ int main(int argc, char **argv) {
   if (!strcmp(cmd, "bake")) return bake_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "view")) return view_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "cache")) return cache_main(argc - 1, argv + 1);
+  if (!strcmp(cmd, "merge")) return merge_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "verify")) return verify_main(argc - 1, argv + 1);
   if (!strcmp(cmd, "devices")) {
     clh_list_devices(stdout);

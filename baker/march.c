@@ -3,6 +3,7 @@
 #include "march.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -194,6 +195,7 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   s->channels = (s->grey && s->lights.one_colour) ? 1 : 3;
   if (s->channels == 1) ph_make_grey(&s->lights);
   s->seed = scene->seed;
+  pm_set_range(s, 0, s->lights.photons);
   /* what the march holds per voxel: n/∇n, the pyramid, σt, the counters */
   size_t per_voxel = (s->has_refraction ? 4 * sizeof(float) + 1 : 0) +
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
@@ -243,8 +245,14 @@ int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm
   int rc = ph_prepare(scene, &base->dims, photons, base->seed, &out->lights, err);
   if (rc != BK_OK) return rc;
   if (out->channels == 1) ph_make_grey(&out->lights);
+  pm_set_range(out, 0, out->lights.photons);
   set_scale(out, 1.0);
   return BK_OK;
+}
+
+void pm_set_range(pm_setup_t *s, uint64_t first, uint64_t last) {
+  s->last = last < s->lights.photons ? last : s->lights.photons;
+  s->first = first < s->last ? first : s->last;
 }
 
 void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks) {
@@ -297,14 +305,13 @@ size_t pm_mask_count(const pm_setup_t *s) {
 
 int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err) {
   bk_progress_t prog;
-  uint64_t n = s->lights.photons;
-  bk_progress_begin(&prog, "photon marching", n);
-  for (uint64_t i = 0; i < n; i++) {
+  bk_progress_begin(&prog, "photon marching", s->last - s->first);
+  for (uint64_t i = s->first; i < s->last; i++) {
     pm_result r;
     pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma, acc,
                     s->masks, s->tables, (bk_uint)i, &r, NULL);
     if (stats) pm_stats_add(stats, &r);
-    if ((i & 4095) == 4095) bk_progress_update(&prog, i + 1);
+    if (((i - s->first) & 4095) == 4095) bk_progress_update(&prog, i - s->first + 1);
   }
   bk_progress_end(&prog);
   return BK_OK;
@@ -351,8 +358,42 @@ void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
   bk_parallel(s->voxels, BK_GRAIN, unpack_weights_range, &u);
 }
 
+void pm_sums_keep(const pm_setup_t *s, uint64_t *acc, pm_sums_t *out) {
+  memset(out, 0, sizeof *out);
+  out->acc = acc;
+  out->voxels = s->voxels;
+  out->channels = s->channels;
+  out->mode = (int)s->params.mode;
+  out->stride = pm_acc_stride(out->mode, s->channels);
+  memcpy(out->to_radiance, s->to_radiance, sizeof out->to_radiance);
+  out->count_shift = s->params.count_shift;
+  out->weight_scale = s->params.weight_scale;
+}
+
+void pm_sums_setup(const pm_sums_t *k, pm_setup_t *out) {
+  memset(out, 0, sizeof *out);
+  out->voxels = k->voxels;
+  out->channels = k->channels;
+  out->params.mode = (bk_uint)k->mode;
+  out->params.channels = (bk_uint)k->channels;
+  out->params.count_shift = k->count_shift;
+  out->params.weight_scale = k->weight_scale;
+  memcpy(out->to_radiance, k->to_radiance, sizeof out->to_radiance);
+}
+
+void pm_sums_free(pm_sums_t *k) {
+  free(k->acc);
+  k->acc = NULL;
+}
+
 int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float *radiance,
             pm_stats_t *stats, bk_timings_t *timings, bk_error_t *err) {
+  return pm_bake_range(cl, scene, vol, 0, UINT64_MAX, radiance, NULL, stats, timings, err);
+}
+
+int pm_bake_range(clh_context_t *cl, const scene_t *scene, const volume_t *vol, uint64_t first,
+                  uint64_t last, float *radiance, pm_sums_t *sums, pm_stats_t *stats,
+                  bk_timings_t *timings, bk_error_t *err) {
   pm_setup_t s;
   pm_stats_t local;
   uint64_t *acc = NULL;
@@ -360,13 +401,19 @@ int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float 
   memset(stats, 0, sizeof *stats);
   int rc = pm_prepare(scene, vol, &s, timings, stats, err);
   if (rc != BK_OK) return rc;
+  pm_set_range(&s, first, last);
   rc = BK_ERR_RUNTIME;
   acc = bk_calloc(s.voxels, s.channels * sizeof(uint64_t), "march: radiance accumulator", err);
   if (!acc) goto error;
   double t0 = bk_now_ms();
   rc = cl ? pm_run_cl(cl, &s, acc, stats, err) : pm_run_host(&s, acc, stats, err);
   if (rc != BK_OK) goto error;
-  pm_to_radiance(&s, acc, radiance);
+  if (sums) {
+    pm_sums_keep(&s, acc, sums);
+    acc = NULL;
+  } else {
+    pm_to_radiance(&s, acc, radiance);
+  }
   stats->ms_march = bk_now_ms() - t0;
   if (timings) {
     double sec = stats->ms_march > 0.0 ? stats->ms_march / 1000.0 : 1e-9;

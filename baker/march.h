@@ -73,6 +73,12 @@ typedef struct pm_setup {
   double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
   int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
   unsigned seed;         /* photons.seed, for pm_derive */
+  /* The photon indices this march traces, [first, last) of lights.photons:
+   * all of them after pm_prepare and pm_derive; a photon shard
+   * (baker/shard.h) narrows it with pm_set_range. Index i keeps its place
+   * among all lights.photons (Hammersley point i of N, its light), so the
+   * sums of disjoint ranges add up to the whole march exactly. */
+  uint64_t first, last;
   /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */
   uint64_t *masks;       /* origin recorder: pm_mask_count masks, zeroed by the caller */
   const float *tables;   /* sampling tables: LD_TABLE_FLOATS(8, 8) floats per light */
@@ -111,6 +117,9 @@ int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm
               bk_error_t *err);
 void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks);
 int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err);
+/* Marches only photons [first, last) (first <= last <= lights.photons). */
+void pm_set_range(pm_setup_t *s, uint64_t first, uint64_t last);
+
 /* Counters in the accumulator of the setup's mode (channels per voxel; the
  * recorder's per coarse cell; with sampling tables one more per voxel), and
  * the origin masks of a recorder (0 in other modes). */
@@ -133,10 +142,34 @@ void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);
 void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
                        float *mean_weight);
 
+/* A march's raw fixed-point sums and what turns them into grids after it
+ * (pm_to_radiance, pm_unpack_weights): what a photon shard writes instead
+ * of radiance (baker/shard.h), and a merge adds. */
+typedef struct pm_sums {
+  uint64_t *acc;          /* pm_acc_count counters (stride per voxel), owned */
+  size_t voxels;
+  int channels, stride;   /* march channels (1 or 3); counters per voxel */
+  int mode;               /* PM_MODE_REFERENCE or PM_MODE_TABLES */
+  double to_radiance[3];  /* quanta -> W m^-2 sr^-1 per output channel */
+  unsigned count_shift;   /* PM_MODE_TABLES: the packed count's shift */
+  float weight_scale;     /* ... and the weight sum's quanta per unit weight */
+} pm_sums_t;
+/* Takes acc (pm_acc_count(s) counters, now owned by out) with s's scales. */
+void pm_sums_keep(const pm_setup_t *s, uint64_t *acc, pm_sums_t *out);
+/* A setup that knows only what pm_to_radiance and pm_unpack_weights read
+ * (voxels, channels, mode, scales), for sums made elsewhere. */
+void pm_sums_setup(const pm_sums_t *k, pm_setup_t *out);
+void pm_sums_free(pm_sums_t *k);
+
 /* The whole stage: cl NULL marches on the host. Adds the "octree",
- * "photon generation" and "photon marching" timing rows. */
+ * "photon generation" and "photon marching" timing rows. With sums non-NULL
+ * it marches only photons [first, last) and hands back the raw sums instead
+ * of radiance (a photon shard; radiance unused, may be NULL). */
 int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float *radiance,
             pm_stats_t *stats, bk_timings_t *timings, bk_error_t *err);
+int pm_bake_range(clh_context_t *cl, const scene_t *scene, const volume_t *vol, uint64_t first,
+                  uint64_t last, float *radiance, pm_sums_t *sums, pm_stats_t *stats,
+                  bk_timings_t *timings, bk_error_t *err);
 
 /* Host-only, for tests (reference mode): the path of photon `index` of the setup as points in
  * world coordinates (3 floats each: the light's origin, the grid entry, then

@@ -122,14 +122,14 @@ error:
   return BK_ERR_RUNTIME;
 }
 
-/* Every photon, PM_CHUNK at a time, counting outcomes into stats. */
+/* Photons [s->first, s->last), PM_CHUNK at a time, counting outcomes into stats. */
 static int launch(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, pm_stats_t *stats,
                   bk_error_t *err) {
   bk_progress_t progress;
-  uint64_t total = s->lights.photons;
+  const uint64_t total = s->last;
   int rc = BK_ERR_RUNTIME;
-  bk_progress_begin(&progress, "photon marching", total);
-  for (uint64_t first = 0; first < total; first += PM_CHUNK) {
+  bk_progress_begin(&progress, "photon marching", s->last - s->first);
+  for (uint64_t first = s->first; first < total; first += PM_CHUNK) {
     cl_uint f = (cl_uint)first;
     cl_uint count = (cl_uint)(total - first < PM_CHUNK ? total - first : PM_CHUNK);
     /* a fixed work-group size: the global size rounded up to it (the kernel
@@ -146,7 +146,7 @@ static int launch(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, pm_sta
               err, error);
     if (stats)
       for (cl_uint i = 0; i < count; i++) pm_stats_add(stats, &r->res[i]);
-    bk_progress_update(&progress, first + count);
+    bk_progress_update(&progress, first + count - s->first);
   }
   rc = BK_OK;
 error:

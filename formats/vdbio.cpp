@@ -169,10 +169,10 @@ static int vdbio_read_grid(vdb::io::File &file, const char *path, const char *wh
 }
 
 /* vdbio_open, then vdbio_read_grid, then closes the file: the start of every
- * reader of one grid. Exceptions are the caller's to catch. */
-static int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
-                           vdb::GridBase::Ptr &grid, int *found, bk_error_t *err,
-                           vdb::MetaMap::Ptr *meta = nullptr) {
+ * reader of one grid (vdbio_internal.h). */
+int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
+                    vdb::GridBase::Ptr &grid, int *found, bk_error_t *err,
+                    vdb::MetaMap::Ptr *meta) {
   if (vdbio_is_nano_file(path))
     return nvdbio_load_grid(path, where, grid_name, grid, found, err);
   vdb::io::File file(path);

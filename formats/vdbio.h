@@ -124,6 +124,27 @@ int vdbio_verify(const char *path, vdbio_verify_grid_t **grids, int *count, bk_e
 /* Reads a string or number metadata entry from the file as text ("" if absent). */
 int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk_error_t *err);
 
+/* Exact reading of what vdbio_write wrote (photon shards, baker/shard.h):
+ * float (channels 1) or Vec3f (channels 3) grid `grid_name` copied value
+ * for value over the index box [0,nx) x [0,ny) x [0,nz) of dims into out
+ * (grid_count(dims) * channels floats), no resampling: the array written
+ * comes back bit for bit (but -0 as +0, which the writer leaves inactive).
+ * A missing grid or one of another type is BK_ERR_INPUT naming both. */
+int vdbio_read_box(const char *path, const char *grid_name, const grid_dims_t *dims, int channels,
+                   float *out, bk_error_t *err);
+
+/* Every file metadata entry of a string, integer or floating-point kind,
+ * its value as text that reads back exactly (integers in decimal, doubles
+ * with 17 digits); other kinds (vectors) are left out. *entries (caller
+ * frees) in the file's order. */
+typedef struct vdbio_meta_entry {
+  char key[128];
+  vdbio_meta_kind_t kind;
+  char value[4096];
+} vdbio_meta_entry_t;
+int vdbio_read_meta_all(const char *path, vdbio_meta_entry_t **entries, int *count,
+                        bk_error_t *err);
+
 #ifdef __cplusplus
 }
 #endif

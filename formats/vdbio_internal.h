@@ -29,6 +29,14 @@ int nvdbio_load_grid(const char *path, const char *where, const char *grid_name,
  * BK_ERR_INPUT when it is missing, not a VDB file or truncated. */
 int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_error_t *err);
 
+/* Opens `path` (VDB or NanoVDB), reads grid `grid_name` and closes the
+ * file; found NULL: a missing grid is BK_ERR_INPUT naming the grids there
+ * are, else *found = 0. meta (may be NULL) gets the file metadata.
+ * Exceptions are the caller's to catch. */
+int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
+                    openvdb::GridBase::Ptr &grid, int *found, bk_error_t *err,
+                    openvdb::MetaMap::Ptr *meta = nullptr);
+
 /* Adds checksum_<grid> for every grid, and checksum_box, to the file
  * metadata (vdbio_checksum.cpp; the rule is in vdbio.h). `half`: the values
  * are stored as 16-bit floats, so the checksum covers the rounded values. */
@@ -55,5 +63,11 @@ int vdbio_list_grids_direct(const char *path, char ***names, char ***types, int 
                             bk_error_t *err);
 int vdbio_read_meta_direct(const char *path, const char *key, char *out, size_t len,
                            bk_error_t *err);
+/* vdbio_box.cpp: the exact readers of vdbio.h (vdbio_read_box,
+ * vdbio_read_meta_all), in this process. */
+int vdbio_read_box_direct(const char *path, const char *grid_name, const grid_dims_t *dims,
+                          int channels, float *out, bk_error_t *err);
+int vdbio_read_meta_all_direct(const char *path, vdbio_meta_entry_t **entries, int *count,
+                               bk_error_t *err);
 
 #endif

@@ -460,3 +460,82 @@ int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk
   job.len = len;
   return iso_run(job, path, err);
 }
+
+/* An exact box of a grid into the caller's array (vdbio_box.cpp). */
+struct iso_box_job : iso_job {
+  const char *path, *name;
+  const grid_dims_t *dims;
+  int channels;
+  float *out;
+  size_t bytes() const { return grid_count(dims) * (size_t)channels * sizeof(float); }
+  int work(bk_error_t *err) override {
+    return vdbio_read_box_direct(path, name, dims, channels, out, err);
+  }
+  bool send(int fd) override { return iso_write(fd, out, bytes()); }
+  int recv(int fd, bk_error_t *) override { return iso_read(fd, out, bytes()) ? BK_OK : -1; }
+};
+
+int vdbio_read_box(const char *path, const char *grid_name, const grid_dims_t *dims, int channels,
+                   float *out, bk_error_t *err) {
+  if (!path || !grid_name || !dims || !out || (channels != 1 && channels != 3) || dims->nx < 1 ||
+      dims->ny < 1 || dims->nz < 1)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_box: invalid arguments");
+  iso_box_job job;
+  job.path = path;
+  job.name = grid_name;
+  job.dims = dims;
+  job.channels = channels;
+  job.out = out;
+  return iso_run(job, path, err);
+}
+
+/* The file metadata, entry by entry. */
+struct iso_meta_all_job : iso_job {
+  const char *path;
+  vdbio_meta_entry_t *entries = NULL;
+  int count = 0;
+  int work(bk_error_t *err) override {
+    return vdbio_read_meta_all_direct(path, &entries, &count, err);
+  }
+  bool send(int fd) override {
+    int32_t c = count;
+    return iso_write(fd, &c, sizeof c) &&
+           iso_write(fd, entries, (size_t)count * sizeof(vdbio_meta_entry_t));
+  }
+  int recv(int fd, bk_error_t *err) override {
+    int32_t c;
+    if (!iso_read(fd, &c, sizeof c) || c < 0 || c > (1 << 16))
+      return -1;
+    entries = (vdbio_meta_entry_t *)bk_calloc(c ? (size_t)c : 1, sizeof *entries, path, err);
+    if (!entries)
+      return BK_ERR_RUNTIME;
+    count = c;
+    if (!iso_read(fd, entries, (size_t)c * sizeof *entries))
+      return -1;
+    for (int i = 0; i < c; i++) { /* the child is trusted with nothing */
+      if (entries[i].kind != VDBIO_META_STRING && entries[i].kind != VDBIO_META_INT &&
+          entries[i].kind != VDBIO_META_FLOAT)
+        return -1;
+      entries[i].key[sizeof entries[i].key - 1] = 0;
+      entries[i].value[sizeof entries[i].value - 1] = 0;
+    }
+    return BK_OK;
+  }
+};
+
+int vdbio_read_meta_all(const char *path, vdbio_meta_entry_t **entries, int *count,
+                        bk_error_t *err) {
+  if (!path || !entries || !count)
+    return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_meta_all: invalid arguments");
+  iso_meta_all_job job;
+  job.path = path;
+  int rc = iso_run(job, path, err);
+  if (rc) {
+    free(job.entries);
+    job.entries = NULL;
+    job.count = 0;
+  }
+  *entries = job.entries;
+  *count = job.count;
+  return rc;
+}

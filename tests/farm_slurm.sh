@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# The Slurm recipe for real (scripts/farm/slurm_frames.sbatch, issue 14 item
-# 4): starts munged and a single-node Slurm (slurmctld + slurmd, generated
-# slurm.conf, everything in a temp folder, free ports), submits a 3-frame
-# array job of a tiny scene, waits at most 120 s, checks the three frames open,
-# and shuts everything down. Exit 77 (skipped) without slurm-wlm/munge or root.
+# The Slurm recipes for real (scripts/farm/, issue 14 item 4): starts munged
+# and a single-node Slurm (slurmctld + slurmd, generated slurm.conf,
+# everything in a temp folder, free ports), submits a 3-frame array job of a
+# tiny scene (slurm_frames.sbatch) and checks the three frames open; then one
+# frame as 3 photon shards with a dependent merge job (slurm_shards) and
+# checks the merge ran after the shards and equals a bake on one machine (the
+# grids' checksums); waits at most 120 s for each, and shuts everything down. Exit 77 (skipped) without slurm-wlm/munge or root.
 # Usage: farm_slurm.sh BAKER SOURCE_DIR WORKDIR
 set -u
 BAKER=$1 SRC=$2 WORK=$3
@@ -85,3 +87,25 @@ for f in 1 2 3; do
   vdb_print -m $v | grep -q "frame: $f" || fail "$v does not open as frame $f"
 done
 echo "slurm: 3 array tasks baked 3 frames"
+
+# one frame in 3 shards and a merge that waits for them (afterok)
+ids=$(cd job && BAKER=$BAKER BAKER_CACHE_DIR=$WORK/kcache SBATCH_SHARD_OPTS="--output=$WORK/job/shard-%a.out" \
+  SBATCH_MERGE_OPTS="--output=$WORK/job/merge.out" "$SRC/scripts/farm/slurm_shards" 3 scene.json merged.vdb \
+  --photons 3001 -q) || fail "slurm_shards failed"
+echo "submitted: $ids"
+read -r _ sjob _ mjob <<<"$ids"
+# the merge waits on the shards (a merge run early would find no shard files and fail)
+scontrol show job "$mjob" | grep -o 'Dependency=[^ ]*' || true
+for i in $(seq 600); do
+  [ -z "$(squeue -h -j "$sjob,$mjob" 2>/dev/null)" ] && break
+  sleep 0.2
+done
+[ -z "$(squeue -h -j "$sjob,$mjob")" ] || fail "jobs $sjob/$mjob still queued after 120 s: $(squeue)"
+[ -s job/merged.vdb ] || { cat job/shard-*.out job/merge.out; fail "the merge job wrote no merged.vdb"; }
+ls job/merged.shard-* >/dev/null 2>&1 && fail "the merge job left its shards"
+(cd job && BAKER_CACHE_DIR=$WORK/kcache "$BAKER" bake scene.json -o single.vdb --photons 3001 -q) || fail "single bake failed"
+sums() { vdb_print -m "$1" | grep -E '^(checksum_[a-z_]+|photon_count|bake_settings):' | grep -v checksum_box; }
+[ "$(sums job/merged.vdb)" = "$(sums job/single.vdb)" ] ||
+  fail "merged and single bake differ: $(diff <(sums job/merged.vdb) <(sums job/single.vdb))"
+vdb_print -m job/merged.vdb | grep -q "merged_shard_count: 3" || fail "merged.vdb does not record 3 shards"
+echo "slurm: 3 shard tasks and a dependent merge job = the single bake (grid checksums equal)"
