@@ -33,6 +33,7 @@
 #ifndef BAKER_MARCH_H
 #define BAKER_MARCH_H
 
+#include "bounces.h"
 #include "clhost.h"
 #include "kernels/photon_march.h"
 #include "octree.h"
@@ -57,6 +58,12 @@ typedef struct pm_stats {
   double path_voxels;  /* total path length inside the grid, voxels */
   double ms_octree, ms_generate, ms_march;
   double ms_build;     /* OpenCL program build (or cache load), part of ms_march */
+  /* Multiple scattering (bounces.h), sums of the photons' ms_tally: the
+   * power that entered the grid and left it (W), the deposits of first legs
+   * and of later ones (W·voxel), the scattering events. */
+  int bounces;         /* events allowed per photon; 0: single scattering */
+  double entered, escaped, deposit_first, deposit_later;
+  uint64_t events;
 } pm_stats_t;
 
 /* Everything the march needs, prepared once on the host. */
@@ -73,6 +80,7 @@ typedef struct pm_setup {
   double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
   int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
   unsigned seed;         /* photons.seed, for pm_derive */
+  ms_setup_t ms;         /* multiple scattering: params.max_bounces 0 when off */
   /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */
   uint64_t *masks;       /* origin recorder: pm_mask_count masks, zeroed by the caller */
   const float *tables;   /* sampling tables: LD_TABLE_FLOATS(8, 8) floats per light */
@@ -117,8 +125,11 @@ int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_
 size_t pm_acc_count(const pm_setup_t *s);
 size_t pm_mask_count(const pm_setup_t *s);
 
-/* Counts one photon's outcome into st. */
+/* Counts one photon's outcome into st; and its energy accounting. */
 void pm_stats_add(pm_stats_t *st, const pm_result *r);
+void pm_stats_add_tally(pm_stats_t *st, const ms_tally *t);
+/* The share of the deposited energy after the first scattering event. */
+double pm_scattered_share(const pm_stats_t *st);
 
 /* Marches every photon into acc (pm_acc_count counters, zeroed by the
  * caller): in plain C on this thread, or with OpenCL on cl. */
