@@ -444,7 +444,8 @@ int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float 
   report_scattering(&s, stats, timings);
   if (stats->step_limit)
     bk_log(1, "march: %llu photon(s) stopped at the step limit (trapped by total internal "
-              "reflection?)", (unsigned long long)stats->step_limit);
+              "reflection?%s)", (unsigned long long)stats->step_limit,
+           s.ms.params.max_bounces ? " or a random walk longer than 16 grid diagonals" : "");
   rc = BK_OK;
 error:
   free(acc);

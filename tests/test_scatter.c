@@ -3,6 +3,7 @@
  * OpenCL. Usage: test_scatter TEST [host|cl]. */
 #include "kernels/scatter_march.h"
 #include "test_march_util.h"
+#include "voxelize.h"
 
 /* A cube of side 1 m, N voxels a side, filled with the given coefficients;
  * a directional light of irradiance 1 W/m² along +z covers its top face:
@@ -235,6 +236,54 @@ static int test_reproducible(clh_context_t *cl) {
   return 0;
 }
 
+/* objects[].g is voxelized like the coefficients and reaches the scattering
+ * march as a per-voxel g grid; a scene whose objects share the medium's g
+ * gets none. */
+static int test_object_g(void) {
+  const char *obj = "scatter_object_g_cube.obj";
+  FILE *f = fopen(obj, "w");
+  REQUIRE(f, "cannot write %s", obj);
+  fprintf(f, "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\n"
+             "v -1 1 1\nf 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 7 3\n"
+             "f 4 8 7\nf 1 5 8\nf 1 8 4\nf 2 3 7\nf 2 7 6\n");
+  fclose(f);
+  for (int differs = 0; differs < 2; differs++) {
+    scene_t s;
+    scene_object_t o;
+    scene_light_t light = tl_directional(0, -1, 0, 1.0f);
+    ts_init(&s, &light, 1, 1000);
+    for (int a = 0; a < 3; a++) s.bounds_min[a] = -1.0f, s.bounds_max[a] = 1.0f;
+    s.resolution = 32;
+    for (int c = 0; c < 3; c++) s.medium_sigma_s[c] = 0.5f;
+    s.medium_g = 0.2f;
+    scene_object_defaults(&o);
+    snprintf(o.mesh, sizeof o.mesh, "%s", obj);
+    o.ior = 1.0f;
+    o.scale[0] = o.scale[1] = o.scale[2] = 0.5f;
+    for (int c = 0; c < 3; c++) o.sigma_s[c] = 2.0f;
+    o.g = differs ? 0.7f : 0.2f;
+    s.objects = &o;
+    s.object_count = 1;
+    volume_t v;
+    bk_error_t err;
+    memset(&err, 0, sizeof err);
+    REQUIRE(vox_build(&s, &v, NULL, &err) == BK_OK, "vox_build: %s", err.msg);
+    ms_setup_t ms;
+    int grey;
+    ms_decide(&s, &v, &ms, &grey);
+    if (!differs) {
+      REQUIRE(v.g == NULL && !ms.g_grid && ms.hg, "one g everywhere needs no g grid");
+    } else {
+      float centre = v.g[grid_index(&v.dims, 16, 16, 16)], corner = v.g[0];
+      printf("object g: centre %.3f (object 0.7), corner %.3f (medium 0.2)\n", centre, corner);
+      REQUIRE(centre == 0.7f && corner == 0.2f && ms.g_grid && ms.hg, "g grid wrong");
+    }
+    vox_free(&v);
+  }
+  remove(obj);
+  return 0;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     fprintf(stderr, "usage: test_scatter TEST [host|cl]\n");
@@ -249,6 +298,7 @@ int main(int argc, char **argv) {
   if (strcmp(t, "auto") == 0) return test_auto();
   if (strcmp(t, "phase") == 0) return test_phase();
   if (strcmp(t, "reproducible") == 0) return test_reproducible(cl);
+  if (strcmp(t, "object_g") == 0) return test_object_g();
   fprintf(stderr, "test_scatter: unknown test %s\n", t);
   return 2;
 }
