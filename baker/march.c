@@ -324,6 +324,7 @@ size_t pm_mask_count(const pm_setup_t *s) {
 int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err) {
   bk_progress_t prog;
   uint64_t n = s->lights.photons;
+  if (stats) stats->bounces = (int)s->ms.params.max_bounces;
   bk_progress_begin(&prog, "photon marching", n);
   for (uint64_t i = 0; i < n; i++) {
     pm_result r;
@@ -388,7 +389,6 @@ void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
  * march's) and a log line. */
 static void report_scattering(const pm_setup_t *s, pm_stats_t *stats, bk_timings_t *timings) {
   const ms_setup_t *ms = &s->ms;
-  stats->bounces = (int)ms->params.max_bounces;
   if (!ms->params.max_bounces) {
     if (timings)
       bk_timings_add(timings, "scattering", 0.0, "single scattering (bounces 0%s, order ratio %.3g)",

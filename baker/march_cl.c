@@ -208,6 +208,7 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   pm_cl_run_t r;
   memset(&r, 0, sizeof r);
   r.acc_bytes = pm_acc_count(s) * sizeof(uint64_t);
+  if (stats) stats->bounces = (int)s->ms.params.max_bounces;
   r.mask_bytes = pm_mask_count(s) * sizeof(uint64_t);
   int rc = check_device(cl, s, r.acc_bytes, err);
   if (rc != BK_OK) return rc;
