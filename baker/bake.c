@@ -257,6 +257,10 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
       {"photons_absorbed", VDBIO_META_INT, NULL, (long long)st->absorbed, 0},
       {"photons_step_limit", VDBIO_META_INT, NULL, (long long)st->step_limit, 0},
       {"photon_steps", VDBIO_META_INT, NULL, (long long)st->steps, 0},
+      /* multiple scattering (baker/bounces.h): the events allowed per photon
+       * (0: single scattering) and the share of the deposit after the first */
+      {"photon_bounces", VDBIO_META_INT, NULL, st->bounces, 0},
+      {"scattered_share", VDBIO_META_FLOAT, NULL, 0, (float)pm_scattered_share(st)},
       {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : j->cl.device_name, 0, 0},
       {"bake_settings", VDBIO_META_STRING, settings, 0, 0},
       /* adaptive only (the count below leaves them out otherwise) */

@@ -13,7 +13,8 @@ int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *e
   int rc = grid_dims_from_bounds(s->bounds_min, s->bounds_max, resolution, where, d, err);
   if (rc != BK_OK) return rc;
   b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
-  b->per_voxel = s->mode == MODE_ADAPTIVE ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES;
+  b->per_voxel = (s->mode == MODE_ADAPTIVE ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES) +
+                 (s->bounces != 0 ? BUDGET_SCATTER_BYTES : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
   return BK_OK;
 }

@@ -26,6 +26,9 @@ extern "C" {
 #define BUDGET_FIXED_BYTES (320.0 * 1024 * 1024)
 #define BUDGET_REFERENCE_BYTES 100.0 /* per voxel, reference mode (measured 91-97) */
 #define BUDGET_ADAPTIVE_BYTES 118.0  /* per voxel, adaptive mode (measured 113) */
+/* per voxel, the scatter grid of multiple scattering at most (σs RGB and g,
+ * baker/bounces.h); counted unless photons.bounces is 0 */
+#define BUDGET_SCATTER_BYTES 16.0
 
 typedef struct budget {
   grid_dims_t dims;

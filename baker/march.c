@@ -10,6 +10,7 @@
 #include "base/parallel.h"
 #include "field.h"
 #include "integrators.h"
+#include "kernels/scatter_march.h"
 
 double pm_fixed_scale(double power_max, double path_bound) {
   if (!(power_max > 0.0) || !(path_bound > 0.0)) return 1.0;
@@ -37,6 +38,19 @@ void pm_stats_add(pm_stats_t *st, const pm_result *r) {
   st->steps += r->steps;
   st->voxels += r->voxels;
   st->path_voxels += r->path;
+}
+
+void pm_stats_add_tally(pm_stats_t *st, const ms_tally *t) {
+  st->entered += t->entered;
+  st->escaped += t->escaped;
+  st->deposit_first += t->first;
+  st->deposit_later += t->later;
+  st->events += t->events;
+}
+
+double pm_scattered_share(const pm_stats_t *st) {
+  double all = st->deposit_first + st->deposit_later;
+  return all > 0.0 ? st->deposit_later / all : 0.0;
 }
 
 /* n, then σt: which specialisations the volume allows. */
@@ -73,7 +87,11 @@ static void set_scale(pm_setup_t *s, double w_max) {
   if (s->channels == 1) pmax = s->lights.power[0] + s->lights.power[1] + s->lights.power[2];
   else
     for (int c = 0; c < 3; c++) pmax = s->lights.power[c] > pmax ? s->lights.power[c] : pmax;
-  P->fixed_scale = (float)pm_fixed_scale(pmax * w_max, P->path_cap + diag);
+  /* multiple scattering: the path cap bounds a chain's physical path, and a
+   * leg's deposit is Φ0 times its expected path (scatter.h), not its
+   * marched length: the bound holds for the mean, so 4x headroom on it */
+  double bound = (P->path_cap + diag) * (s->ms.params.max_bounces ? 4.0 : 1.0);
+  P->fixed_scale = (float)pm_fixed_scale(pmax * w_max, bound);
   P->photon_total = (bk_uint)s->lights.photons;
   P->light_count = (bk_uint)s->lights.count;
   /* quanta -> W·voxel -> W·m / (4π V) */
@@ -187,6 +205,10 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   /* what the volume allows the kernel to skip: part of the octree stage */
   double t0 = bk_now_ms();
   scan_volume(vol, s->voxels, &s->has_refraction, &s->homogeneous, &s->grey);
+  int grey_scatter;
+  ms_decide(scene, vol, &s->ms, &grey_scatter);
+  /* one channel carries every colour only when the albedo is grey too */
+  if (s->ms.params.max_bounces && !grey_scatter) s->grey = 0;
   warn_coarse_step(scene, s->has_refraction);
   double ms_scan = bk_now_ms() - t0;
   t0 = bk_now_ms();
@@ -199,7 +221,8 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   /* what the march holds per voxel: n/∇n, the pyramid, σt, the counters */
   size_t per_voxel = (s->has_refraction ? 4 * sizeof(float) + 1 : 0) +
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
-                     s->channels * sizeof(uint64_t) + 3 * sizeof(float);
+                     s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
+                     (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0);
   rc = grid_check_memory(d, per_voxel, scene->path, err);
   if (rc != BK_OK) return rc;
   double ms_generate = bk_now_ms() - t0;
@@ -209,6 +232,8 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   double ms_octree = bk_now_ms() - t0 + ms_scan;
   t0 = bk_now_ms();
   if ((rc = set_params(scene, vol, s, err)) != BK_OK) goto error;
+  if (s->ms.params.max_bounces && (rc = ms_build(scene, vol, s->channels, &s->ms, err)) != BK_OK)
+    goto error;
   ms_generate += bk_now_ms() - t0;
   if (timings) report_prepare(s, timings, ms_octree, ms_generate);
   if (stats) {
@@ -225,6 +250,7 @@ void pm_setup_free(pm_setup_t *s) {
   if (!s) return;
   free(s->ng);
   free(s->sigma);
+  ms_free(&s->ms);
   oct_free(&s->pyramid);
   s->ng = NULL;
   s->sigma = NULL;
@@ -305,11 +331,19 @@ size_t pm_mask_count(const pm_setup_t *s) {
 
 int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err) {
   bk_progress_t prog;
+  if (stats) stats->bounces = (int)s->ms.params.max_bounces;
   bk_progress_begin(&prog, "photon marching", s->last - s->first);
   for (uint64_t i = s->first; i < s->last; i++) {
     pm_result r;
-    pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma, acc,
-                    s->masks, s->tables, (bk_uint)i, &r, NULL);
+    if (s->ms.params.max_bounces) {
+      ms_tally t;
+      pm_march_scattered(&s->params, &s->ms.params, s->lights.lights, s->ng, s->pyramid.level,
+                         s->sigma, s->ms.scat, acc, s->masks, s->tables, (bk_uint)i, &r, &t, NULL);
+      if (stats) pm_stats_add_tally(stats, &t);
+    } else {
+      pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma, acc,
+                      s->masks, s->tables, (bk_uint)i, &r, NULL);
+    }
     if (stats) pm_stats_add(stats, &r);
     if (((i - s->first) & 4095) == 4095) bk_progress_update(&prog, i - s->first + 1);
   }
@@ -386,6 +420,30 @@ void pm_sums_free(pm_sums_t *k) {
   k->acc = NULL;
 }
 
+/* What multiple scattering did: a timing row (no time of its own: the
+ * march's) and a log line. */
+static void report_scattering(const pm_setup_t *s, pm_stats_t *stats, bk_timings_t *timings) {
+  const ms_setup_t *ms = &s->ms;
+  if (!ms->params.max_bounces) {
+    if (timings)
+      bk_timings_add(timings, "scattering", 0.0, "single scattering (bounces 0%s, order ratio %.3g)",
+                     ms->auto_chosen ? " by auto" : "", ms->ratio);
+    return;
+  }
+  double share = pm_scattered_share(stats);
+  if (timings)
+    bk_timings_add(timings, "scattering", 0.0,
+                   "up to %u events%s, %.2f per photon; %.1f%% of the deposit after the first "
+                   "event",
+                   ms->params.max_bounces, ms->auto_chosen ? " (auto)" : "",
+                   stats->photons ? (double)stats->events / (double)stats->photons : 0.0,
+                   100.0 * share);
+  bk_log(1, "march: multiple scattering: up to %u events per photon%s, %.1f%% of the deposited "
+            "energy after the first scattering event; %.4g W entered the grid, %.4g W left it",
+         ms->params.max_bounces, ms->auto_chosen ? " (auto)" : "", 100.0 * share, stats->entered,
+         stats->escaped);
+}
+
 int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float *radiance,
             pm_stats_t *stats, bk_timings_t *timings, bk_error_t *err) {
   return pm_bake_range(cl, scene, vol, 0, UINT64_MAX, radiance, NULL, stats, timings, err);
@@ -430,9 +488,11 @@ int pm_bake_range(clh_context_t *cl, const scene_t *scene, const volume_t *vol, 
          (unsigned long long)stats->left_grid, (unsigned long long)stats->absorbed,
          (unsigned long long)stats->step_limit, (unsigned long long)stats->steps,
          (unsigned long long)stats->voxels);
+  report_scattering(&s, stats, timings);
   if (stats->step_limit)
     bk_log(1, "march: %llu photon(s) stopped at the step limit (trapped by total internal "
-              "reflection?)", (unsigned long long)stats->step_limit);
+              "reflection?%s)", (unsigned long long)stats->step_limit,
+           s.ms.params.max_bounces ? " or a random walk longer than 16 grid diagonals" : "");
   rc = BK_OK;
 error:
   free(acc);

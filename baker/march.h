@@ -33,6 +33,7 @@
 #ifndef BAKER_MARCH_H
 #define BAKER_MARCH_H
 
+#include "bounces.h"
 #include "clhost.h"
 #include "kernels/photon_march.h"
 #include "octree.h"
@@ -57,6 +58,12 @@ typedef struct pm_stats {
   double path_voxels;  /* total path length inside the grid, voxels */
   double ms_octree, ms_generate, ms_march;
   double ms_build;     /* OpenCL program build (or cache load), part of ms_march */
+  /* Multiple scattering (bounces.h), sums of the photons' ms_tally: the
+   * power that entered the grid and left it (W), the deposits of first legs
+   * and of later ones (W·voxel), the scattering events. */
+  int bounces;         /* events allowed per photon; 0: single scattering */
+  double entered, escaped, deposit_first, deposit_later;
+  uint64_t events;
 } pm_stats_t;
 
 /* Everything the march needs, prepared once on the host. */
@@ -79,6 +86,7 @@ typedef struct pm_setup {
    * among all lights.photons (Hammersley point i of N, its light), so the
    * sums of disjoint ranges add up to the whole march exactly. */
   uint64_t first, last;
+  ms_setup_t ms;         /* multiple scattering: params.max_bounces 0 when off */
   /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */
   uint64_t *masks;       /* origin recorder: pm_mask_count masks, zeroed by the caller */
   const float *tables;   /* sampling tables: LD_TABLE_FLOATS(8, 8) floats per light */
@@ -126,8 +134,11 @@ void pm_set_range(pm_setup_t *s, uint64_t first, uint64_t last);
 size_t pm_acc_count(const pm_setup_t *s);
 size_t pm_mask_count(const pm_setup_t *s);
 
-/* Counts one photon's outcome into st. */
+/* Counts one photon's outcome into st; and its energy accounting. */
 void pm_stats_add(pm_stats_t *st, const pm_result *r);
+void pm_stats_add_tally(pm_stats_t *st, const ms_tally *t);
+/* The share of the deposited energy after the first scattering event. */
+double pm_scattered_share(const pm_stats_t *st);
 
 /* Marches every photon into acc (pm_acc_count counters, zeroed by the
  * caller): in plain C on this thread, or with OpenCL on cl. */

@@ -14,8 +14,10 @@ typedef struct pm_cl_run {
   cl_kernel kern;
   size_t local;
   cl_mem params, lights, ng, pyr, sigma, acc, out, dummy, masks, tables;
+  cl_mem ms_params, scat, tally; /* multiple scattering (march_ms.cl) */
   size_t acc_bytes, mask_bytes;
   pm_result *res;
+  ms_tally *tallies;
 } pm_cl_run_t;
 
 static size_t field_bytes(const pm_setup_t *s) {
@@ -45,15 +47,18 @@ static int check_device(clh_context_t *cl, const pm_setup_t *s, size_t acc_bytes
  * work-group size: PM_LOCAL_SIZE, or the largest power of 2 below it that
  * the kernel allows. */
 static int build_kernel(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, bk_error_t *err) {
-  char opts[512], lights[256];
+  char opts[640], lights[256], ms[128];
   cl_int cerr = CL_SUCCESS;
+  const int scatter = s->ms.params.max_bounces > 0;
   ph_kernel_defines(&s->lights, lights, sizeof lights);
+  ms_kernel_defines(&s->ms, ms, sizeof ms);
   snprintf(opts, sizeof opts,
-           "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d %s -DPM_MODE=%d",
+           "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d %s -DPM_MODE=%d%s%s",
            s->has_refraction, s->homogeneous, s->params.integrator, s->channels, lights,
-           (int)s->params.mode);
-  if (clh_build(cl, "march.cl", opts, &r->prog, err) != BK_OK) return BK_ERR_RUNTIME;
-  r->kern = clCreateKernel(r->prog, "pm_march", &cerr);
+           (int)s->params.mode, scatter ? " " : "", ms);
+  if (clh_build(cl, scatter ? "march_ms.cl" : "march.cl", opts, &r->prog, err) != BK_OK)
+    return BK_ERR_RUNTIME;
+  r->kern = clCreateKernel(r->prog, scatter ? "pm_march_ms" : "pm_march", &cerr);
   CLH_CHECK(cerr, err, error);
   size_t kmax = 0;
   r->local = PM_LOCAL_SIZE;
@@ -97,6 +102,12 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
       !(r->acc = make_buffer(cl, CL_MEM_READ_WRITE | host, r->acc_bytes, acc, err)) ||
       !(r->out = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, err)))
     return BK_ERR_RUNTIME;
+  if (s->ms.params.max_bounces &&
+      (!(r->ms_params = make_buffer(cl, copy, sizeof(ms_params), &s->ms.params, err)) ||
+       (s->ms.scat && !(r->scat = make_buffer(cl, in, s->voxels * s->ms.stride * sizeof(float),
+                                              s->ms.scat, err))) ||
+       !(r->tally = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(ms_tally), NULL, err))))
+    return BK_ERR_RUNTIME;
   if (s->params.mode == PM_MODE_ORIGINS) {
     if (!s->masks) return bk_fail(err, BK_ERR_RUNTIME, "march: origin recorder without masks");
     if (!(r->masks = make_buffer(cl, CL_MEM_READ_WRITE | host, r->mask_bytes, s->masks, err)))
@@ -117,6 +128,10 @@ static int set_args(pm_cl_run_t *r, bk_error_t *err) {
                   r->masks ? r->masks : r->dummy, r->tables ? r->tables : r->dummy};
   for (cl_uint i = 0; i < 11; i++)
     if (a[i]) CLH_CHECK(clSetKernelArg(r->kern, i, sizeof(cl_mem), &a[i]), err, error);
+  if (!r->tally) return BK_OK;
+  cl_mem m[3] = {r->ms_params, r->scat ? r->scat : r->dummy, r->tally}; /* march_ms.cl */
+  for (cl_uint i = 0; i < 3; i++)
+    CLH_CHECK(clSetKernelArg(r->kern, 11 + i, sizeof(cl_mem), &m[i]), err, error);
   return BK_OK;
 error:
   return BK_ERR_RUNTIME;
@@ -144,8 +159,15 @@ static int launch(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, pm_sta
     CLH_CHECK(clEnqueueReadBuffer(cl->queue, r->out, CL_TRUE, 0, count * sizeof(pm_result), r->res,
                                   0, NULL, NULL),
               err, error);
+    if (r->tally)
+      CLH_CHECK(clEnqueueReadBuffer(cl->queue, r->tally, CL_TRUE, 0, count * sizeof(ms_tally),
+                                    r->tallies, 0, NULL, NULL),
+                err, error);
     if (stats)
-      for (cl_uint i = 0; i < count; i++) pm_stats_add(stats, &r->res[i]);
+      for (cl_uint i = 0; i < count; i++) {
+        pm_stats_add(stats, &r->res[i]);
+        if (r->tally) pm_stats_add_tally(stats, &r->tallies[i]);
+      }
     bk_progress_update(&progress, first + count - s->first);
   }
   rc = BK_OK;
@@ -172,10 +194,11 @@ error:
 
 static void release(pm_cl_run_t *r) {
   free(r->res);
+  free(r->tallies);
   if (r->kern) clReleaseKernel(r->kern);
   if (r->prog) clReleaseProgram(r->prog);
-  cl_mem all[] = {r->params, r->lights, r->ng,    r->pyr,   r->sigma,
-                  r->acc,    r->out,    r->dummy, r->masks, r->tables};
+  cl_mem all[] = {r->params, r->lights, r->ng,     r->pyr,       r->sigma, r->acc, r->out,
+                  r->dummy,  r->masks,  r->tables, r->ms_params, r->scat,  r->tally};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
     if (all[i]) clReleaseMemObject(all[i]);
 }
@@ -185,6 +208,7 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   pm_cl_run_t r;
   memset(&r, 0, sizeof r);
   r.acc_bytes = pm_acc_count(s) * sizeof(uint64_t);
+  if (stats) stats->bounces = (int)s->ms.params.max_bounces;
   r.mask_bytes = pm_mask_count(s) * sizeof(uint64_t);
   int rc = check_device(cl, s, r.acc_bytes, err);
   if (rc != BK_OK) return rc;
@@ -193,8 +217,11 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   if (stats) stats->ms_build += bk_now_ms() - t0;
   rc = BK_ERR_RUNTIME;
   r.res = bk_calloc(PM_CHUNK, sizeof(pm_result), "march: photon results", err);
-  if (!r.res || make_buffers(cl, s, acc, &r, err) || set_args(&r, err) ||
-      launch(cl, s, &r, stats, err) || read_back(cl, r.acc, r.acc_bytes, acc, err) ||
+  if (s->ms.params.max_bounces)
+    r.tallies = bk_calloc(PM_CHUNK, sizeof(ms_tally), "march: photon energy tallies", err);
+  if (!r.res || (s->ms.params.max_bounces && !r.tallies) || make_buffers(cl, s, acc, &r, err) ||
+      set_args(&r, err) || launch(cl, s, &r, stats, err) ||
+      read_back(cl, r.acc, r.acc_bytes, acc, err) ||
       (r.masks && read_back(cl, r.masks, r.mask_bytes, s->masks, err)))
     goto done;
   CLH_CHECK(clFinish(cl->queue), err, done);

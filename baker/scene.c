@@ -35,6 +35,10 @@ static const sc_range_t R_COUNT_INT = {1, INT_MAX, 0, 0, 1, 1};
 static const sc_range_t R_PIXELS = {1, 16384, 0, 0, 1, 0};
 static const sc_range_t R_SEED = {0, 4294967295.0, 0, 0, 1, 0};
 /* 2^53: beyond it a JSON number no longer names every integer */
+/* photons.bounces: events per photon (kernels/scatter.h), at most SCENE_MAX_BOUNCES */
+static const sc_range_t R_BOUNCES = {0, SCENE_MAX_BOUNCES, 0, 0, 1, 0};
+/* Henyey–Greenstein g: |g| = 1 is a delta, no scattering at all */
+static const sc_range_t R_HG = {-1, 1, 1, 1, 0, 0};
 static const sc_range_t R_PHOTONS = {1, 9007199254740992.0, 0, 0, 1, 1};
 
 /* --- sections ------------------------------------------------------------- */
@@ -98,13 +102,15 @@ static int sc_vdb_ref(const sc_ctx_t *c, const json_value_t *obj, const char *pa
 }
 
 static int sc_medium(const sc_ctx_t *c, const json_value_t *m, scene_t *s) {
-  static const char *const keys[] = {"sigma_s", "sigma_a", "ior", "density_vdb", "ior_vdb", NULL};
+  static const char *const keys[] = {"sigma_s", "sigma_a", "ior", "g", "density_vdb", "ior_vdb",
+                                     NULL};
   int rc;
   if ((rc = sc_object(c, m, "medium"))) return rc;
   sc_check_keys(c, m, "medium", keys);
   if ((rc = sc_opt_floats(c, m, "medium", "sigma_s", &R_NONNEG, 3, 1, s->medium_sigma_s)) ||
       (rc = sc_opt_floats(c, m, "medium", "sigma_a", &R_NONNEG, 3, 1, s->medium_sigma_a)) ||
       (rc = sc_opt_float(c, m, "medium", "ior", &R_IOR, &s->medium_ior)) ||
+      (rc = sc_opt_float(c, m, "medium", "g", &R_HG, &s->medium_g)) ||
       (rc = sc_vdb_ref(c, m, "medium", "density_vdb", "density", &s->density_vdb)) ||
       (rc = sc_vdb_ref(c, m, "medium", "ior_vdb", "ior", &s->ior_vdb)))
     return rc;
@@ -122,7 +128,7 @@ static int sc_array(const sc_ctx_t *c, const json_value_t *v, const char *path, 
 
 static int sc_object_entry(const sc_ctx_t *c, const json_value_t *v, const char *path,
                            scene_object_t *o) {
-  static const char *const keys[] = {"mesh", "ior", "sigma_a", "sigma_s", "transform", NULL};
+  static const char *const keys[] = {"mesh", "ior", "sigma_a", "sigma_s", "g", "transform", NULL};
   static const char *const tkeys[] = {"scale", "rotate_deg", "translate", NULL};
   char p[SC_KEY_MAX];
   const json_value_t *mesh, *t;
@@ -134,7 +140,8 @@ static int sc_object_entry(const sc_ctx_t *c, const json_value_t *v, const char 
       (rc = sc_file(c, mesh, sc_key(p, path, "mesh"), o->mesh, o->where)) ||
       (rc = sc_opt_float(c, v, path, "ior", &R_IOR, &o->ior)) ||
       (rc = sc_opt_floats(c, v, path, "sigma_a", &R_NONNEG, 3, 1, o->sigma_a)) ||
-      (rc = sc_opt_floats(c, v, path, "sigma_s", &R_NONNEG, 3, 1, o->sigma_s)))
+      (rc = sc_opt_floats(c, v, path, "sigma_s", &R_NONNEG, 3, 1, o->sigma_s)) ||
+      (rc = sc_opt_float(c, v, path, "g", &R_HG, &o->g)))
     return rc;
   if (!(t = json_object_get(v, "transform"))) return BK_OK;
   sc_key(p, path, "transform");
@@ -209,8 +216,25 @@ static int sc_light(const sc_ctx_t *c, const json_value_t *v, const char *path, 
   return kind->parse(&reader, l);
 }
 
+/* photons.bounces: "auto" or a whole number of scattering events. */
+static int sc_bounces(const sc_ctx_t *c, const json_value_t *obj, int *out) {
+  const json_value_t *v = json_object_get(obj, "bounces");
+  double n;
+  int rc;
+  if (!v) return BK_OK;
+  if (v->type == JSON_STRING && strcmp(v->string, "auto") == 0) return *out = SCENE_BOUNCES_AUTO, BK_OK;
+  if (v->type == JSON_STRING)
+    return sc_fail(c, v, "photons.bounces",
+                   "expected \"auto\" or a whole number from 0 to %d, found \"%.200s\"",
+                   SCENE_MAX_BOUNCES, v->string);
+  if ((rc = sc_number(c, v, "photons.bounces", &R_BOUNCES, &n))) return rc;
+  *out = (int)n;
+  return BK_OK;
+}
+
 static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
-  static const char *const keys[] = {"mode", "count", "seed", "integrator", "step", NULL};
+  static const char *const keys[] = {"mode", "count", "seed", "integrator", "step", "bounces",
+                                     NULL};
   static const char *const modes[] = {"reference", "adaptive"};        /* photon_mode_t */
   const char *integrators[INTEGRATOR_KIND_COUNT];
   const json_value_t *e;
@@ -230,7 +254,8 @@ static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
   }
   if ((rc = sc_opt_int(c, v, "photons", "count", &R_PHOTONS, &s->photon_count)) ||
       (rc = sc_opt_int(c, v, "photons", "seed", &R_SEED, &seed)) ||
-      (rc = sc_opt_float(c, v, "photons", "step", &R_POSITIVE, &s->step)))
+      (rc = sc_opt_float(c, v, "photons", "step", &R_POSITIVE, &s->step)) ||
+      (rc = sc_bounces(c, v, &s->bounces)))
     return rc;
   s->seed = (unsigned)seed;
   return BK_OK;
@@ -355,6 +380,7 @@ void scene_defaults(scene_t *s) {
   s->seed = 1;
   s->integrator = INTEGRATOR_EULER;
   s->step = 0.5f;
+  s->bounces = SCENE_BOUNCES_AUTO;
   s->pilot = 4000;
   s->gradient_threshold = SCENE_AUTO;
   s->luminance_threshold = SCENE_AUTO;

@@ -37,6 +37,7 @@ typedef struct scene_object {
   char where[SCENE_WHERE_MAX]; /* "scene.json:L:C: objects[i].mesh" */
   float ior;                 /* >= 1 */
   float sigma_a[3], sigma_s[3];
+  float g;                   /* Henyey–Greenstein asymmetry of its medium, (-1, 1); default 0 */
   float scale[3];            /* "scale": number or [x,y,z]; default 1 */
   float rotate_deg[3];       /* XYZ Euler, applied x then y then z; default 0 */
   float translate[3];
@@ -60,6 +61,9 @@ typedef struct scene_camera {
 
 /* Thresholds of the adaptive pipeline: a negative value means "auto". */
 #define SCENE_AUTO (-1.0f)
+/* photons.bounces "auto" (baker/bounces.h decides), and the largest N. */
+#define SCENE_BOUNCES_AUTO (-1)
+#define SCENE_MAX_BOUNCES 100000
 
 typedef struct scene {
   char path[SCENE_PATH_MAX]; /* the scene file as given */
@@ -75,6 +79,7 @@ typedef struct scene {
   /* medium */
   float medium_sigma_s[3], medium_sigma_a[3];
   float medium_ior;          /* >= 1; default 1 */
+  float medium_g;            /* Henyey–Greenstein asymmetry, (-1, 1); default 0 */
   scene_vdb_ref_t density_vdb, ior_vdb;
 
   scene_object_t *objects;
@@ -88,6 +93,7 @@ typedef struct scene {
   unsigned seed;             /* default 1 */
   integrator_t integrator;   /* default euler */
   float step;                /* voxels, default 0.5 */
+  int bounces;               /* scattering events per photon, or SCENE_BOUNCES_AUTO (default) */
 
   /* adaptive */
   int pilot;                 /* default 4000 */

@@ -374,6 +374,7 @@ static void vox_blend(const scene_object_t *obj, const vox_region_t *r, float ba
         }
         if (w <= 0.0f) continue;
         float *s = out->sigma_s + 3 * gv, *a = out->sigma_a + 3 * gv;
+        if (out->g) out->g[gv] = w >= 1.0f ? obj->g : out->g[gv] + w * (obj->g - out->g[gv]);
         if (w >= 1.0f) { /* exactly the object's values, so interiors stay homogeneous */
           out->ior[gv] = obj->ior;
           for (int ch = 0; ch < 3; ch++) {
@@ -438,7 +439,12 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
   const grid_dims_t *d = &out->dims;
   /* everything this stage holds at once: the volume, an object's scratch
    * (at most the whole grid), and the density field while it is applied */
-  size_t per_voxel = VOX_BYTES_PER_VOXEL + (scene->object_count > 0 ? VOX_SCRATCH_BYTES : 0) +
+  /* a g grid only when an object's phase differs from the medium's */
+  int g_grid = 0;
+  for (int i = 0; i < scene->object_count; i++)
+    if (scene->objects[i].g != scene->medium_g) g_grid = 1;
+  size_t per_voxel = VOX_BYTES_PER_VOXEL + (g_grid ? sizeof(float) : 0) +
+                     (scene->object_count > 0 ? VOX_SCRATCH_BYTES : 0) +
                      (scene->density_vdb.present ? sizeof(float) : 0);
   rc = grid_check_memory(d, per_voxel, grid_where, err);
   if (rc) return rc;
@@ -448,6 +454,11 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
   out->sigma_s = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_s grid", err);
   out->sigma_a = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_a grid", err);
   if (!out->ior || !out->sigma_s || !out->sigma_a) return BK_ERR_RUNTIME;
+  if (g_grid) {
+    out->g = bk_calloc(count, sizeof(float), "voxelize: g grid", err);
+    if (!out->g) return BK_ERR_RUNTIME;
+    for (size_t i = 0; i < count; i++) out->g[i] = scene->medium_g;
+  }
   double t_medium = bk_now_ms();
   rc = vox_medium(scene, out, err);
   if (rc) return rc;
@@ -640,5 +651,6 @@ void vox_free(volume_t *v) {
   free(v->ior);
   free(v->sigma_s);
   free(v->sigma_a);
-  v->ior = v->sigma_s = v->sigma_a = NULL;
+  free(v->g);
+  v->ior = v->sigma_s = v->sigma_a = v->g = NULL;
 }

@@ -39,6 +39,7 @@ typedef struct volume {
   float *ior;      /* n per voxel, >= 1 */
   float *sigma_s;  /* 3 per voxel (RGB, interleaved), 1/m */
   float *sigma_a;  /* 3 per voxel */
+  float *g;        /* Henyey–Greenstein g per voxel; NULL: the medium's everywhere */
   /* What the scene contains, for kernel specialisation (DESIGN §3). */
   int has_refraction;  /* n varies somewhere */
   int homogeneous;     /* sigma_s and sigma_a the same in every voxel */

@@ -55,6 +55,17 @@
 #include "kernels/light_sample.h"
 #include "kernels/ray_core.h"
 
+/* Multiple scattering (kernels/scatter.h, scatter_march.h): on the host
+ * always compiled (off unless asked for), on the device only with
+ * -DMULTIPLE_SCATTERING=1 (kernels/march_ms.cl); without it the march below
+ * is single scattering. */
+#if !PH_DEVICE || (defined(MULTIPLE_SCATTERING) && MULTIPLE_SCATTERING)
+#define PM_MS_COMPILED 1
+#include "kernels/scatter.h"
+#else
+#define PM_MS_COMPILED 0
+#endif
+
 #define PM_MAX_STEPS 65536 /* photons trapped by total internal reflection */
 /* A photon that has travelled this many grid diagonals inside the grid is
  * trapped too: the bound on every photon's path that makes the fixed-point
@@ -169,6 +180,9 @@ typedef struct pm_photon {
   int light, cell;  /* pilot: the photon's light and light-domain cell */
   bk_ulong packed;  /* weighted: (1 << count_shift) + round(w weight_scale) */
   bk_long last;     /* the last voxel (pilot: coarse cell) counted or marked */
+#if PM_MS_COMPILED
+  ms_flight fl;     /* multiple scattering: this leg's free flight */
+#endif
 } pm_photon;
 
 /* Adds value (already multiplied by the fixed-point scale) to one counter,
@@ -215,6 +229,16 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
     PM_ATOMIC_ADD(acc + stride * idx + nch, ph->packed);
   }
 #endif
+#if PM_MS_COMPILED
+  if (ph->fl.state == MS_FLYING) {
+    float st[3], sbar = 0.0f;
+    for (int ch = 0; ch < nch; ch++) {
+      st[ch] = PM_HOMOGENEOUS(P) ? P->sigma_t[ch] : sigma[nch * idx + ch];
+      sbar += st[ch];
+    }
+    ms_flight_cross(&ph->fl, ph->power, ph->path, st, nch, sbar / (float)nch, seg, idx, c);
+  }
+#endif
   float pmax = 0.0f;
   for (int ch = 0; ch < nch; ch++) {
     float sg, trans;
@@ -222,6 +246,9 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
     else sg = sigma[nch * idx + ch];
     float r = rc_atten(sg * seg, &trans);
     pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
+#if PM_MS_COMPILED
+    ph->fl.deposit += ph->power[ch] * seg * r;
+#endif
     ph->power[ch] *= trans;
     pmax = ph->power[ch] > pmax ? ph->power[ch] : pmax;
   }
@@ -276,7 +303,11 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
     float tn = tmax[a];
     int last = tn >= len;
     float seg = (last ? len : tn) - t;
-    if (seg > 0.0f && pm_cross_voxel(P, sigma, acc, masks, ph, idx, c, seg)) {
+    int absorbed = seg > 0.0f && pm_cross_voxel(P, sigma, acc, masks, ph, idx, c, seg);
+#if PM_MS_COMPILED
+    ms_flight_place(&ph->fl, v3(x0[0] + t * dv[0], x0[1] + t * dv[1], x0[2] + t * dv[2]), d);
+#endif
+    if (absorbed) {
       status = PM_DDA_ABSORBED;
       t = last ? len : tn;
       break;
@@ -350,6 +381,9 @@ BK_INLINE int pm_start(const pm_params *P, BK_CONSTANT const ph_light *lights,
   ph->threshold = P->absorb_fraction * pmax;
   ph->path = 0.0f;
   ph->voxels = 0;
+#if PM_MS_COMPILED
+  ph->fl.state = MS_IDLE;
+#endif
   PM_RECORD(ph->x);
 #if !PH_DEVICE || HAS_REFRACTION
   if (PM_HAS_REFRACTION(P)) {
@@ -380,6 +414,9 @@ BK_INLINE int pm_curved_step(const pm_params *P, BK_GLOBAL const float *ng,
     if (len > 0.0f &&
         pm_cross_voxel(P, sigma, acc, masks, ph, pm_index(g, ph->c[0], ph->c[1], ph->c[2]), ph->c, len))
       r = PM_DDA_ABSORBED;
+#if PM_MS_COMPILED
+    if (len > 0.0f) ms_flight_place(&ph->fl, ph->x, v3_scale(seg, 1.0f / len));
+#endif
   } else if (len > 0.0f) {
     r = pm_dda(P, sigma, acc, masks, ph, v3_scale(seg, 1.0f / len), len, gl, gh);
   }
@@ -389,11 +426,45 @@ BK_INLINE int pm_curved_step(const pm_params *P, BK_GLOBAL const float *ng,
 }
 #endif
 
+/* Marches a started photon until it leaves the grid, is absorbed or reaches
+ * the step or path limit (*steps counts on across calls); returns its
+ * PM_FATE_*. Each iteration either crosses a constant block of the pyramid
+ * straight to its boundary or takes one curved step. */
+BK_INLINE bk_uint pm_march_leg(const pm_params *P, BK_GLOBAL const float *ng,
+                               BK_GLOBAL const bk_uchar *pyr, BK_GLOBAL const float *sigma,
+                               BK_GLOBAL bk_ulong *acc, BK_GLOBAL bk_ulong *masks, pm_photon *ph,
+                               bk_uint *steps PM_REC_DECL) {
+  const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
+  const int gl[3] = {0, 0, 0}, gh[3] = {n3.nx, n3.ny, n3.nz};
+  for (;;) {
+    if (*steps >= PM_MAX_STEPS || ph->path >= P->path_cap) return PM_FATE_STEP_LIMIT;
+    (*steps)++;
+    int r;
+#if !PH_DEVICE || HAS_REFRACTION
+    if (PM_HAS_REFRACTION(P)) {
+      int level = rc_block_level(pyr, n3, ph->c);
+      if (level > 0) { /* constant block: straight to its boundary */
+        int lo[3], hi[3];
+        rc_block_bounds(n3, level, ph->c, lo, hi);
+        r = pm_dda(P, sigma, acc, masks, ph, rc_normalize(ph->v), RC_FAR, lo, hi);
+      } else {
+        r = pm_curved_step(P, ng, sigma, acc, masks, ph);
+      }
+    } else
+#endif
+    {
+      r = pm_dda(P, sigma, acc, masks, ph, ph->v, RC_FAR, gl, gh);
+    }
+    PM_RECORD(ph->x);
+    if (r == PM_DDA_LEFT_GRID) return PM_FATE_LEFT;
+    if (r == PM_DDA_ABSORBED) return PM_FATE_ABSORBED;
+  }
+}
+
 /* Marches photon `index` (0 <= index < photon_total) to its end. masks: the
  * origin recorder's masks (PM_MODE_ORIGINS); tables: one sampling table of
  * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) floats per light (PM_MODE_TABLES);
- * unused otherwise. Each iteration either crosses a constant block of the
- * pyramid straight to its boundary or takes one curved step. */
+ * unused otherwise. */
 BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT const ph_light *lights,
                                BK_GLOBAL const float *ng, BK_GLOBAL const bk_uchar *pyr,
                                BK_GLOBAL const float *sigma, BK_GLOBAL bk_ulong *acc,
@@ -403,45 +474,14 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
    * would reload it after every atomic */
   const pm_params Pv = *Pc;
   const pm_params *P = &Pv;
-  const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
-  const int gl[3] = {0, 0, 0}, gh[3] = {n3.nx, n3.ny, n3.nz};
   res->fate = PM_FATE_MISSED;
   res->steps = 0;
   res->voxels = 0;
   res->path = 0.0f;
   pm_photon ph;
   if (!pm_start(P, lights, ng, tables, index, &ph PM_REC_ARG)) return;
-
-  bk_uint steps = 0, fate = PM_FATE_LEFT;
-  for (;;) {
-    if (steps >= PM_MAX_STEPS || ph.path >= P->path_cap) {
-      fate = PM_FATE_STEP_LIMIT;
-      break;
-    }
-    steps++;
-    int r;
-#if !PH_DEVICE || HAS_REFRACTION
-    if (PM_HAS_REFRACTION(P)) {
-      int level = rc_block_level(pyr, n3, ph.c);
-      if (level > 0) { /* constant block: straight to its boundary */
-        int lo[3], hi[3];
-        rc_block_bounds(n3, level, ph.c, lo, hi);
-        r = pm_dda(P, sigma, acc, masks, &ph, rc_normalize(ph.v), RC_FAR, lo, hi);
-      } else {
-        r = pm_curved_step(P, ng, sigma, acc, masks, &ph);
-      }
-    } else
-#endif
-    {
-      r = pm_dda(P, sigma, acc, masks, &ph, ph.v, RC_FAR, gl, gh);
-    }
-    PM_RECORD(ph.x);
-    if (r == PM_DDA_LEFT_GRID || r == PM_DDA_ABSORBED) {
-      fate = r == PM_DDA_LEFT_GRID ? PM_FATE_LEFT : PM_FATE_ABSORBED;
-      break;
-    }
-  }
-  res->fate = fate;
+  bk_uint steps = 0;
+  res->fate = pm_march_leg(P, ng, pyr, sigma, acc, masks, &ph, &steps PM_REC_ARG);
   res->steps = steps;
   res->voxels = ph.voxels;
   res->path = ph.path;

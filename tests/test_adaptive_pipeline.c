@@ -54,6 +54,9 @@ static void setup(int with_cl, int resolution) {
   snprintf(path, sizeof path, "%s/sphere.json", scene_dir);
   REQUIRE(scene_load(path, &scene, &err) == BK_OK, "%s", err.msg);
   scene.resolution = resolution;
+  /* the adaptive pipeline's accuracy, measured as before photons.bounces:
+   * single scattering (multiple scattering has tests/test_scatter.c) */
+  scene.bounces = 0;
   REQUIRE(vox_build(&scene, &vol, NULL, &err) == BK_OK, "%s", err.msg);
   V = grid_count(&vol.dims);
   if (with_cl) REQUIRE(clh_init(&cl, NULL, &err) == BK_OK, "clh_init: %s", err.msg);

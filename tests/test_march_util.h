@@ -96,6 +96,7 @@ static inline void tv_ball(volume_t *v, const float c[3], float r, float n_obj, 
 static inline void ts_init(scene_t *s, scene_light_t *lights, int nlights, long long photons) {
   scene_defaults(s); /* seed 1, step 0.5, Euler, as a scene file without them */
   snprintf(s->path, sizeof s->path, "test-scene.json");
+  s->bounces = 0; /* the analytic truths here are single scattering */
   s->lights = lights;
   s->light_count = nlights;
   s->photon_count = photons;

@@ -372,6 +372,20 @@ static void case_resolution_type(void) {
                "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 8 },\n"
                "  \"medium\": { \"sigma_s\": [0.5, \"0.5\", 0.5] } }\n",
                "sigma_string.json:2:32: medium.sigma_s[1]: expected a number, found a string");
+  EXPECT_ERROR("bounces_word.json",
+               "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 8 },\n"
+               "  \"photons\": { \"bounces\": \"many\" } }\n",
+               "bounces_word.json:2:27: photons.bounces: expected \"auto\" or a whole number "
+               "from 0 to 100000, found \"many\"");
+  EXPECT_ERROR("bounces_negative.json",
+               "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 8 },\n"
+               "  \"photons\": { \"bounces\": -1 } }\n",
+               "bounces_negative.json:2:27: photons.bounces: expected an integer in [0, 100000], "
+               "found -1");
+  EXPECT_ERROR("g_one.json",
+               "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 8 },\n"
+               "  \"medium\": { \"g\": 1 } }\n",
+               "g_one.json:2:20: medium.g: expected a number in (-1, 1), found 1");
   EXPECT_ERROR("bounds_object.json",
                "{ \"grid\": { \"bounds\": { \"min\": [0,0,0] }, \"resolution\": 8 } }\n",
                "bounds_object.json:1:23: grid.bounds: expected [[min x,y,z], [max x,y,z]], "

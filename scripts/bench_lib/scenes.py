@@ -22,6 +22,8 @@ def write_variant(base_path, out_dir, name, edit):
     for obj in scene.get("objects", []):
         if "mesh" in obj and not os.path.isabs(obj["mesh"]):
             obj["mesh"] = os.path.join(base_dir, obj["mesh"])
+    # the report's closed forms are single scattering (photons.bounces 0)
+    scene.setdefault("photons", {})["bounces"] = 0
     edit(scene)
     os.makedirs(os.path.join(out_dir, "scenes"), exist_ok=True)
     path = os.path.join(out_dir, "scenes", name + ".json")

@@ -1,0 +1,304 @@
+/* test_scatter.c: multiple scattering (kernels/scatter.h, scatter_march.h,
+ * baker/bounces.h) against analytic truths, on the host C path and on
+ * OpenCL. Usage: test_scatter TEST [host|cl]. */
+#include "kernels/scatter_march.h"
+#include "test_march_util.h"
+#include "voxelize.h"
+
+/* A cube of side 1 m, N voxels a side, filled with the given coefficients;
+ * a directional light of irradiance 1 W/m² along +z covers its top face:
+ * 1 W enters. */
+static float *bake_cube(clh_context_t *cl, int N, float sigma_s, float sigma_a, float g,
+                        int bounces, long long photons, unsigned seed, volume_t *v, pm_stats_t *st) {
+  tv_alloc(v, N, N, N, 1.0f / N, 0, 0, 0);
+  const float ss[3] = {sigma_s, sigma_s, sigma_s}, sa[3] = {sigma_a, sigma_a, sigma_a};
+  tv_fill(v, 1.0f, ss, sa);
+  tv_summarise(v);
+  static scene_light_t light;
+  light = tl_directional(0, 0, 1, 1.0f);
+  scene_t s;
+  ts_init(&s, &light, 1, photons);
+  s.bounces = bounces;
+  s.medium_g = g;
+  s.seed = seed;
+  return tm_bake(cl, &s, v, st);
+}
+
+/* Energy conservation. σa = 0: every watt that enters leaves (the power
+ * the photons carry out of the grid, summed over all their legs). σa > 0:
+ * what enters = what leaves + what is absorbed, the absorbed power read off
+ * the radiance grid, Σ σa 4π L̄ V. */
+static int test_energy(clh_context_t *cl) {
+  const int N = 32;
+  const double V = pow(1.0 / N, 3);
+  for (int absorbing = 0; absorbing < 2; absorbing++) {
+    const float sa = absorbing ? 0.3f : 0.0f;
+    volume_t v;
+    pm_stats_t st;
+    float *rad = bake_cube(cl, N, 3.0f, sa, 0.0f, 10000, 100000, 1, &v, &st);
+    double absorbed = 0.0;
+    for (size_t i = 0; i < grid_count(&v.dims); i++)
+      for (int c = 0; c < 3; c++) absorbed += sa * 4.0 * M_PI * rad[3 * i + c] * V;
+    printf("energy (sigma_a %.1f): entered %.5f W, left %.5f W, absorbed %.5f W, "
+           "%.2f events per photon, %.1f%% of the deposit after the first event, %llu at the "
+           "step limit\n",
+           sa, st.entered, st.escaped, absorbed, (double)st.events / st.photons,
+           100.0 * pm_scattered_share(&st), (unsigned long long)st.step_limit);
+    /* every photon of the 1 W light enters, summed in float per photon */
+    REQUIRE(fabs(st.entered / 3.0 - 1.0) < 1e-4, "entered %.6f W of 3 (RGB)", st.entered);
+    double balance = (st.escaped + absorbed) / st.entered - 1.0; /* all sums over RGB */
+    printf("  (left + absorbed) / entered - 1 = %+.4f (limit 1%%)\n", balance);
+    REQUIRE(fabs(balance) < 0.01, "energy balance off by %+.4f", balance);
+    REQUIRE(st.events > st.photons, "a 3-mean-free-path cube should scatter photons more than once");
+    free(rad);
+    tv_free(&v);
+  }
+  return 0;
+}
+
+/* Slope of ln(mean L̄) against depth over the layers [k0, k1]. */
+static double log_slope(const double *layer, int k0, int k1, double h) {
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  int n = 0;
+  for (int k = k0; k <= k1; k++, n++) {
+    double x = (k + 0.5) * h, y = log(layer[k]);
+    sx += x, sy += y, sxx += x * x, sxy += x * y;
+  }
+  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+/* The diffusion limit: in a deep, highly scattering slab the fluence falls
+ * as e^(−σ_tr z), σ_tr = sqrt(3 σa (σa + σs (1 − g))). A slab 12 m wide and
+ * 4 m deep lit from above; L̄ averaged over its columns 2 m (3.5 diffusion
+ * lengths) or more from its sides, its log-slope fitted over depths 0.75 m
+ * to 2.1 m (7.5 mean free paths from the lit face, 1.9 m from the far one,
+ * whose vacuum boundary steepens the decay there by under 0.5%). With 3e6
+ * photons the fit gives 1.723 and 1.744 /m (two seeds, g = 0) and 1.735 /m
+ * (g = 0.5) against 1.741. */
+static int test_diffusion(clh_context_t *cl, float g) {
+  const int NX = 72, NZ = 24;
+  const float h = 12.0f / NX, sa = 0.1f, ss = 10.0f / (1.0f - g);
+  volume_t v;
+  tv_alloc(&v, NX, NX, NZ, h, 0, 0, 0);
+  const float s3[3] = {ss, ss, ss}, a3[3] = {sa, sa, sa};
+  tv_fill(&v, 1.0f, s3, a3);
+  tv_summarise(&v);
+  scene_light_t light = tl_directional(0, 0, 1, 1.0f);
+  scene_t s;
+  ts_init(&s, &light, 1, 400000); /* the deep layers see few photons: fewer is too noisy */
+  s.bounces = SCENE_MAX_BOUNCES;
+  s.medium_g = g;
+  pm_stats_t st;
+  float *rad = tm_bake(cl, &s, &v, &st);
+  double layer[64] = {0};
+  const int c0 = 12, c1 = NX - 12; /* 2 m from the sides */
+  for (int k = 0; k < NZ; k++) {
+    for (int j = c0; j < c1; j++)
+      for (int i = c0; i < c1; i++) layer[k] += rad[3 * grid_index(&v.dims, i, j, k)];
+    layer[k] /= (double)(c1 - c0) * (c1 - c0);
+  }
+  double sigma_tr = sqrt(3.0 * sa * (sa + ss * (1.0 - g)));
+  double slope = -log_slope(layer, 4, 12, h);
+  printf("diffusion (g %.1f, sigma_s %.1f, sigma_a %.1f): %.1f events per photon; fitted decay "
+         "%.4f /m, sigma_tr %.4f /m (%+.2f%%, limit 5%%)\n",
+         g, ss, sa, (double)st.events / st.photons, slope, sigma_tr,
+         100.0 * (slope / sigma_tr - 1.0));
+  for (int k = 0; k < NZ; k += 3) printf("  depth %.2f m: L %.4e\n", (k + 0.5) * h, layer[k]);
+  REQUIRE(fabs(slope / sigma_tr - 1.0) < 0.05, "decay %.4f, expected %.4f", slope, sigma_tr);
+  free(rad);
+  tv_free(&v);
+  return 0;
+}
+
+/* bounces 0 is single scattering bit for bit, and a scattering march whose
+ * photons may not scatter deposits exactly what the single-scattering march
+ * does: its first leg is that march. Host path, photon by photon. */
+static int test_first_leg(void) {
+  volume_t v;
+  tv_alloc(&v, 24, 24, 24, 1.0f / 24, 0, 0, 0);
+  const float ss[3] = {1.0f, 1.0f, 1.0f}, sa[3] = {0.1f, 0.1f, 0.1f};
+  tv_fill(&v, 1.0f, ss, sa);
+  const float c[3] = {0.5f, 0.5f, 0.5f};
+  tv_ball(&v, c, 0.25f, 1.5f, 2.0f, NULL, NULL);
+  tv_summarise(&v);
+  scene_light_t light = tl_spot(0.5f, 1.5f, 0.5f, 0, -1, 0, 25.0f, 1, 1, 1);
+  scene_t s;
+  ts_init(&s, &light, 1, 5000);
+  bk_error_t err;
+  memset(&err, 0, sizeof err);
+  pm_setup_t setup;
+  REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+  REQUIRE(setup.ms.params.max_bounces == 0, "bounces 0 must leave multiple scattering off");
+  size_t n = pm_acc_count(&setup);
+  uint64_t *a = calloc(n, 8), *b = calloc(n, 8);
+  REQUIRE(a && b, "out of memory");
+  ms_params M = setup.ms.params;
+  M.sigma_s[0] = M.sigma_s[1] = M.sigma_s[2] = 1.0f / 24;
+  for (bk_uint i = 0; i < setup.lights.photons; i++) {
+    pm_result r1, r2;
+    ms_tally t;
+    pm_march_photon(&setup.params, setup.lights.lights, setup.ng, setup.pyramid.level, setup.sigma,
+                    a, NULL, NULL, i, &r1, NULL);
+    pm_march_scattered(&setup.params, &M, setup.lights.lights, setup.ng, setup.pyramid.level,
+                       setup.sigma, NULL, b, NULL, NULL, i, &r2, &t, NULL);
+    REQUIRE(memcmp(&r1, &r2, sizeof r1) == 0, "photon %u: outcomes differ", i);
+    REQUIRE(t.events == 0 && t.later == 0.0f, "photon %u scattered with bounces 0", i);
+  }
+  REQUIRE(memcmp(a, b, n * 8) == 0, "deposits differ");
+  printf("first leg: %llu photons through a refracting ball, deposits bit-identical\n",
+         (unsigned long long)setup.lights.photons);
+  free(a);
+  free(b);
+  pm_setup_free(&setup);
+  tv_free(&v);
+  return 0;
+}
+
+/* The "auto" rule (bounces.h) on a 2 m box: thin haze stays single
+ * scattering (and the march prepares no scattering), the bundled fog gets a
+ * few events, thicker fog more. */
+static int test_auto(void) {
+  struct {
+    float ss, sa;
+    int lo, hi;
+  } cases[] = {{0.01f, 0.0f, 0, 0}, {0.012f, 0.001f, 0, 0}, {0.03f, 0.001f, 1, 2}, {0.5f, 0.02f, 4, 8},
+               {1.5f, 0.05f, 10, 40}, {1.0f, 0.0f, 10, 20}, {0.0f, 1.0f, 0, 0}};
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+    volume_t v;
+    tv_alloc(&v, 16, 16, 16, 2.0f / 16, -1, -1, -1);
+    const float ss[3] = {cases[i].ss, cases[i].ss, cases[i].ss};
+    const float sa[3] = {cases[i].sa, cases[i].sa, cases[i].sa};
+    tv_fill(&v, 1.0f, ss, sa);
+    tv_summarise(&v);
+    scene_light_t light = tl_directional(0, -1, 0, 1.0f);
+    scene_t s;
+    ts_init(&s, &light, 1, 1000);
+    s.bounces = SCENE_BOUNCES_AUTO;
+    bk_error_t err;
+    memset(&err, 0, sizeof err);
+    pm_setup_t setup;
+    REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+    int n = (int)setup.ms.params.max_bounces;
+    char defs[128];
+    ms_kernel_defines(&setup.ms, defs, sizeof defs);
+    printf("auto: sigma_s %.3f sigma_a %.3f: r %.4f -> %d events%s\n", cases[i].ss, cases[i].sa,
+           setup.ms.ratio, n, n ? "" : " (single-scattering kernel)");
+    REQUIRE(n >= cases[i].lo && n <= cases[i].hi, "%d events, expected %d to %d", n,
+            cases[i].lo, cases[i].hi);
+    REQUIRE(n > 0 || (defs[0] == '\0' && setup.ms.scat == NULL),
+            "single scattering must build no scattering kernel or grid");
+    pm_setup_free(&setup);
+    tv_free(&v);
+  }
+  return 0;
+}
+
+/* Henyey–Greenstein sampling: the mean cosine is g, and ms_rotate turns a
+ * direction by the sampled angle. */
+static int test_phase(void) {
+  const float gs[] = {-0.5f, 0.0f, 0.3f, 0.8f, 0.95f};
+  const int M = 200000;
+  for (size_t i = 0; i < sizeof gs / sizeof gs[0]; i++) {
+    double mean = 0.0;
+    for (int k = 0; k < M; k++) mean += ms_hg_cos(gs[i], (k + 0.5f) / M);
+    mean /= M;
+    printf("phase: g %.2f: mean cosine %.5f\n", gs[i], mean);
+    REQUIRE(fabs(mean - gs[i]) < 2e-3, "mean cosine %.5f for g %.2f", mean, gs[i]);
+  }
+  bk_v3 d = rc_normalize(v3(0.3f, -0.5f, 0.8f));
+  for (int k = 0; k < 100; k++) {
+    float ct = -1.0f + 2.0f * k / 99.0f;
+    bk_v3 r = ms_rotate(d, ct, ms_uniform(1, 2, (bk_uint)k));
+    REQUIRE(fabs(rc_length(r) - 1.0f) < 1e-5f && fabs(v3_dot(r, d) - ct) < 1e-4f,
+            "rotation %d: |r| %.6f, cos %.6f (wanted %.6f)", k, rc_length(r), v3_dot(r, d), ct);
+  }
+  return 0;
+}
+
+/* Counter-based random numbers: a bake is the same every time, another seed
+ * another sample. */
+static int test_reproducible(clh_context_t *cl) {
+  volume_t v;
+  pm_stats_t st;
+  float *a = bake_cube(cl, 16, 2.0f, 0.1f, 0.5f, 20, 20000, 7, &v, &st);
+  size_t n = 3 * grid_count(&v.dims);
+  tv_free(&v);
+  float *b = bake_cube(cl, 16, 2.0f, 0.1f, 0.5f, 20, 20000, 7, &v, &st);
+  tv_free(&v);
+  float *c = bake_cube(cl, 16, 2.0f, 0.1f, 0.5f, 20, 20000, 8, &v, &st);
+  tv_free(&v);
+  REQUIRE(memcmp(a, b, n * sizeof(float)) == 0, "two bakes with one seed differ");
+  REQUIRE(memcmp(a, c, n * sizeof(float)) != 0, "two seeds gave the same bake");
+  printf("reproducible: same seed bit-identical, another seed differs\n");
+  free(a);
+  free(b);
+  free(c);
+  return 0;
+}
+
+/* objects[].g is voxelized like the coefficients and reaches the scattering
+ * march as a per-voxel g grid; a scene whose objects share the medium's g
+ * gets none. */
+static int test_object_g(void) {
+  const char *obj = "scatter_object_g_cube.obj";
+  FILE *f = fopen(obj, "w");
+  REQUIRE(f, "cannot write %s", obj);
+  fprintf(f, "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\n"
+             "v -1 1 1\nf 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 7 3\n"
+             "f 4 8 7\nf 1 5 8\nf 1 8 4\nf 2 3 7\nf 2 7 6\n");
+  fclose(f);
+  for (int differs = 0; differs < 2; differs++) {
+    scene_t s;
+    scene_object_t o;
+    scene_light_t light = tl_directional(0, -1, 0, 1.0f);
+    ts_init(&s, &light, 1, 1000);
+    for (int a = 0; a < 3; a++) s.bounds_min[a] = -1.0f, s.bounds_max[a] = 1.0f;
+    s.resolution = 32;
+    for (int c = 0; c < 3; c++) s.medium_sigma_s[c] = 0.5f;
+    s.medium_g = 0.2f;
+    scene_object_defaults(&o);
+    snprintf(o.mesh, sizeof o.mesh, "%s", obj);
+    o.ior = 1.0f;
+    o.scale[0] = o.scale[1] = o.scale[2] = 0.5f;
+    for (int c = 0; c < 3; c++) o.sigma_s[c] = 2.0f;
+    o.g = differs ? 0.7f : 0.2f;
+    s.objects = &o;
+    s.object_count = 1;
+    volume_t v;
+    bk_error_t err;
+    memset(&err, 0, sizeof err);
+    REQUIRE(vox_build(&s, &v, NULL, &err) == BK_OK, "vox_build: %s", err.msg);
+    ms_setup_t ms;
+    int grey;
+    ms_decide(&s, &v, &ms, &grey);
+    if (!differs) {
+      REQUIRE(v.g == NULL && !ms.g_grid && ms.hg, "one g everywhere needs no g grid");
+    } else {
+      float centre = v.g[grid_index(&v.dims, 16, 16, 16)], corner = v.g[0];
+      printf("object g: centre %.3f (object 0.7), corner %.3f (medium 0.2)\n", centre, corner);
+      REQUIRE(centre == 0.7f && corner == 0.2f && ms.g_grid && ms.hg, "g grid wrong");
+    }
+    vox_free(&v);
+  }
+  remove(obj);
+  return 0;
+}
+
+int main(int argc, char **argv) {
+  if (argc < 2) {
+    fprintf(stderr, "usage: test_scatter TEST [host|cl]\n");
+    return 2;
+  }
+  const char *t = argv[1];
+  clh_context_t *cl = tm_path(argc > 2 ? argv[2] : "host");
+  if (strcmp(t, "energy") == 0) return test_energy(cl);
+  if (strcmp(t, "diffusion") == 0) return test_diffusion(cl, 0.0f);
+  if (strcmp(t, "diffusion_hg") == 0) return test_diffusion(cl, 0.5f);
+  if (strcmp(t, "first_leg") == 0) return test_first_leg();
+  if (strcmp(t, "auto") == 0) return test_auto();
+  if (strcmp(t, "phase") == 0) return test_phase();
+  if (strcmp(t, "reproducible") == 0) return test_reproducible(cl);
+  if (strcmp(t, "object_g") == 0) return test_object_g();
+  fprintf(stderr, "test_scatter: unknown test %s\n", t);
+  return 2;
+}
