@@ -11,12 +11,14 @@
 #include <unistd.h>
 
 #include "adaptive.h"
+#include "batches.h"
 #include "base/common.h"
 #include "base/frames.h"
 #include "base/grid.h"
 #include "budget.h"
 #include "clhost.h"
 #include "march.h"
+#include "stats_json.h"
 #include "voxelize.h"
 
 /* One frame's state, from the scene to the grids written. */
@@ -28,6 +30,7 @@ typedef struct bake_job {
   clh_context_t cl;
   pm_stats_t stats;
   ad_stats_t astats;
+  bt_result_t error;
   float *extinction, *density, *ext_grey, *sca_grey;
   float *radiance, *photon_count, *photon_weight, *filter_radius, *emission;
 } bake_job_t;
@@ -38,6 +41,8 @@ void bake_options_defaults(bake_options_t *opt) {
   memset(opt, 0, sizeof *opt);
   opt->mode = opt->integrator = -1;
   opt->photons = opt->seed = -1;
+  opt->batches = -1;
+  opt->target_error = opt->time_budget_s = -1.0;
   opt->step = -1.0f;
   opt->resolution = -1;
   opt->write.compression = VDBIO_COMPRESS_BLOSC;
@@ -50,6 +55,9 @@ static void apply_overrides(const bake_options_t *opt, scene_t *s) {
   if (opt->step > 0) s->step = opt->step;
   if (opt->resolution > 0) s->resolution = opt->resolution;
   if (opt->seed >= 0) s->seed = (unsigned)opt->seed;
+  if (opt->batches > 0) s->batches = opt->batches;
+  if (opt->target_error > 0) s->target_error = (float)opt->target_error;
+  if (opt->time_budget_s > 0) s->time_budget_s = (float)opt->time_budget_s;
 }
 
 int bake_load_scene(const bake_options_t *opt, const char *scene_path, scene_t *s,
@@ -66,11 +74,13 @@ static const char *compression_name(vdbio_compression_t c) {
 void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_t len) {
   snprintf(out, len,
            "scene=%016" PRIx64 " mode=%s photons=%lld integrator=%s step=%.9g seed=%u "
-           "resolution=%d compression=%s half=%d filter=%s",
+           "resolution=%d compression=%s half=%d filter=%s batches=%d target_error=%g "
+           "time_budget_s=%g error_grid=%d",
            s->hash, scene_mode_name(s->mode), s->photon_count,
            scene_integrator_name(s->integrator), (double)s->step, s->seed, s->resolution,
            compression_name(opt->write.compression), opt->write.half_float ? 1 : 0,
-           s->mode != MODE_ADAPTIVE ? "n/a" : opt->no_filter ? "off" : "on");
+           s->mode != MODE_ADAPTIVE ? "n/a" : opt->no_filter ? "off" : "on", s->batches,
+           (double)s->target_error, (double)s->time_budget_s, opt->error_grid);
 }
 
 /* sigma_t = sigma_s + sigma_a per channel, the grey density (mean of the
@@ -123,6 +133,9 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   ad_bake_opts_t ao;
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
+  if (opt->error_grid)
+    return bk_fail(err, BK_ERR_INPUT, "%s: --error-grid: adaptive mode does not measure "
+                   "per-voxel errors yet (use photons.mode \"reference\")", j->scene.path);
   j->photon_count = bk_calloc(n, sizeof(float), "photon_count grid", err);
   j->photon_weight = bk_calloc(n, sizeof(float), "photon_weight grid", err);
   if (opt->write_filter_radius)
@@ -133,6 +146,7 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
                    j->photon_count, j->photon_weight, j->filter_radius, &j->astats, &j->timings,
                    err);
   j->stats = j->astats.march;
+  j->error.terms.estimate = j->error.terms.noise = j->error.terms.step = EE_UNKNOWN;
   return rc;
 }
 
@@ -150,8 +164,9 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
     bk_timings_add(&j->timings, "OpenCL init", bk_now_ms() - t0, "%s", j->cl.device_name);
   }
   if (j->scene.mode == MODE_ADAPTIVE) return bake_adaptive(j, opt, err);
-  return pm_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, j->radiance, &j->stats,
-                 &j->timings, err);
+  bt_options_t bo = {opt->error_grid};
+  return bt_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, &bo, j->radiance, &j->error,
+                 &j->stats, &j->timings, err);
 }
 
 /* The source term of L = ∫ T σs L̄ dt per channel, σs ⊙ L̄ (W·m⁻³·sr⁻¹): a
@@ -199,8 +214,18 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
     grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, j->photon_weight, 0, 0.0f};
   if (j->filter_radius)
     grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, j->filter_radius, 0, 0.0f};
+  if (j->error.error_grid)
+    grids[g++] = (vdbio_grid_t){"radiance_error", VDBIO_FLOAT, j->error.error_grid, 0, 0.0f};
   *count = g;
   return BK_OK;
+}
+
+/* What the error metadata covers, in words. */
+static const char *error_note(const scene_t *s, const ee_terms_t *e) {
+  if (s->mode == MODE_ADAPTIVE)
+    return "not measured: adaptive mode has no independent batches yet (error_* are -1)";
+  if (e->noise < 0.0) return "noise not measured: one batch (photons.batches >= 2 measures it)";
+  return "relative RMS luminance error over lit voxels vs RK4 1/8-voxel truth (docs/error.md)";
 }
 
 /* Stage 4: the grids and the metadata that says how they were made. */
@@ -210,6 +235,7 @@ static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char
   const scene_t *s = &j->scene;
   const pm_stats_t *st = &j->stats;
   const ad_stats_t *as = &j->astats;
+  const ee_terms_t *e = &j->error.terms;
   char hash[32], bounds[160], settings[512];
   bake_settings(opt, s, settings, sizeof settings);
   snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
@@ -234,6 +260,12 @@ static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char
       {"photon_steps", VDBIO_META_INT, NULL, (long long)st->steps, 0},
       {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : j->cl.device_name, 0, 0},
       {"bake_settings", VDBIO_META_STRING, settings, 0, 0},
+      /* docs/error.md; -1: not measured */
+      {"error_estimate", VDBIO_META_FLOAT, NULL, 0, (float)e->estimate},
+      {"error_noise", VDBIO_META_FLOAT, NULL, 0, (float)e->noise},
+      {"error_step", VDBIO_META_FLOAT, NULL, 0, (float)e->step},
+      {"error_batches", VDBIO_META_INT, NULL, e->batches, 0},
+      {"error_note", VDBIO_META_STRING, error_note(s, e), 0, 0},
       /* adaptive only (the count below leaves them out otherwise) */
       {"adaptive_pilot_photons", VDBIO_META_INT, NULL, (long long)as->pilot.photons, 0},
       {"adaptive_gradient_threshold", VDBIO_META_FLOAT, NULL, 0, as->select.gradient_threshold},
@@ -266,6 +298,17 @@ static void bake_report(const bake_job_t *j, const char *scene_path, const char 
   fflush(stdout);
 }
 
+/* --stats: the frame's JSON, at the frame's expansion of the path. */
+static int bake_stats(const bake_job_t *j, const bake_options_t *opt, const char *scene_path,
+                      const char *out_path, int frame, bk_error_t *err) {
+  char path[SCENE_PATH_MAX];
+  int rc = frames_expand(opt->stats_path, frame, path, sizeof path, err);
+  if (rc) return rc;
+  sj_frame_t f = {scene_path, out_path, frame, &j->scene, &j->timings, &j->stats,
+                  j->scene.mode == MODE_ADAPTIVE ? NULL : &j->error};
+  return sj_write(path, &f, err);
+}
+
 static void bake_job_free(bake_job_t *j) {
   free(j->extinction);
   free(j->density);
@@ -276,6 +319,7 @@ static void bake_job_free(bake_job_t *j) {
   free(j->photon_weight);
   free(j->filter_radius);
   free(j->emission);
+  free(j->error.error_grid);
   clh_release(&j->cl);
   vox_free(&j->vol);
   if (j->scene_loaded) scene_free(&j->scene);
@@ -288,6 +332,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   vdbio_grid_t grids[BAKE_MAX_GRIDS];
   int count = 0;
   int rc = bk_check_output_dir(out_path, err);
+  if (!rc && opt->stats_path) rc = bk_check_output_dir(opt->stats_path, err);
   if (!rc) rc = bake_load(j, opt, scene_path, frame, err);
   if (!rc) rc = bake_photons(j, opt, err);
   double t0 = bk_now_ms();
@@ -296,6 +341,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   if (!rc) {
     bk_timings_add(&j->timings, "write", bk_now_ms() - t0, "%s", out_path);
     if (bk_verbosity >= 1) bake_report(j, scene_path, out_path);
+    if (opt->stats_path) rc = bake_stats(j, opt, scene_path, out_path, frame, err);
   }
   bake_job_free(j);
   return rc;

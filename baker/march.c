@@ -81,6 +81,8 @@ static void set_scale(pm_setup_t *s, double w_max) {
                         ((double)P->fixed_scale * 4.0 * M_PI * h * h);
 }
 
+void pm_scale_batches(pm_setup_t *s, double batch_cap) { set_scale(s, batch_cap); }
+
 static int check_inputs(const scene_t *scene, const grid_dims_t *d, size_t voxels, bk_error_t *err) {
   if (voxels == 0 || !(d->voxel_size > 0.0))
     return bk_fail(err, BK_ERR_INPUT, "%s: march: empty grid %dx%dx%d", scene->path, d->nx, d->ny,
@@ -308,6 +310,23 @@ int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_
   }
   bk_progress_end(&prog);
   return BK_OK;
+}
+
+static int run_host_batches(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                            pm_batch_fn next, void *ctx, bk_error_t *err) {
+  pm_setup_t run = *s;
+  for (int done = 0;; done++) {
+    int go = next(ctx, done, acc, &run, err);
+    if (go <= 0) return go < 0 ? err->code : BK_OK;
+    int rc = pm_run_host(&run, acc, stats, err);
+    if (rc != BK_OK) return rc;
+  }
+}
+
+int pm_run_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                   pm_batch_fn next, void *ctx, bk_error_t *err) {
+  return cl ? pm_run_cl_batches(cl, s, acc, stats, next, ctx, err)
+            : run_host_batches(s, acc, stats, next, ctx, err);
 }
 
 typedef struct pm_unpack_ctx {

@@ -125,6 +125,26 @@ void pm_stats_add(pm_stats_t *st, const pm_result *r);
 int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err);
 int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
               bk_error_t *err);
+/* Batches (baker/batches.h): one march set up once, its photons traced in
+ * batches. Before each batch the runner calls next(ctx, done, acc, run,
+ * err) with `done` batches traced and acc holding their sums (readable and
+ * writable by the host: the callback may read it or zero it); the callback
+ * fills run->lights and run->params for the next batch and returns 1, or
+ * returns 0 to stop (negative: an error, in err). run starts as a copy of s;
+ * the callback may change the lights, photon_total and light_count, not the
+ * kernel's specialisation (-D flags: integrator, refraction, channels) but
+ * may change params.step. */
+typedef int (*pm_batch_fn)(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_error_t *err);
+int pm_run_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                   pm_batch_fn next, void *ctx, bk_error_t *err);
+int pm_run_cl_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                      pm_batch_fn next, void *ctx, bk_error_t *err);
+/* The fixed-point scale for photons traced as up to `batch_cap` batches that
+ * each carry the lights' whole power (each batch a full estimate; the sum
+ * of done batches divided by done is the result). batch_cap 1 is the scale
+ * of an unbatched march. */
+void pm_scale_batches(pm_setup_t *s, double batch_cap);
+
 /* acc -> radiance (3 floats per voxel, W m^-2 sr^-1); reference and
  * weighted modes. */
 void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);

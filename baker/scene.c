@@ -35,6 +35,8 @@ static const sc_range_t R_COUNT_INT = {1, INT_MAX, 0, 0, 1, 1};
 static const sc_range_t R_PIXELS = {1, 16384, 0, 0, 1, 0};
 static const sc_range_t R_SEED = {0, 4294967295.0, 0, 0, 1, 0};
 /* 2^53: beyond it a JSON number no longer names every integer */
+static const sc_range_t R_BATCHES = {1, 65536, 0, 0, 1, 0};
+static const sc_range_t R_TARGET_ERROR = {0, 1, 1, 0, 0, 0};
 static const sc_range_t R_PHOTONS = {1, 9007199254740992.0, 0, 0, 1, 1};
 
 /* --- sections ------------------------------------------------------------- */
@@ -210,11 +212,13 @@ static int sc_light(const sc_ctx_t *c, const json_value_t *v, const char *path, 
 }
 
 static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
-  static const char *const keys[] = {"mode", "count", "seed", "integrator", "step", NULL};
+  static const char *const keys[] = {"mode",  "count",        "seed",          "integrator",
+                                     "step",  "batches",      "target_error",  "time_budget_s",
+                                     NULL};
   static const char *const modes[] = {"reference", "adaptive"};        /* photon_mode_t */
   const char *integrators[INTEGRATOR_KIND_COUNT];
   const json_value_t *e;
-  long long seed = s->seed;
+  long long seed = s->seed, batches = s->batches;
   int rc, k;
   for (int i = 0; i < INTEGRATOR_KIND_COUNT; i++) integrators[i] = integrator_kinds[i].name;
   if ((rc = sc_object(c, v, "photons"))) return rc;
@@ -230,9 +234,13 @@ static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
   }
   if ((rc = sc_opt_int(c, v, "photons", "count", &R_PHOTONS, &s->photon_count)) ||
       (rc = sc_opt_int(c, v, "photons", "seed", &R_SEED, &seed)) ||
-      (rc = sc_opt_float(c, v, "photons", "step", &R_POSITIVE, &s->step)))
+      (rc = sc_opt_float(c, v, "photons", "step", &R_POSITIVE, &s->step)) ||
+      (rc = sc_opt_int(c, v, "photons", "batches", &R_BATCHES, &batches)) ||
+      (rc = sc_opt_float(c, v, "photons", "target_error", &R_TARGET_ERROR, &s->target_error)) ||
+      (rc = sc_opt_float(c, v, "photons", "time_budget_s", &R_POSITIVE, &s->time_budget_s)))
     return rc;
   s->seed = (unsigned)seed;
+  s->batches = (int)batches;
   return BK_OK;
 }
 
@@ -355,6 +363,7 @@ void scene_defaults(scene_t *s) {
   s->seed = 1;
   s->integrator = INTEGRATOR_EULER;
   s->step = 0.5f;
+  s->batches = 8;
   s->pilot = 4000;
   s->gradient_threshold = SCENE_AUTO;
   s->luminance_threshold = SCENE_AUTO;
