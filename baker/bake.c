@@ -236,6 +236,10 @@ static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char
   const pm_stats_t *st = &j->stats;
   const ad_stats_t *as = &j->astats;
   const ee_terms_t *e = &j->error.terms;
+  /* what marched: target mode chooses its own integrator and step */
+  const int chosen = s->mode != MODE_ADAPTIVE && j->error.step > 0.0f;
+  const integrator_t integ = chosen ? j->error.integrator : s->integrator;
+  const float step = chosen ? j->error.step : s->step;
   char hash[32], bounds[160], settings[512];
   bake_settings(opt, s, settings, sizeof settings);
   snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
@@ -250,8 +254,8 @@ static int bake_write(const bake_job_t *j, const bake_options_t *opt, const char
       {"grid_resolution", VDBIO_META_INT, NULL, s->resolution, 0},
       {"ior_smoothing_voxels", VDBIO_META_FLOAT, NULL, 0, s->ior_smoothing},
       {"photon_count", VDBIO_META_INT, NULL, (long long)st->photons, 0},
-      {"photon_integrator", VDBIO_META_STRING, scene_integrator_name(s->integrator), 0, 0},
-      {"photon_step_voxels", VDBIO_META_FLOAT, NULL, 0, s->step},
+      {"photon_integrator", VDBIO_META_STRING, scene_integrator_name(integ), 0, 0},
+      {"photon_step_voxels", VDBIO_META_FLOAT, NULL, 0, step},
       {"photon_seed", VDBIO_META_INT, NULL, s->seed, 0},
       {"photons_missed_grid", VDBIO_META_INT, NULL, (long long)st->missed_grid, 0},
       {"photons_left_grid", VDBIO_META_INT, NULL, (long long)st->left_grid, 0},

@@ -52,20 +52,81 @@ static int twin_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_err
   return load_batch(x, 0x40000000 + done, x->photons, run, err);
 }
 
-/* The step term: BT_TWIN_BATCHES twins with the truth's integrator, then
- * with the bake's. acc is zero before and after. */
-static int run_twin(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *err) {
+/* The truth integrator's twins, kept in x->fine. acc is zero before and after. */
+static int twin_truth(clh_context_t *cl, bt_run_t *x, uint64_t *acc, double *ms, bk_error_t *err) {
   pm_stats_t st;
   memset(&st, 0, sizeof st);
-  x->fine = bk_calloc(x->tr->count * BT_TWIN_BATCHES, sizeof(float), "error estimate: twin", err);
-  if (!x->fine) return BK_ERR_RUNTIME;
   pm_setup_t truth = *x->s;
   truth.params.integrator = integrator_kind(INTEGRATOR_RK4)->device;
   truth.params.step = BT_TRUTH_STEP;
   x->twin_phase = 1;
+  double t0 = bk_now_ms();
   int rc = pm_run_batches(cl, &truth, acc, &st, twin_next, x, err);
+  *ms = bk_now_ms() - t0;
+  return rc;
+}
+
+/* The same twins with integrator `integ` at `step` into the tracker's step
+ * sums (reset first); *ms their time. */
+static int twin_with(clh_context_t *cl, bt_run_t *x, uint64_t *acc, unsigned integ, float step,
+                     double *ms, bk_error_t *err) {
+  pm_stats_t st;
+  memset(&st, 0, sizeof st);
+  pm_setup_t run = *x->s;
+  run.params.integrator = integ;
+  run.params.step = step;
+  ee_twin_reset(x->tr);
   x->twin_phase = 2;
-  if (!rc) rc = pm_run_batches(cl, x->s, acc, &st, twin_next, x, err);
+  double t0 = bk_now_ms();
+  int rc = pm_run_batches(cl, &run, acc, &st, twin_next, x, err);
+  *ms = bk_now_ms() - t0;
+  return rc;
+}
+
+/* Target mode: the integrator and step whose bias leaves room for the noise
+ * at the least predicted time, time per photon / (E² − ε_step²), among
+ * Euler and RK4 at 1/2 and 1/4 voxel and the truth's RK4 1/8 (bias 0).
+ * A bias above 0.8 E leaves too little room. Sets x->s's integrator and
+ * step; the tracker keeps the chosen one's twins. */
+static int choose_integrator(clh_context_t *cl, bt_run_t *x, uint64_t *acc, double ms_truth,
+                             bk_error_t *err) {
+  static const struct { integrator_t i; float step; } cand[] = {
+      {INTEGRATOR_EULER, 0.5f}, {INTEGRATOR_EULER, 0.25f}, {INTEGRATOR_RK4, 0.5f},
+      {INTEGRATOR_RK4, 0.25f}};
+  const double E = x->target;
+  int best = -1;
+  double best_cost = ms_truth / (E * E), ms;
+  for (int c = 0; c < (int)(sizeof cand / sizeof cand[0]); c++) {
+    unsigned dev = integrator_kind(cand[c].i)->device;
+    int rc = twin_with(cl, x, acc, dev, cand[c].step, &ms, err);
+    if (rc) return rc;
+    double st = ee_twin_step(x->tr, x->fine);
+    double cost = st >= 0.0 && st <= 0.8 * E ? ms / (E * E - st * st) : HUGE_VAL;
+    bk_log(2, "target error %g: %s step %g: bias %.4f, twin %.0f ms, relative cost %.3g", E,
+           integrator_kind(cand[c].i)->name, (double)cand[c].step, st, ms, cost / best_cost);
+    if (cost < best_cost) best_cost = cost, best = c;
+  }
+  if (best < 0) { /* the truth's own integrator */
+    x->s->params.integrator = integrator_kind(INTEGRATOR_RK4)->device;
+    x->s->params.step = BT_TRUTH_STEP;
+    x->step_exact = 1;
+    return BK_OK;
+  }
+  x->s->params.integrator = integrator_kind(cand[best].i)->device;
+  x->s->params.step = cand[best].step;
+  return twin_with(cl, x, acc, x->s->params.integrator, x->s->params.step, &ms, err);
+}
+
+/* The step term: twins with the truth's integrator, then with the bake's
+ * (target mode: with each candidate, choosing one). */
+static int run_twin(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *err) {
+  double ms_truth, ms;
+  x->fine = bk_calloc(x->tr->count * BT_TWIN_BATCHES, sizeof(float), "error estimate: twin", err);
+  if (!x->fine) return BK_ERR_RUNTIME;
+  int rc = twin_truth(cl, x, acc, &ms_truth, err);
+  if (!rc && x->target > 0.0) rc = choose_integrator(cl, x, acc, ms_truth, err);
+  else if (!rc)
+    rc = twin_with(cl, x, acc, x->s->params.integrator, x->s->params.step, &ms, err);
   free(x->fine);
   x->fine = NULL;
   return rc;
@@ -184,7 +245,7 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
   const pm_setup_t *s = x->s;
   int rc = BK_OK;
   x->t0 = bk_now_ms();
-  if (!x->step_exact && s->lights.photons > 0) {
+  if (!x->step_exact && s->lights.photons > 0 && x->batches != 1) {
     uint64_t total = x->batches ? x->photons : x->photons * BT_MIN_BATCHES;
     uint64_t n = (uint64_t)(total * BT_TWIN_FRACTION / BT_TWIN_BATCHES);
     x->photons = n > BT_TWIN_MIN ? n : BT_TWIN_MIN;
@@ -235,6 +296,10 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
   if (acc) rc = run_all(cl, &x, res, acc, stats, &ms_march, err);
   if (rc) goto done;
   res->batches = x.done;
+  res->integrator = scene->integrator;
+  for (int k = 0; k < INTEGRATOR_KIND_COUNT; k++)
+    if (integrator_kinds[k].device == s.params.integrator) res->integrator = integrator_kinds[k].id;
+  res->step = s.params.step;
   res->batch_photons = x.batches ? ph_batch_photons(x.photons, x.batches, 0) : x.photons;
   double t = bk_now_ms();
   for (int c = 0; c < 3 && x.done > 1; c++) s.to_radiance[c] /= (double)x.done;

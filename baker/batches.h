@@ -17,7 +17,8 @@
  * until ε̂ <= E, at least BT_MIN_BATCHES); budget (photons.time_budget_s S:
  * batches added while the next one, at the mean batch time so far, ends
  * within S seconds of the march's start). Target and budget combine: the
- * first to stop wins. */
+ * first to stop wins. Target mode also chooses the integrator and step
+ * (choose_integrator in batches.c) from the twins' bias estimates. */
 #ifndef BAKER_BATCHES_H
 #define BAKER_BATCHES_H
 
@@ -35,8 +36,8 @@ extern "C" {
 #define BT_TWIN_BATCHES 4 /* twin batches behind the step term */
 /* Twin photons: this fraction of the bake's photon count over all twin
  * batches (at least BT_TWIN_MIN per batch). */
-#define BT_TWIN_FRACTION (1.0 / 32.0)
-#define BT_TWIN_MIN 2048u
+#define BT_TWIN_FRACTION (1.0 / 64.0)
+#define BT_TWIN_MIN 1024u
 /* The truth's integrator: RK4 at this step (voxels). */
 #define BT_TRUTH_STEP 0.125f
 
@@ -52,6 +53,8 @@ typedef struct bt_result {
   float *error_grid;   /* opts.error_grid and >= 2 batches: the caller frees */
   int budget_short;    /* the time budget ended the bake before 2 batches */
   int target_missed;   /* the target was not reached (batch cap or budget) */
+  integrator_t integrator; /* what marched: the scene's, or target mode's choice */
+  float step;
 } bt_result_t;
 
 /* The march stage in batches (pm_bake's place in the pipeline): radiance as

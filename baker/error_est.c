@@ -217,3 +217,35 @@ double ee_true_error(const float *radiance, const float *truth, size_t voxels) {
   free(lt);
   return lit && st > 0.0 ? sqrt(se / (double)lit) / (st / (double)lit) : 0.0;
 }
+
+void ee_twin_reset(ee_tracker_t *t) {
+  if (t->dsum) memset(t->dsum, 0, t->count * sizeof(float));
+  if (t->dsumsq) memset(t->dsumsq, 0, t->count * sizeof(float));
+  t->twins = 0;
+}
+
+double ee_twin_step(const ee_tracker_t *t, const float *fine) {
+  const double T = t->twins;
+  float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
+  if (!mean || T < 2) {
+    free(mean);
+    return EE_UNKNOWN;
+  }
+  for (size_t k = 0; k < t->count; k++) {
+    double m = 0.0;
+    for (int b = 0; b < t->twins; b++) m += fine[(size_t)b * t->count + k];
+    mean[k] = (float)(m / T);
+  }
+  double thr = lit_threshold(mean, t->count), sum_m = 0.0, sum_b2 = 0.0;
+  size_t lit = 0;
+  for (size_t k = 0; k < t->count; k++) {
+    if (!(thr > 0.0) || mean[k] < thr) continue;
+    double dbar = t->dsum[k] / T;
+    double var_d = fmax(0.0, (t->dsumsq[k] - T * dbar * dbar) / (T - 1.0)) / T;
+    sum_b2 += dbar * dbar - var_d;
+    sum_m += mean[k];
+    lit++;
+  }
+  free(mean);
+  return lit && sum_m > 0.0 ? sqrt(fmax(0.0, sum_b2 / (double)lit)) / (sum_m / (double)lit) : 0.0;
+}

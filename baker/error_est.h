@@ -76,6 +76,12 @@ void ee_read(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, fl
  * integrator's sums of the same photons. */
 int ee_twin_add(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, const float *fine,
                 bk_error_t *err);
+/* Forget the twins recorded (another integrator is measured next). */
+void ee_twin_reset(ee_tracker_t *t);
+/* The step term of the twins recorded, on the lit set and mean of the truth
+ * integrator's luminance `fine` (one array of count per twin): for choosing
+ * an integrator before the bake's own batches exist. */
+double ee_twin_step(const ee_tracker_t *t, const float *fine);
 /* The terms after `batches` batches (noise EE_UNKNOWN below 2; step 0 when
  * step_exact, EE_UNKNOWN without twins). */
 void ee_terms(const ee_tracker_t *t, int batches, int step_exact, ee_terms_t *out);
