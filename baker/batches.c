@@ -225,7 +225,7 @@ static void warn_stop(const bt_run_t *x, bt_result_t *res) {
   const char *path = x->scene->path;
   if (x->stop_reason == 2 && res->batches < 2) {
     res->budget_short = 1;
-    bk_warn("%s: photons.time_budget_s %g s is shorter than two batches of %llu photons (%.1f s "
+    bk_warn("%s: photons.time_budget_s %g s is shorter than two batches of %llu photons (%.3g s "
             "each): wrote %d batch(es) with no noise estimate; raise the budget or lower "
             "photons.count to make batches smaller",
             path, x->budget_ms / 1000.0, (unsigned long long)x->photons,

@@ -64,10 +64,10 @@ static float *bake(integrator_t integ, float step, long long photons, int batche
 }
 
 static int test_honest(void) {
-  float *truth = bake(INTEGRATOR_RK4, 0.125f, 16 * 80000, 8, 99, NULL);
+  float *truth = bake(INTEGRATOR_RK4, 0.125f, 16 * 40000, 8, 99, NULL);
   struct { integrator_t i; float step; long long n; } cases[] = {
-      {INTEGRATOR_EULER, 0.5f, 20000}, {INTEGRATOR_EULER, 0.5f, 80000},
-      {INTEGRATOR_RK4, 0.5f, 20000},   {INTEGRATOR_EULER, 1.0f, 80000}};
+      {INTEGRATOR_EULER, 0.5f, 10000}, {INTEGRATOR_EULER, 0.5f, 40000},
+      {INTEGRATOR_RK4, 0.5f, 10000},   {INTEGRATOR_EULER, 1.0f, 40000}};
   for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
     bt_result_t res;
     float *r = bake(cases[c].i, cases[c].step, cases[c].n, 8, 1, &res);
