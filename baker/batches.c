@@ -12,7 +12,8 @@
 typedef struct bt_run {
   const scene_t *scene;
   pm_setup_t *s;
-  ee_tracker_t *tr;
+  ee_tracker_t *tr;        /* the estimate: the even lattice */
+  ee_tracker_t *grid;      /* --error-grid: every voxel (NULL otherwise) */
   uint64_t photons;       /* fixed mode: the total; open modes: per batch */
   int batches;            /* fixed mode: B; open modes: 0 */
   int cap;                /* most batches the fixed-point scale allows */
@@ -27,6 +28,7 @@ typedef struct bt_run {
   char label[96];
   int stop_reason;        /* 0 done, 1 target met, 2 budget, 3 cap */
   int done;               /* main batches traced */
+  double cost;            /* twin_cost of the last twin run */
 } bt_run_t;
 
 /* Batch `id`'s lights into run. */
@@ -53,6 +55,14 @@ static int twin_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_err
 }
 
 /* The truth integrator's twins, kept in x->fine. acc is zero before and after. */
+/* A deterministic price of a twin run (measured time would make target
+ * mode's choice, and so its bits, depend on the machine's load): field
+ * evaluations (1 per Euler step, 4 per RK4 step) plus voxel deposits. */
+static double twin_cost(const pm_stats_t *st, unsigned integ) {
+  double evals = integ == integrator_kind(INTEGRATOR_RK4)->device ? 4.0 : 1.0;
+  return (double)st->steps * evals + (double)st->voxels;
+}
+
 static int twin_truth(clh_context_t *cl, bt_run_t *x, uint64_t *acc, double *ms, bk_error_t *err) {
   pm_stats_t st;
   memset(&st, 0, sizeof st);
@@ -63,6 +73,7 @@ static int twin_truth(clh_context_t *cl, bt_run_t *x, uint64_t *acc, double *ms,
   double t0 = bk_now_ms();
   int rc = pm_run_batches(cl, &truth, acc, &st, twin_next, x, err);
   *ms = bk_now_ms() - t0;
+  x->cost = twin_cost(&st, truth.params.integrator);
   return rc;
 }
 
@@ -80,28 +91,28 @@ static int twin_with(clh_context_t *cl, bt_run_t *x, uint64_t *acc, unsigned int
   double t0 = bk_now_ms();
   int rc = pm_run_batches(cl, &run, acc, &st, twin_next, x, err);
   *ms = bk_now_ms() - t0;
+  x->cost = twin_cost(&st, integ);
   return rc;
 }
 
 /* Target mode: the integrator and step whose bias leaves room for the noise
- * at the least predicted time, time per photon / (E² − ε_step²), among
+ * at the least predicted cost, twin_cost per photon / (E² − ε_step²), among
  * Euler and RK4 at 1/2 and 1/4 voxel and the truth's RK4 1/8 (bias 0).
  * A bias above 0.8 E leaves too little room. Sets x->s's integrator and
  * step; the tracker keeps the chosen one's twins. */
-static int choose_integrator(clh_context_t *cl, bt_run_t *x, uint64_t *acc, double ms_truth,
-                             bk_error_t *err) {
+static int choose_integrator(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *err) {
   static const struct { integrator_t i; float step; } cand[] = {
       {INTEGRATOR_EULER, 0.5f}, {INTEGRATOR_EULER, 0.25f}, {INTEGRATOR_RK4, 0.5f},
       {INTEGRATOR_RK4, 0.25f}};
   const double E = x->target;
   int best = -1;
-  double best_cost = ms_truth / (E * E), ms;
+  double best_cost = x->cost / (E * E), ms;
   for (int c = 0; c < (int)(sizeof cand / sizeof cand[0]); c++) {
     unsigned dev = integrator_kind(cand[c].i)->device;
     int rc = twin_with(cl, x, acc, dev, cand[c].step, &ms, err);
     if (rc) return rc;
     double st = ee_twin_step(x->tr, x->fine);
-    double cost = st >= 0.0 && st <= 0.8 * E ? ms / (E * E - st * st) : HUGE_VAL;
+    double cost = st >= 0.0 && st <= 0.8 * E ? x->cost / (E * E - st * st) : HUGE_VAL;
     bk_log(2, "target error %g: %s step %g: bias %.4f, twin %.0f ms, relative cost %.3g", E,
            integrator_kind(cand[c].i)->name, (double)cand[c].step, st, ms, cost / best_cost);
     if (cost < best_cost) best_cost = cost, best = c;
@@ -124,7 +135,7 @@ static int run_twin(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *e
   x->fine = bk_calloc(x->tr->count * BT_TWIN_BATCHES, sizeof(float), "error estimate: twin", err);
   if (!x->fine) return BK_ERR_RUNTIME;
   int rc = twin_truth(cl, x, acc, &ms_truth, err);
-  if (!rc && x->target > 0.0) rc = choose_integrator(cl, x, acc, ms_truth, err);
+  if (!rc && x->target > 0.0) rc = choose_integrator(cl, x, acc, err);
   else if (!rc)
     rc = twin_with(cl, x, acc, x->s->params.integrator, x->s->params.step, &ms, err);
   free(x->fine);
@@ -168,6 +179,7 @@ static int main_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_err
   if (done > 0) {
     double t = bk_now_ms();
     ee_after_batch(x->tr, x->s, acc);
+    if (x->grid) ee_after_batch(x->grid, x->s, acc);
     if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
     x->ms_track += bk_now_ms() - t;
     show_progress(x, done);
@@ -192,7 +204,7 @@ static void set_mode(bt_run_t *x, const scene_t *scene) {
   if (x->target > 0.0 || x->budget_ms > 0.0) {
     x->photons = n / (uint64_t)b > 0 ? n / (uint64_t)b : 1;
     double cap = floor((double)PH_MAX_PHOTONS / (double)x->photons);
-    x->cap = cap > 65536.0 ? 65536 : (int)cap;
+    x->cap = cap > BT_MAX_OPEN_BATCHES ? BT_MAX_OPEN_BATCHES : (int)cap;
   } else {
     x->photons = n;
     x->batches = (uint64_t)b > n && n > 0 ? (int)n : b;
@@ -268,13 +280,14 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
             float *radiance, bt_result_t *res, pm_stats_t *stats, bk_timings_t *timings,
             bk_error_t *err) {
   pm_setup_t s;
-  ee_tracker_t tr;
+  ee_tracker_t tr, grid;
   uint64_t *acc = NULL;
   bt_run_t x;
   memset(res, 0, sizeof *res);
   memset(stats, 0, sizeof *stats);
   memset(&x, 0, sizeof x);
   memset(&tr, 0, sizeof tr);
+  memset(&grid, 0, sizeof grid);
   int rc = pm_prepare(scene, vol, &s, timings, stats, err);
   if (rc != BK_OK) return rc;
   x.scene = scene, x.s = &s, x.tr = &tr;
@@ -288,7 +301,8 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
   pm_scale_batches(&s, (double)x.cap);
   x.step_exact = step_is_exact(&s);
   double ms_march = 0.0;
-  rc = ee_tracker_init(&tr, &s, o->error_grid, err);
+  rc = ee_tracker_init(&tr, &s, 0, err);
+  if (!rc && o->error_grid && !(rc = ee_tracker_init(&grid, &s, 1, err))) x.grid = &grid;
   if (!rc) {
     rc = BK_ERR_RUNTIME;
     acc = bk_calloc(s.voxels, s.channels * sizeof(uint64_t), "march: radiance accumulator", err);
@@ -306,7 +320,7 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
   pm_to_radiance(&s, acc, radiance);
   ee_terms(&tr, x.done, x.step_exact, &res->terms);
   res->terms.twin_photons = x.step_exact ? 0 : res->terms.twin_photons;
-  if (o->error_grid) res->error_grid = ee_take_error_grid(&tr, x.done);
+  if (x.grid) res->error_grid = ee_take_error_grid(&grid, x.done);
   res->ms_track = x.ms_track + bk_now_ms() - t;
   stats->ms_march = ms_march;
   if (timings) report(&x, res, stats, timings, ms_march);
@@ -314,6 +328,7 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
 done:
   free(acc);
   ee_tracker_free(&tr);
+  ee_tracker_free(&grid);
   pm_setup_free(&s);
   return rc;
 }

@@ -33,6 +33,10 @@ extern "C" {
 #endif
 
 #define BT_MIN_BATCHES 4  /* open-ended modes stop no earlier */
+/* Open-ended modes stop here at the latest: the fixed-point scale is set for
+ * this many batches (a deposit of one photon across one voxel is then still
+ * about 2^62 / (4096 n_b path bound) quanta, thousands at 128^3). */
+#define BT_MAX_OPEN_BATCHES 4096
 #define BT_TWIN_BATCHES 4 /* twin batches behind the step term */
 /* Twin photons: this fraction of the bake's photon count over all twin
  * batches (at least BT_TWIN_MIN per batch). */

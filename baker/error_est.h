@@ -22,8 +22,9 @@
  * What is kept per voxel: by default only the voxels with even (i, j, k),
  * an eighth of the grid, a systematic sample on which the lit set, the
  * percentile and the means are taken (8 bytes per tracked voxel: 1 byte per
- * voxel, 2 more during the twin); with the error grid every voxel (8 bytes,
- * 4 of which become the `radiance_error` grid). */
+ * voxel, 3 more while the twins run); the error grid has a second tracker
+ * over every voxel (8 bytes per voxel, 4 of which become the
+ * `radiance_error` grid). */
 #ifndef BAKER_ERROR_EST_H
 #define BAKER_ERROR_EST_H
 

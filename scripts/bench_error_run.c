@@ -2,11 +2,12 @@
  * scripts/bench_error (docs/bench.md, "Error estimate").
  *
  *   bench_error_run SCENE RES TRUTH_PHOTONS N1,N2,... [KEY=VALUE ...]
- *   bench_error_run SCENE RES TRUTH_PHOTONS target:E|budget:S [KEY=VALUE ...]
+ *   bench_error_run SCENE RES TRUTH_PHOTONS target:E|budget:S|fixed: [KEY=VALUE ...]
  *
  * Voxelizes SCENE (with --set style overrides) at RES, bakes the truth (RK4,
- * step 1/8 voxel, TRUTH_PHOTONS photons, 8 batches; cached as
- * SCENE-HASH-RES-TRUTH.truth in $BENCH_ERROR_CACHE when set), then for Euler and
+ * step 1/8 voxel, TRUTH_PHOTONS photons, 8 batches, the scene's seed + 1000
+ * so that its photons are not the runs'; cached as
+ * SCENE-HASH-RES-TRUTH-s1000.truth in $BENCH_ERROR_CACHE when set), then for Euler and
  * RK4 at step 0.5 and each photon count bakes with 8 batches and prints one
  * JSON line: the estimate ε̂ and its terms, the true ε (docs/error.md), the
  * ratio, the relative L2 over all voxels and channels, and the times of the
@@ -21,6 +22,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <sys/resource.h>
+
 #include "batches.h"
 #include "integrators.h"
 #include "voxelize.h"
@@ -29,6 +32,15 @@ static scene_t scene;
 static volume_t vol;
 static clh_context_t cl;
 static size_t V;
+
+/* CPU time of the process (every PoCL thread), ms: less sensitive than wall
+ * time to the other jobs on a shared machine. */
+static double cpu_ms(void) {
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  return (ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) * 1e3 +
+         (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-3;
+}
 
 static float *bake(integrator_t integ, float step, long long n, int batches, bt_result_t *res,
                    pm_stats_t *st) {
@@ -50,7 +62,7 @@ static float *truth(const char *scene_path, int res, long long n) {
   char path[2048] = "";
   const char *base = strrchr(scene_path, '/');
   if (dir) /* the scene hash covers the overrides */
-    snprintf(path, sizeof path, "%s/%s-%016llx-%d-%lld.truth", dir, base ? base + 1 : scene_path,
+    snprintf(path, sizeof path, "%s/%s-%016llx-%d-%lld-s1000.truth", dir, base ? base + 1 : scene_path,
              (unsigned long long)scene.hash, res, n);
   float *t = calloc(3 * V, sizeof(float));
   FILE *f = path[0] ? fopen(path, "rb") : NULL;
@@ -62,7 +74,10 @@ static float *truth(const char *scene_path, int res, long long n) {
   free(t);
   bt_result_t r;
   pm_stats_t st;
+  unsigned seed = scene.seed;
+  scene.seed = seed + 1000; /* the truth's photons independent of the runs' */
   t = bake(INTEGRATOR_RK4, 0.125f, n, 8, &r, &st);
+  scene.seed = seed;
   fprintf(stderr, "truth: %lld photons in %.1f s, its own noise %.4f\n", n, st.ms_march / 1000.0,
           r.terms.noise);
   if (path[0] && (f = fopen(path, "wb"))) {
@@ -78,7 +93,8 @@ static double rel_l2(const float *x, const float *t) {
   return st > 0.0 ? sqrt(se / st) : 0.0;
 }
 
-/* "target:E" or "budget:S": one steered bake (default photons and batches). */
+/* "target:E" or "budget:S": one steered bake (the scene's photons and
+ * batches); "fixed:": one bake as the scene says, for comparison. */
 static void steered(const char *what, const float *T) {
   bt_result_t r;
   pm_stats_t st;
@@ -86,7 +102,7 @@ static void steered(const char *what, const float *T) {
   int b = scene.batches;
   float v = (float)atof(strchr(what, ':') + 1);
   if (!strncmp(what, "target:", 7)) scene.target_error = v;
-  else scene.time_budget_s = v;
+  else if (!strncmp(what, "budget:", 7)) scene.time_budget_s = v;
   double t0 = bk_now_ms();
   float *x = bake(scene.integrator, scene.step, n, b, &r, &st);
   double ms = bk_now_ms() - t0, eps = ee_true_error(x, T, V);
@@ -130,20 +146,26 @@ int main(int argc, char **argv) {
       long long n = strtoll(p, &p, 10);
       if (*p == ',') p++;
       double ms8 = HUGE_VAL, ms1 = HUGE_VAL, twin = HUGE_VAL, track = HUGE_VAL;
+      double cpu8 = HUGE_VAL, cpu1 = HUGE_VAL, c0;
       float *x = NULL;
       for (int rep = 0; rep < 2; rep++) { /* best of 2: the machine is shared */
+        c0 = cpu_ms();
         free(bake(integ[i], 0.5f, n, 1, &r1, &st1));
+        cpu1 = fmin(cpu1, cpu_ms() - c0);
         ms1 = fmin(ms1, st1.ms_march);
         free(x);
+        c0 = cpu_ms();
         x = bake(integ[i], 0.5f, n, 8, &r, &st);
+        cpu8 = fmin(cpu8, cpu_ms() - c0);
         ms8 = fmin(ms8, st.ms_march), twin = fmin(twin, r.ms_twin), track = fmin(track, r.ms_track);
       }
       double eps = ee_true_error(x, T, V);
       printf("{\"integrator\": \"%s\", \"photons\": %lld, \"estimate\": %.5f, \"noise\": %.5f, "
              "\"step\": %.5f, \"true\": %.5f, \"ratio\": %.3f, \"rel_l2\": %.5f, \"march_ms\": %.1f, "
-             "\"twin_ms\": %.1f, \"track_ms\": %.1f, \"one_batch_ms\": %.1f}\n",
+             "\"twin_ms\": %.1f, \"track_ms\": %.1f, \"one_batch_ms\": %.1f, \"cpu_ms\": %.1f, "
+             "\"one_batch_cpu_ms\": %.1f}\n",
              integrator_kind(integ[i])->name, n, r.terms.estimate, r.terms.noise, r.terms.step, eps,
-             r.terms.estimate / eps, rel_l2(x, T), ms8, twin, track, ms1);
+             r.terms.estimate / eps, rel_l2(x, T), ms8, twin, track, ms1, cpu8, cpu1);
       fflush(stdout);
       free(x);
     }
