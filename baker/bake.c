@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "adaptive.h"
+#include "batches.h"
 #include "base/common.h"
 #include "base/frames.h"
 #include "base/grid.h"
@@ -18,6 +19,7 @@
 #include "clhost.h"
 #include "march.h"
 #include "shard.h"
+#include "stats_json.h"
 #include "voxelize.h"
 
 /* One frame's state, from the scene to the grids written. */
@@ -29,6 +31,7 @@ typedef struct bake_job {
   clh_context_t cl;
   pm_stats_t stats;
   ad_stats_t astats;
+  bt_result_t error;
   float *extinction, *density, *ext_grey, *sca_grey;
   float *radiance, *photon_count, *photon_weight, *filter_radius, *emission;
   shard_state_t shard;  /* --shard: the raw sums written instead of radiance */
@@ -40,6 +43,8 @@ void bake_options_defaults(bake_options_t *opt) {
   memset(opt, 0, sizeof *opt);
   opt->mode = opt->integrator = -1;
   opt->photons = opt->seed = -1;
+  opt->batches = -1;
+  opt->target_error = opt->time_budget_s = -1.0;
   opt->step = -1.0f;
   opt->resolution = -1;
   opt->write.compression = VDBIO_COMPRESS_BLOSC;
@@ -52,6 +57,9 @@ static void apply_overrides(const bake_options_t *opt, scene_t *s) {
   if (opt->step > 0) s->step = opt->step;
   if (opt->resolution > 0) s->resolution = opt->resolution;
   if (opt->seed >= 0) s->seed = (unsigned)opt->seed;
+  if (opt->batches > 0) s->batches = opt->batches;
+  if (opt->target_error > 0) s->target_error = (float)opt->target_error;
+  if (opt->time_budget_s > 0) s->time_budget_s = (float)opt->time_budget_s;
 }
 
 int bake_load_scene(const bake_options_t *opt, const char *scene_path, scene_t *s,
@@ -68,11 +76,13 @@ static const char *compression_name(vdbio_compression_t c) {
 void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_t len) {
   snprintf(out, len,
            "scene=%016" PRIx64 " mode=%s photons=%lld integrator=%s step=%.9g seed=%u "
-           "resolution=%d compression=%s half=%d filter=%s",
+           "resolution=%d compression=%s half=%d filter=%s batches=%d target_error=%g "
+           "time_budget_s=%g error_grid=%d",
            s->hash, scene_mode_name(s->mode), s->photon_count,
            scene_integrator_name(s->integrator), (double)s->step, s->seed, s->resolution,
            compression_name(opt->write.compression), opt->write.half_float ? 1 : 0,
-           s->mode != MODE_ADAPTIVE ? "n/a" : opt->no_filter ? "off" : "on");
+           s->mode != MODE_ADAPTIVE ? "n/a" : opt->no_filter ? "off" : "on", s->batches,
+           (double)s->target_error, (double)s->time_budget_s, opt->error_grid);
   size_t at = strlen(out);
   if (opt->shard_count && at < len)
     snprintf(out + at, len - at, " shard=%d/%d", opt->shard_index, opt->shard_count);
@@ -128,6 +138,9 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   ad_bake_opts_t ao;
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
+  if (opt->error_grid)
+    return bk_fail(err, BK_ERR_INPUT, "%s: --error-grid: adaptive mode does not measure "
+                   "per-voxel errors yet (use photons.mode \"reference\")", j->scene.path);
   j->photon_count = bk_calloc(n, sizeof(float), "photon_count grid", err);
   j->photon_weight = bk_calloc(n, sizeof(float), "photon_weight grid", err);
   if (opt->write_filter_radius)
@@ -138,6 +151,7 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
                    j->photon_count, j->photon_weight, j->filter_radius, &j->astats, &j->timings,
                    err);
   j->stats = j->astats.march;
+  j->error.terms.estimate = j->error.terms.noise = j->error.terms.step = EE_UNKNOWN;
   return rc;
 }
 
@@ -161,8 +175,9 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
     return shard_march(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, opt, &j->shard,
                        &j->stats, &j->astats, &j->timings, err);
   if (j->scene.mode == MODE_ADAPTIVE) return bake_adaptive(j, opt, err);
-  return pm_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, j->radiance, &j->stats,
-                 &j->timings, err);
+  bt_options_t bo = {opt->error_grid, 0, 0, NULL};
+  return bt_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, &bo, j->radiance, &j->error,
+                 &j->stats, &j->timings, err);
 }
 
 /* The source term of L = ∫ T σs L̄ dt per channel, σs ⊙ L̄ (W·m⁻³·sr⁻¹): a
@@ -223,9 +238,22 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
     a.sca_channels = 1;
   }
   *count = bake_grid_list(&a, grids);
+  if (j->error.error_grid)
+    grids[(*count)++] = (vdbio_grid_t){"radiance_error", VDBIO_FLOAT, j->error.error_grid, 0, 0.0f};
   if (j->shard.sums.acc)
     return shard_grids(&j->shard, &vol->dims, grids, count, BAKE_MAX_GRIDS, err);
   return BK_OK;
+}
+
+/* What the error metadata covers, in words. */
+static const char *error_note(const scene_t *s, const bake_options_t *opt, const ee_terms_t *e) {
+  if (opt->shard_count)
+    return "not measured for photon shards and their merge (the spread needs every shard's "
+           "batches; error_* are -1)";
+  if (s->mode == MODE_ADAPTIVE)
+    return "not measured: adaptive mode has no independent batches yet (error_* are -1)";
+  if (e->noise < 0.0) return "noise not measured: one batch (photons.batches >= 2 measures it)";
+  return "relative RMS luminance error over lit voxels vs RK4 1/8-voxel truth (docs/error.md)";
 }
 
 /* Stage 4: the grids and the metadata that says how they were made. */
@@ -235,6 +263,11 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
   const scene_t *s = &j->scene;
   const pm_stats_t *st = &j->stats;
   const ad_stats_t *as = &j->astats;
+  const ee_terms_t *e = &j->error.terms;
+  /* what marched: target mode chooses its own integrator and step */
+  const int chosen = s->mode != MODE_ADAPTIVE && j->error.step > 0.0f;
+  const integrator_t integ = chosen ? j->error.integrator : s->integrator;
+  const float step = chosen ? j->error.step : s->step;
   char hash[32], bounds[160], settings[512];
   bake_settings(opt, s, settings, sizeof settings);
   snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
@@ -249,8 +282,8 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
       {"grid_resolution", VDBIO_META_INT, NULL, s->resolution, 0},
       {"ior_smoothing_voxels", VDBIO_META_FLOAT, NULL, 0, s->ior_smoothing},
       {"photon_count", VDBIO_META_INT, NULL, (long long)st->photons, 0},
-      {"photon_integrator", VDBIO_META_STRING, scene_integrator_name(s->integrator), 0, 0},
-      {"photon_step_voxels", VDBIO_META_FLOAT, NULL, 0, s->step},
+      {"photon_integrator", VDBIO_META_STRING, scene_integrator_name(integ), 0, 0},
+      {"photon_step_voxels", VDBIO_META_FLOAT, NULL, 0, step},
       {"photon_seed", VDBIO_META_INT, NULL, s->seed, 0},
       {"photons_missed_grid", VDBIO_META_INT, NULL, (long long)st->missed_grid, 0},
       {"photons_left_grid", VDBIO_META_INT, NULL, (long long)st->left_grid, 0},
@@ -263,6 +296,12 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
       {"scattered_share", VDBIO_META_FLOAT, NULL, 0, (float)pm_scattered_share(st)},
       {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : j->cl.device_name, 0, 0},
       {"bake_settings", VDBIO_META_STRING, settings, 0, 0},
+      /* docs/error.md; -1: not measured */
+      {"error_estimate", VDBIO_META_FLOAT, NULL, 0, (float)e->estimate},
+      {"error_noise", VDBIO_META_FLOAT, NULL, 0, (float)e->noise},
+      {"error_step", VDBIO_META_FLOAT, NULL, 0, (float)e->step},
+      {"error_batches", VDBIO_META_INT, NULL, e->batches, 0},
+      {"error_note", VDBIO_META_STRING, error_note(s, opt, e), 0, 0},
       /* adaptive only (the count below leaves them out otherwise) */
       {"adaptive_pilot_photons", VDBIO_META_INT, NULL, (long long)as->pilot.photons, 0},
       {"adaptive_gradient_threshold", VDBIO_META_FLOAT, NULL, 0, as->select.gradient_threshold},
@@ -301,6 +340,17 @@ static void bake_report(const bake_job_t *j, const char *scene_path, const char 
   fflush(stdout);
 }
 
+/* --stats: the frame's JSON, at the frame's expansion of the path. */
+static int bake_stats(const bake_job_t *j, const bake_options_t *opt, const char *scene_path,
+                      const char *out_path, int frame, bk_error_t *err) {
+  char path[SCENE_PATH_MAX];
+  int rc = frames_expand(opt->stats_path, frame, path, sizeof path, err);
+  if (rc) return rc;
+  sj_frame_t f = {scene_path, out_path, frame, &j->scene, &j->timings, &j->stats,
+                  j->scene.mode == MODE_ADAPTIVE ? NULL : &j->error};
+  return sj_write(path, &f, err);
+}
+
 static void bake_job_free(bake_job_t *j) {
   free(j->extinction);
   free(j->density);
@@ -312,6 +362,7 @@ static void bake_job_free(bake_job_t *j) {
   free(j->filter_radius);
   free(j->emission);
   shard_free(&j->shard);
+  free(j->error.error_grid);
   clh_release(&j->cl);
   vox_free(&j->vol);
   if (j->scene_loaded) scene_free(&j->scene);
@@ -324,6 +375,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   vdbio_grid_t grids[BAKE_MAX_GRIDS];
   int count = 0;
   int rc = bk_check_output_dir(out_path, err);
+  if (!rc && opt->stats_path) rc = bk_check_output_dir(opt->stats_path, err);
   if (!rc) rc = bake_load(j, opt, scene_path, frame, err);
   if (!rc) rc = bake_photons(j, opt, err);
   double t0 = bk_now_ms();
@@ -332,6 +384,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   if (!rc) {
     bk_timings_add(&j->timings, "write", bk_now_ms() - t0, "%s", out_path);
     if (bk_verbosity >= 1) bake_report(j, scene_path, out_path);
+    if (opt->stats_path) rc = bake_stats(j, opt, scene_path, out_path, frame, err);
   }
   bake_job_free(j);
   return rc;

@@ -33,6 +33,11 @@ typedef struct bake_options {
   float step;
   int resolution;
   long long seed;
+  int batches;              /* photons.batches or -1 */
+  double target_error;      /* photons.target_error or -1 */
+  double time_budget_s;     /* photons.time_budget_s or -1 */
+  int error_grid;           /* also write radiance_error (per-voxel standard error) */
+  const char *stats_path;   /* --stats: a JSON of the bake per frame (may hold a pattern) */
   vdbio_write_opts_t write;
   int no_filter;            /* adaptive: skip the reconstruction filter */
   int write_filter_radius;  /* adaptive: also write the filter_radius grid (debug) */

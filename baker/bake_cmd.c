@@ -2,6 +2,7 @@
  * `--photons=N` and `--photons N` alike) and hands them to the pipeline
  * (bake_run in bake.c). */
 #include <errno.h>
+#include <math.h>
 #include <limits.h>
 #include <stdlib.h>
 #include <string.h>
@@ -51,6 +52,19 @@ static void bake_usage(FILE *out) {
           "  --integrator euler|rk4   ray-equation integrator (scene photons.integrator)\n"
           "  --step VOXELS            march step in refractive regions (scene photons.step)\n"
           "  --seed N                 sampling seed (scene photons.seed)\n"
+          "  --batches N              trace the photons in N independent batches, whose\n"
+          "                           spread measures the noise (scene photons.batches,\n"
+          "                           default 8; 1 = one Hammersley set, no noise estimate)\n"
+          "  --target-error E         add batches until the estimated error (relative RMS\n"
+          "                           over lit voxels, docs/error.md) is at most E, in\n"
+          "                           (0, 1] (scene photons.target_error)\n"
+          "  --time-budget S          stop adding batches when the next would end the\n"
+          "                           photon march past S seconds (photons.time_budget_s)\n"
+          "  --error-grid             also write the float grid radiance_error: each\n"
+          "                           voxel's standard error of the luminance of radiance\n"
+          "  --stats PATH.json        write each frame's stage times, photon counts, peak\n"
+          "                           memory and error terms as JSON (may hold a frame\n"
+          "                           pattern; without one each frame overwrites it)\n"
           "  --resolution N           voxels along the longest side (scene grid.resolution)\n"
           "  --compression zip|blosc|none   VDB compression (default blosc: about half\n"
           "                           the write time of zip and smaller here; Houdini's\n"
@@ -81,7 +95,9 @@ static void bake_usage(FILE *out) {
 enum {
   OPT_FRAMES = CMD_FIRST_OWN, OPT_FORCE, OPT_MODE, OPT_PHOTONS, OPT_INTEGRATOR, OPT_STEP,
   OPT_SEED, OPT_RESOLUTION, OPT_COMPRESSION, OPT_NO_FILTER, OPT_WRITE_FILTER_RADIUS, OPT_HALF,
-  OPT_DEVICE, OPT_HOST, OPT_KEEP_GOING, OPT_SET, OPT_MAX_MEMORY, OPT_SHARD
+  OPT_DEVICE, OPT_HOST, OPT_KEEP_GOING, OPT_SET, OPT_MAX_MEMORY, OPT_SHARD,
+  OPT_BATCHES, OPT_TARGET_ERROR,
+  OPT_TIME_BUDGET, OPT_ERROR_GRID, OPT_STATS
 };
 
 static const struct option bake_longopts[] = {
@@ -104,6 +120,11 @@ static const struct option bake_longopts[] = {
     {"set", required_argument, NULL, OPT_SET},
     {"max-memory", required_argument, NULL, OPT_MAX_MEMORY},
     {"shard", required_argument, NULL, OPT_SHARD},
+    {"batches", required_argument, NULL, OPT_BATCHES},
+    {"target-error", required_argument, NULL, OPT_TARGET_ERROR},
+    {"time-budget", required_argument, NULL, OPT_TIME_BUDGET},
+    {"error-grid", no_argument, NULL, OPT_ERROR_GRID},
+    {"stats", required_argument, NULL, OPT_STATS},
     CMD_COMMON_LONGOPTS,
     {NULL, 0, NULL, 0}};
 
@@ -111,6 +132,7 @@ static const struct option bake_longopts[] = {
 static int bake_option(bake_options_t *opt, const char **sets, int c, const char *name,
                        const char *val, bk_error_t *err) {
   long long ll;
+  float f;
   const char *want = NULL;
   switch (c) {
   case 'o': opt->out_path = val; break;
@@ -157,6 +179,22 @@ static int bake_option(bake_options_t *opt, const char **sets, int c, const char
     if (!budget_parse_size(val, &opt->max_memory)) want = "a size such as 8G or 500M";
     break;
   case OPT_SHARD: return shard_parse(val, &opt->shard_index, &opt->shard_count, err);
+  case OPT_BATCHES:
+    if (!cmd_parse_ll(val, &ll) || ll < 1 || ll > 65536) want = "a batch count in 1..65536";
+    else opt->batches = (int)ll;
+    break;
+  case OPT_TARGET_ERROR:
+    if (!cmd_parse_float(val, &f) || !isfinite(f) || !(f > 0.0f) || f > 1.0f)
+      want = "a relative error in (0, 1], e.g. 0.05";
+    else opt->target_error = f;
+    break;
+  case OPT_TIME_BUDGET:
+    if (!cmd_parse_float(val, &f) || !isfinite(f) || !(f > 0.0f))
+      want = "a positive number of seconds";
+    else opt->time_budget_s = f;
+    break;
+  case OPT_ERROR_GRID: opt->error_grid = 1; break;
+  case OPT_STATS: opt->stats_path = val; break;
   case OPT_SET:
     if (!strchr(val, '=') || val[0] == '=') want = "KEY=VALUE (e.g. medium.sigma_s=0.3)";
     else sets[opt->set_count++] = val;

@@ -100,6 +100,8 @@ static void set_scale(pm_setup_t *s, double w_max) {
                         ((double)P->fixed_scale * 4.0 * M_PI * h * h);
 }
 
+void pm_scale_batches(pm_setup_t *s, double batch_cap) { set_scale(s, batch_cap); }
+
 static int check_inputs(const scene_t *scene, const grid_dims_t *d, size_t voxels, bk_error_t *err) {
   if (voxels == 0 || !(d->voxel_size > 0.0))
     return bk_fail(err, BK_ERR_INPUT, "%s: march: empty grid %dx%dx%d", scene->path, d->nx, d->ny,
@@ -276,6 +278,16 @@ int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm
   return BK_OK;
 }
 
+/* photons * k / count without overflow (count < 2^17) */
+static uint64_t share(uint64_t photons, uint64_t k, uint64_t count) {
+  return photons / count * k + photons % count * k / count;
+}
+
+void pm_share_range(uint64_t photons, int index, int count, uint64_t *first, uint64_t *last) {
+  *first = share(photons, (uint64_t)index - 1, (uint64_t)count);
+  *last = share(photons, (uint64_t)index, (uint64_t)count);
+}
+
 void pm_set_range(pm_setup_t *s, uint64_t first, uint64_t last) {
   s->last = last < s->lights.photons ? last : s->lights.photons;
   s->first = first < s->last ? first : s->last;
@@ -351,6 +363,23 @@ int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_
   return BK_OK;
 }
 
+static int run_host_batches(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                            pm_batch_fn next, void *ctx, bk_error_t *err) {
+  pm_setup_t run = *s;
+  for (int done = 0;; done++) {
+    int go = next(ctx, done, acc, &run, err);
+    if (go <= 0) return go < 0 ? err->code : BK_OK;
+    int rc = pm_run_host(&run, acc, stats, err);
+    if (rc != BK_OK) return rc;
+  }
+}
+
+int pm_run_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                   pm_batch_fn next, void *ctx, bk_error_t *err) {
+  return cl ? pm_run_cl_batches(cl, s, acc, stats, next, ctx, err)
+            : run_host_batches(s, acc, stats, next, ctx, err);
+}
+
 typedef struct pm_unpack_ctx {
   const pm_setup_t *s;
   const uint64_t *acc;
@@ -422,7 +451,7 @@ void pm_sums_free(pm_sums_t *k) {
 
 /* What multiple scattering did: a timing row (no time of its own: the
  * march's) and a log line. */
-static void report_scattering(const pm_setup_t *s, pm_stats_t *stats, bk_timings_t *timings) {
+void pm_report_scattering(const pm_setup_t *s, pm_stats_t *stats, bk_timings_t *timings) {
   const ms_setup_t *ms = &s->ms;
   if (!ms->params.max_bounces) {
     if (timings)
@@ -488,7 +517,7 @@ int pm_bake_range(clh_context_t *cl, const scene_t *scene, const volume_t *vol, 
          (unsigned long long)stats->left_grid, (unsigned long long)stats->absorbed,
          (unsigned long long)stats->step_limit, (unsigned long long)stats->steps,
          (unsigned long long)stats->voxels);
-  report_scattering(&s, stats, timings);
+  pm_report_scattering(&s, stats, timings);
   if (stats->step_limit)
     bk_log(1, "march: %llu photon(s) stopped at the step limit (trapped by total internal "
               "reflection?%s)", (unsigned long long)stats->step_limit,

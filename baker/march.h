@@ -126,6 +126,11 @@ int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm
 void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks);
 int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err);
 /* Marches only photons [first, last) (first <= last <= lights.photons). */
+/* Share `index` (1-based) of `count` of photons: [floor(photons (index-1) / count),
+ * floor(photons index / count)), count < 2^17. Disjoint shares cover all. */
+void pm_share_range(uint64_t photons, int index, int count, uint64_t *first, uint64_t *last);
+/* Multiple scattering's timing row ("scattering") and log line. */
+void pm_report_scattering(const pm_setup_t *s, pm_stats_t *stats, bk_timings_t *timings);
 void pm_set_range(pm_setup_t *s, uint64_t first, uint64_t last);
 
 /* Counters in the accumulator of the setup's mode (channels per voxel; the
@@ -145,6 +150,26 @@ double pm_scattered_share(const pm_stats_t *st);
 int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_t *err);
 int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
               bk_error_t *err);
+/* Batches (baker/batches.h): one march set up once, its photons traced in
+ * batches. Before each batch the runner calls next(ctx, done, acc, run,
+ * err) with `done` batches traced and acc holding their sums (readable and
+ * writable by the host: the callback may read it or zero it); the callback
+ * fills run->lights and run->params for the next batch and returns 1, or
+ * returns 0 to stop (negative: an error, in err). run starts as a copy of s;
+ * the callback may change the lights, photon_total and light_count, not the
+ * kernel's specialisation (-D flags: integrator, refraction, channels) but
+ * may change params.step. */
+typedef int (*pm_batch_fn)(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_error_t *err);
+int pm_run_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                   pm_batch_fn next, void *ctx, bk_error_t *err);
+int pm_run_cl_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                      pm_batch_fn next, void *ctx, bk_error_t *err);
+/* The fixed-point scale for photons traced as up to `batch_cap` batches that
+ * each carry the lights' whole power (each batch a full estimate; the sum
+ * of done batches divided by done is the result). batch_cap 1 is the scale
+ * of an unbatched march. */
+void pm_scale_batches(pm_setup_t *s, double batch_cap);
+
 /* acc -> radiance (3 floats per voxel, W m^-2 sr^-1); reference and
  * weighted modes. */
 void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);

@@ -89,11 +89,13 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
   const cl_mem_flags host = cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;
   const cl_mem_flags in = CL_MEM_READ_ONLY | host, copy = CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR;
   const ph_setup_t *L = &s->lights;
-  ph_light none;
-  memset(&none, 0, sizeof none);
-  size_t nlights = L->count > 0 ? (size_t)L->count : 1;
+  /* room for every light: batches may change the lights (pm_run_cl_batches) */
+  size_t nlights = SCENE_MAX_LIGHTS;
+  ph_light all[SCENE_MAX_LIGHTS];
+  memset(all, 0, sizeof all);
+  memcpy(all, L->lights, sizeof(ph_light) * (size_t)L->count);
   if (!(r->params = make_buffer(cl, copy, sizeof(pm_params), &s->params, err)) ||
-      !(r->lights = make_buffer(cl, copy, sizeof(ph_light) * nlights, L->count ? (void *)L->lights : &none, err)) ||
+      !(r->lights = make_buffer(cl, copy, sizeof(ph_light) * nlights, all, err)) ||
       !(r->dummy = make_buffer(cl, CL_MEM_READ_WRITE, 64, NULL, err)) ||
       (s->ng && !(r->ng = make_buffer(cl, in, field_bytes(s), s->ng, err))) ||
       (s->ng && !(r->pyr = make_buffer(cl, in, (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz,
@@ -137,14 +139,24 @@ error:
   return BK_ERR_RUNTIME;
 }
 
+/* Host copies of a chunk's per-photon results (and energy tallies when
+ * photons scatter more than once). */
+static int alloc_results(const pm_setup_t *s, pm_cl_run_t *r, bk_error_t *err) {
+  r->res = bk_calloc(PM_CHUNK, sizeof(pm_result), "march: photon results", err);
+  if (r->res && s->ms.params.max_bounces)
+    r->tallies = bk_calloc(PM_CHUNK, sizeof(ms_tally), "march: photon energy tallies", err);
+  return !r->res || (s->ms.params.max_bounces && !r->tallies) ? BK_ERR_RUNTIME : BK_OK;
+}
+
 /* Photons [s->first, s->last), PM_CHUNK at a time, counting outcomes into stats. */
 static int launch(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, pm_stats_t *stats,
-                  bk_error_t *err) {
+                  int quiet, bk_error_t *err) {
   bk_progress_t progress;
   const uint64_t total = s->last;
   int rc = BK_ERR_RUNTIME;
   bk_progress_begin(&progress, "photon marching", s->last - s->first);
   for (uint64_t first = s->first; first < total; first += PM_CHUNK) {
+  if (quiet) progress.enabled = 0; /* batches show their own progress */
     cl_uint f = (cl_uint)first;
     cl_uint count = (cl_uint)(total - first < PM_CHUNK ? total - first : PM_CHUNK);
     /* a fixed work-group size: the global size rounded up to it (the kernel
@@ -216,14 +228,79 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
   if ((rc = build_kernel(cl, s, &r, err))) goto done;
   if (stats) stats->ms_build += bk_now_ms() - t0;
   rc = BK_ERR_RUNTIME;
-  r.res = bk_calloc(PM_CHUNK, sizeof(pm_result), "march: photon results", err);
-  if (s->ms.params.max_bounces)
-    r.tallies = bk_calloc(PM_CHUNK, sizeof(ms_tally), "march: photon energy tallies", err);
-  if (!r.res || (s->ms.params.max_bounces && !r.tallies) || make_buffers(cl, s, acc, &r, err) ||
-      set_args(&r, err) || launch(cl, s, &r, stats, err) ||
-      read_back(cl, r.acc, r.acc_bytes, acc, err) ||
+  if (alloc_results(s, &r, err) || make_buffers(cl, s, acc, &r, err) || set_args(&r, err) ||
+      launch(cl, s, &r, stats, 0, err) || read_back(cl, r.acc, r.acc_bytes, acc, err) ||
       (r.masks && read_back(cl, r.masks, r.mask_bytes, s->masks, err)))
     goto done;
+  CLH_CHECK(clFinish(cl->queue), err, done);
+  rc = BK_OK;
+done:
+  release(&r);
+  return rc;
+}
+
+/* The host's view of acc around a batch callback: a map for reading and
+ * writing on a CPU device, a read and a write back on a GPU. */
+static int call_next(clh_context_t *cl, pm_cl_run_t *r, uint64_t *acc, int done, pm_setup_t *run,
+                     pm_batch_fn next, void *ctx, int *go, bk_error_t *err) {
+  cl_int cerr = CL_SUCCESS;
+  void *p = NULL;
+  if (cl->is_cpu) {
+    p = clEnqueueMapBuffer(cl->queue, r->acc, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, r->acc_bytes,
+                           0, NULL, NULL, &cerr);
+    CLH_CHECK(cerr, err, error);
+  } else {
+    CLH_CHECK(clEnqueueReadBuffer(cl->queue, r->acc, CL_TRUE, 0, r->acc_bytes, acc, 0, NULL, NULL),
+              err, error);
+  }
+  *go = next(ctx, done, acc, run, err);
+  if (cl->is_cpu) CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, r->acc, p, 0, NULL, NULL), err, error);
+  else CLH_CHECK(clEnqueueWriteBuffer(cl->queue, r->acc, CL_TRUE, 0, r->acc_bytes, acc, 0, NULL, NULL),
+                 err, error);
+  return *go < 0 ? err->code : BK_OK;
+error:
+  return BK_ERR_RUNTIME;
+}
+
+/* A batch's lights and parameters to the device. */
+static int load_batch(clh_context_t *cl, pm_cl_run_t *r, const pm_setup_t *run, bk_error_t *err) {
+  size_t n = (size_t)run->lights.count;
+  if (n > SCENE_MAX_LIGHTS) return bk_fail(err, BK_ERR_RUNTIME, "march: batch with %zu lights", n);
+  CLH_CHECK(clEnqueueWriteBuffer(cl->queue, r->params, CL_TRUE, 0, sizeof(pm_params), &run->params,
+                                 0, NULL, NULL),
+            err, error);
+  if (n)
+    CLH_CHECK(clEnqueueWriteBuffer(cl->queue, r->lights, CL_TRUE, 0, n * sizeof(ph_light),
+                                   run->lights.lights, 0, NULL, NULL),
+              err, error);
+  return BK_OK;
+error:
+  return BK_ERR_RUNTIME;
+}
+
+int pm_run_cl_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
+                      pm_batch_fn next, void *ctx, bk_error_t *err) {
+  pm_cl_run_t r;
+  memset(&r, 0, sizeof r);
+  r.acc_bytes = pm_acc_count(s) * sizeof(uint64_t);
+  if (stats) stats->bounces = (int)s->ms.params.max_bounces;
+  int rc = check_device(cl, s, r.acc_bytes, err);
+  if (rc != BK_OK) return rc;
+  if (s->params.mode != PM_MODE_REFERENCE)
+    return bk_fail(err, BK_ERR_RUNTIME, "march: batches are for the reference march");
+  double t0 = bk_now_ms();
+  if ((rc = build_kernel(cl, s, &r, err))) goto done;
+  if (stats) stats->ms_build += bk_now_ms() - t0;
+  rc = BK_ERR_RUNTIME;
+  if (alloc_results(s, &r, err) || make_buffers(cl, s, acc, &r, err) || set_args(&r, err))
+    goto done;
+  pm_setup_t run = *s;
+  for (int done = 0;; done++) {
+    int go = 0;
+    if (call_next(cl, &r, acc, done, &run, next, ctx, &go, err)) goto done;
+    if (!go) break;
+    if (load_batch(cl, &r, &run, err) || launch(cl, &run, &r, stats, 1, err)) goto done;
+  }
   CLH_CHECK(clFinish(cl->queue), err, done);
   rc = BK_OK;
 done:

@@ -60,8 +60,28 @@ static uint32_t mix32(uint32_t x) {
   return x;
 }
 
+uint64_t ph_batch_photons(uint64_t photons, int batches, int batch) {
+  uint64_t b = batches > 0 ? (uint64_t)batches : 1;
+  return photons / b + ((uint64_t)batch % b < photons % b ? 1 : 0);
+}
+
+/* The Cranley–Patterson rotation of light l in batch b: batch 0 keeps the
+ * rotation of an unbatched bake (so one batch reproduces it bit for bit);
+ * every other batch hashes its index in as well, independently. */
+static void batch_rotation(unsigned seed, int l, int batch, float *ru, float *rv) {
+  uint32_t hsh = mix32((uint32_t)seed * 0x9e3779b9u ^ mix32((uint32_t)l + 0x632be5abu));
+  if (batch) hsh = mix32(hsh ^ mix32((uint32_t)batch * 0x85ebca6bu + 0x27d4eb2fu));
+  *ru = (float)(hsh >> 8) * (1.0f / 16777216.0f);
+  *rv = (float)(mix32(hsh) >> 8) * (1.0f / 16777216.0f);
+}
+
 int ph_prepare(const scene_t *scene, const grid_dims_t *g, uint64_t photons, unsigned seed,
                ph_setup_t *out, bk_error_t *err) {
+  return ph_prepare_batch(scene, g, photons, seed, 0, out, err);
+}
+
+int ph_prepare_batch(const scene_t *scene, const grid_dims_t *g, uint64_t photons, unsigned seed,
+                     int batch, ph_setup_t *out, bk_error_t *err) {
   double weights[SCENE_MAX_LIGHTS] = {0}, rgb[SCENE_MAX_LIGHTS][3] = {{0}};
   uint64_t counts[SCENE_MAX_LIGHTS];
   memset(out, 0, sizeof *out);
@@ -85,9 +105,7 @@ int ph_prepare(const scene_t *scene, const grid_dims_t *g, uint64_t photons, uns
     memset(L, 0, sizeof *L);
     L->type = (int)sl->type;
     light_kinds[sl->type].frame(sl, g, L);
-    uint32_t hsh = mix32((uint32_t)seed * 0x9e3779b9u ^ mix32((uint32_t)l + 0x632be5abu));
-    L->rot_u = (float)(hsh >> 8) * (1.0f / 16777216.0f);
-    L->rot_v = (float)(mix32(hsh) >> 8) * (1.0f / 16777216.0f);
+    batch_rotation(seed, l, batch, &L->rot_u, &L->rot_v);
     for (int a = 0; a < 3; a++) {
       L->power[a] = (float)(rgb[l][a] / (double)counts[l]);
       out->power[a] += rgb[l][a];

@@ -60,6 +60,16 @@ void ph_share(const double *weights, int n, uint64_t total, uint64_t *counts);
  * RGB in power[0..2]. */
 int ph_prepare(const scene_t *scene, const grid_dims_t *d, uint64_t photons, unsigned seed,
                ph_setup_t *out, bk_error_t *err);
+/* Batch `batch` of a bake in batches (baker/batches.h): the same as
+ * ph_prepare for `photons` photons (the batch's own count, its lights'
+ * power per photon that of a whole bake of that count) but with rotations
+ * of their own, hashed from the seed, the light and the batch; batch 0 is
+ * ph_prepare's set. Independent batches are what the noise estimate needs. */
+int ph_prepare_batch(const scene_t *scene, const grid_dims_t *d, uint64_t photons, unsigned seed,
+                     int batch, ph_setup_t *out, bk_error_t *err);
+/* Photons of batch `batch` when `photons` are split over `batches`: equal
+ * shares, the first photons % batches batches one more. */
+uint64_t ph_batch_photons(uint64_t photons, int batches, int batch);
 /* Rewrites every light's power as the sum of its RGB in power[0] (for a
  * one-channel march; needs one_colour). */
 void ph_make_grey(ph_setup_t *s);

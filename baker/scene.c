@@ -39,6 +39,8 @@ static const sc_range_t R_SEED = {0, 4294967295.0, 0, 0, 1, 0};
 static const sc_range_t R_BOUNCES = {0, SCENE_MAX_BOUNCES, 0, 0, 1, 0};
 /* Henyey–Greenstein g: |g| = 1 is a delta, no scattering at all */
 static const sc_range_t R_HG = {-1, 1, 1, 1, 0, 0};
+static const sc_range_t R_BATCHES = {1, 65536, 0, 0, 1, 0};
+static const sc_range_t R_TARGET_ERROR = {0, 1, 1, 0, 0, 0};
 static const sc_range_t R_PHOTONS = {1, 9007199254740992.0, 0, 0, 1, 1};
 
 /* --- sections ------------------------------------------------------------- */
@@ -233,12 +235,13 @@ static int sc_bounces(const sc_ctx_t *c, const json_value_t *obj, int *out) {
 }
 
 static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
-  static const char *const keys[] = {"mode", "count", "seed", "integrator", "step", "bounces",
-                                     NULL};
+  static const char *const keys[] = {"mode",    "count",        "seed",          "integrator",
+                                     "step",    "bounces",      "batches",       "target_error",
+                                     "time_budget_s", NULL};
   static const char *const modes[] = {"reference", "adaptive"};        /* photon_mode_t */
   const char *integrators[INTEGRATOR_KIND_COUNT];
   const json_value_t *e;
-  long long seed = s->seed;
+  long long seed = s->seed, batches = s->batches;
   int rc, k;
   for (int i = 0; i < INTEGRATOR_KIND_COUNT; i++) integrators[i] = integrator_kinds[i].name;
   if ((rc = sc_object(c, v, "photons"))) return rc;
@@ -255,9 +258,13 @@ static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
   if ((rc = sc_opt_int(c, v, "photons", "count", &R_PHOTONS, &s->photon_count)) ||
       (rc = sc_opt_int(c, v, "photons", "seed", &R_SEED, &seed)) ||
       (rc = sc_opt_float(c, v, "photons", "step", &R_POSITIVE, &s->step)) ||
-      (rc = sc_bounces(c, v, &s->bounces)))
+      (rc = sc_bounces(c, v, &s->bounces)) ||
+      (rc = sc_opt_int(c, v, "photons", "batches", &R_BATCHES, &batches)) ||
+      (rc = sc_opt_float(c, v, "photons", "target_error", &R_TARGET_ERROR, &s->target_error)) ||
+      (rc = sc_opt_float(c, v, "photons", "time_budget_s", &R_POSITIVE, &s->time_budget_s)))
     return rc;
   s->seed = (unsigned)seed;
+  s->batches = (int)batches;
   return BK_OK;
 }
 
@@ -381,6 +388,7 @@ void scene_defaults(scene_t *s) {
   s->integrator = INTEGRATOR_EULER;
   s->step = 0.5f;
   s->bounces = SCENE_BOUNCES_AUTO;
+  s->batches = 8;
   s->pilot = 4000;
   s->gradient_threshold = SCENE_AUTO;
   s->luminance_threshold = SCENE_AUTO;

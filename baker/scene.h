@@ -94,6 +94,9 @@ typedef struct scene {
   integrator_t integrator;   /* default euler */
   float step;                /* voxels, default 0.5 */
   int bounces;               /* scattering events per photon, or SCENE_BOUNCES_AUTO (default) */
+  int batches;               /* independent batches, default 8 (baker/batches.h) */
+  float target_error;        /* > 0: add batches until the error estimate is below; 0 off */
+  float time_budget_s;       /* > 0: stop adding batches at this march time; 0 off */
 
   /* adaptive */
   int pilot;                 /* default 4000 */

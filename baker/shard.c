@@ -9,6 +9,7 @@
 #include "base/common.h"
 #include "base/grid.h"
 #include "base/parallel.h"
+#include "batches.h"
 #include "cmdline.h"
 
 int shard_parse(const char *text, int *index, int *count, bk_error_t *err) {
@@ -29,14 +30,8 @@ int shard_parse(const char *text, int *index, int *count, bk_error_t *err) {
   return BK_OK;
 }
 
-/* photons * k / count without overflow (count <= SHARD_MAX_COUNT < 2^17) */
-static uint64_t share(uint64_t photons, uint64_t k, uint64_t count) {
-  return photons / count * k + photons % count * k / count;
-}
-
 void shard_range(uint64_t photons, int index, int count, uint64_t *first, uint64_t *last) {
-  *first = share(photons, (uint64_t)index - 1, (uint64_t)count);
-  *last = share(photons, (uint64_t)index, (uint64_t)count);
+  pm_share_range(photons, index, count, first, last);
 }
 
 void shard_key(const bake_options_t *opt, const scene_t *s, char out[24]) {
@@ -53,9 +48,11 @@ int shard_march(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   sh->photons = scene->photon_count > 0 ? (uint64_t)scene->photon_count : 0;
   shard_range(sh->photons, opt->shard_index, opt->shard_count, &sh->first, &sh->last);
   sh->alpha = scene->alpha;
-  if (scene->mode != MODE_ADAPTIVE)
-    return pm_bake_range(cl, scene, vol, sh->first, sh->last, NULL, &sh->sums, stats, timings,
-                         err);
+  if (scene->mode != MODE_ADAPTIVE) { /* the same share of every batch (batches.h) */
+    bt_options_t bo = {0, opt->shard_index, opt->shard_count, &sh->sums};
+    bt_result_t res;
+    return bt_bake(cl, scene, vol, &bo, NULL, &res, stats, timings, err);
+  }
   ad_bake_opts_t ao;
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;

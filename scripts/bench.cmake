@@ -6,7 +6,8 @@ add_executable(bench_tool ${BAKER_SCRIPTS_DIR}/bench_tool.c)              # scri
 add_executable(bench_voxelize ${BAKER_SCRIPTS_DIR}/bench_voxelize.c)      # scripts/bench_voxelize
 add_executable(bench_march_run ${BAKER_SCRIPTS_DIR}/bench_march_run.c)    # scripts/bench_march
 add_executable(bench_adaptive_run ${BAKER_SCRIPTS_DIR}/bench_adaptive_run.c) # scripts/bench_adaptive
-foreach(t bench_tool bench_voxelize bench_march_run bench_adaptive_run)
+add_executable(bench_error_run ${BAKER_SCRIPTS_DIR}/bench_error_run.c)    # scripts/bench_error
+foreach(t bench_tool bench_voxelize bench_march_run bench_adaptive_run bench_error_run)
   target_link_libraries(${t} PRIVATE bakercore)
 endforeach()
 

@@ -1,0 +1,352 @@
+/* batches.c: the reference march in batches, its error and when to stop
+ * (see batches.h). */
+#include "batches.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "integrators.h"
+
+/* The state the batch callbacks share. */
+typedef struct bt_run {
+  const scene_t *scene;
+  const bt_options_t *o;
+  pm_setup_t *s;
+  ee_tracker_t *tr;        /* the estimate: the even lattice */
+  ee_tracker_t *grid;      /* --error-grid: every voxel (NULL otherwise) */
+  uint64_t photons;       /* fixed mode: the total; open modes: per batch */
+  int batches;            /* fixed mode: B; open modes: 0 */
+  int cap;                /* most batches the fixed-point scale allows */
+  int first_id;           /* batch ids start here (twins have their own) */
+  double t0, t_main, ms_track;
+  double target, budget_ms;
+  int step_exact;
+  ee_terms_t terms;
+  float *fine;            /* twin: the truth integrator's luminance per twin batch */
+  int twin_phase;         /* 1 truth integrator, 2 bake integrator */
+  bk_progress_t prog;
+  char label[96];
+  int stop_reason;        /* 0 done, 1 target met, 2 budget, 3 cap */
+  int done;               /* main batches traced */
+  double cost;            /* twin_cost of the last twin run */
+} bt_run_t;
+
+/* Batch `id`'s lights into run. */
+static int load_batch(bt_run_t *x, int id, uint64_t photons, pm_setup_t *run, bk_error_t *err) {
+  int rc = ph_prepare_batch(x->scene, &x->s->dims, photons, x->scene->seed, id, &run->lights, err);
+  if (rc != BK_OK) return -1;
+  if (run->channels == 1) ph_make_grey(&run->lights);
+  run->params.photon_total = (bk_uint)run->lights.photons;
+  run->params.light_count = (bk_uint)run->lights.count;
+  uint64_t first = 0, last = UINT64_MAX; /* a shard: its share of every batch */
+  if (x->o->shard_count && id < 0x40000000)
+    pm_share_range(run->lights.photons, x->o->shard_index, x->o->shard_count, &first, &last);
+  pm_set_range(run, first, last);
+  return 1;
+}
+
+/* Twin batches: traced once with each integrator into a zeroed acc. */
+static int twin_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_error_t *err) {
+  bt_run_t *x = ctx;
+  if (done > 0) {
+    float *fine = x->fine + (size_t)(done - 1) * x->tr->count;
+    if (x->twin_phase == 1) ee_read(x->tr, x->s, acc, fine);
+    else if (ee_twin_add(x->tr, x->s, acc, fine, err)) return -1;
+    memset(acc, 0, pm_acc_count(x->s) * sizeof *acc);
+  }
+  if (done == BT_TWIN_BATCHES) return 0;
+  return load_batch(x, 0x40000000 + done, x->photons, run, err);
+}
+
+/* The truth integrator's twins, kept in x->fine. acc is zero before and after. */
+/* A deterministic price of a twin run (measured time would make target
+ * mode's choice, and so its bits, depend on the machine's load): field
+ * evaluations (1 per Euler step, 4 per RK4 step) plus voxel deposits. */
+static double twin_cost(const pm_stats_t *st, unsigned integ) {
+  double evals = integ == integrator_kind(INTEGRATOR_RK4)->device ? 4.0 : 1.0;
+  return (double)st->steps * evals + (double)st->voxels;
+}
+
+static int twin_truth(clh_context_t *cl, bt_run_t *x, uint64_t *acc, double *ms, bk_error_t *err) {
+  pm_stats_t st;
+  memset(&st, 0, sizeof st);
+  pm_setup_t truth = *x->s;
+  truth.params.integrator = integrator_kind(INTEGRATOR_RK4)->device;
+  truth.params.step = BT_TRUTH_STEP;
+  x->twin_phase = 1;
+  double t0 = bk_now_ms();
+  int rc = pm_run_batches(cl, &truth, acc, &st, twin_next, x, err);
+  *ms = bk_now_ms() - t0;
+  x->cost = twin_cost(&st, truth.params.integrator);
+  return rc;
+}
+
+/* The same twins with integrator `integ` at `step` into the tracker's step
+ * sums (reset first); *ms their time. */
+static int twin_with(clh_context_t *cl, bt_run_t *x, uint64_t *acc, unsigned integ, float step,
+                     double *ms, bk_error_t *err) {
+  pm_stats_t st;
+  memset(&st, 0, sizeof st);
+  pm_setup_t run = *x->s;
+  run.params.integrator = integ;
+  run.params.step = step;
+  ee_twin_reset(x->tr);
+  x->twin_phase = 2;
+  double t0 = bk_now_ms();
+  int rc = pm_run_batches(cl, &run, acc, &st, twin_next, x, err);
+  *ms = bk_now_ms() - t0;
+  x->cost = twin_cost(&st, integ);
+  return rc;
+}
+
+/* Target mode: the integrator and step whose bias leaves room for the noise
+ * at the least predicted cost, twin_cost per photon / (E² − ε_step²), among
+ * Euler and RK4 at 1/2 and 1/4 voxel and the truth's RK4 1/8 (bias 0).
+ * A bias above 0.8 E leaves too little room. Sets x->s's integrator and
+ * step; the tracker keeps the chosen one's twins. */
+static int choose_integrator(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *err) {
+  static const struct { integrator_t i; float step; } cand[] = {
+      {INTEGRATOR_EULER, 0.5f}, {INTEGRATOR_EULER, 0.25f}, {INTEGRATOR_RK4, 0.5f},
+      {INTEGRATOR_RK4, 0.25f}};
+  const double E = x->target;
+  int best = -1;
+  double best_cost = x->cost / (E * E), ms;
+  for (int c = 0; c < (int)(sizeof cand / sizeof cand[0]); c++) {
+    unsigned dev = integrator_kind(cand[c].i)->device;
+    int rc = twin_with(cl, x, acc, dev, cand[c].step, &ms, err);
+    if (rc) return rc;
+    double st = ee_twin_step(x->tr, x->fine);
+    double cost = st >= 0.0 && st <= 0.8 * E ? x->cost / (E * E - st * st) : HUGE_VAL;
+    bk_log(2, "target error %g: %s step %g: bias %.4f, twin %.0f ms, relative cost %.3g", E,
+           integrator_kind(cand[c].i)->name, (double)cand[c].step, st, ms, cost / best_cost);
+    if (cost < best_cost) best_cost = cost, best = c;
+  }
+  if (best < 0) { /* the truth's own integrator */
+    x->s->params.integrator = integrator_kind(INTEGRATOR_RK4)->device;
+    x->s->params.step = BT_TRUTH_STEP;
+    x->step_exact = 1;
+    return BK_OK;
+  }
+  x->s->params.integrator = integrator_kind(cand[best].i)->device;
+  x->s->params.step = cand[best].step;
+  return twin_with(cl, x, acc, x->s->params.integrator, x->s->params.step, &ms, err);
+}
+
+/* The step term: twins with the truth's integrator, then with the bake's
+ * (target mode: with each candidate, choosing one). */
+static int run_twin(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *err) {
+  double ms_truth, ms;
+  x->fine = bk_calloc(x->tr->count * BT_TWIN_BATCHES, sizeof(float), "error estimate: twin", err);
+  if (!x->fine) return BK_ERR_RUNTIME;
+  int rc = twin_truth(cl, x, acc, &ms_truth, err);
+  if (!rc && x->target > 0.0) rc = choose_integrator(cl, x, acc, err);
+  else if (!rc)
+    rc = twin_with(cl, x, acc, x->s->params.integrator, x->s->params.step, &ms, err);
+  free(x->fine);
+  x->fine = NULL;
+  return rc;
+}
+
+/* Whether to trace another batch after `done`. */
+static int keep_going(bt_run_t *x, int done) {
+  if (x->batches) return done < x->batches;
+  if (x->target > 0.0 && done >= BT_MIN_BATCHES && x->terms.estimate >= 0.0 &&
+      x->terms.estimate <= x->target)
+    return x->stop_reason = 1, 0;
+  if (x->budget_ms > 0.0 && done >= 1) {
+    double now = bk_now_ms(), per = (now - x->t_main) / done;
+    if (now - x->t0 + per > x->budget_ms) return x->stop_reason = 2, 0;
+  }
+  if (done >= x->cap) return x->stop_reason = 3, 0;
+  return 1;
+}
+
+/* The progress line: ε̂ as it falls, and how far along. */
+static void show_progress(bt_run_t *x, int done) {
+  double frac = 0.0;
+  if (x->batches) frac = (double)done / x->batches;
+  else if (x->budget_ms > 0.0) frac = (bk_now_ms() - x->t0) / x->budget_ms;
+  if (x->target > 0.0 && x->terms.noise > 0.0) {
+    double room = x->target * x->target - x->terms.step * x->terms.step;
+    double need = room > 0.0 ? done * x->terms.noise * x->terms.noise / room : 1e9;
+    double f = done / (need > done ? need : done);
+    frac = frac > f ? frac : f;
+  }
+  if (x->terms.estimate >= 0.0)
+    snprintf(x->label, sizeof x->label, "photon marching, error %.4f", x->terms.estimate);
+  bk_progress_update(&x->prog, (uint64_t)(1e6 * (frac < 1.0 ? frac : 1.0)));
+}
+
+static int main_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_error_t *err) {
+  bt_run_t *x = ctx;
+  x->done = done;
+  if (done > 0) {
+    double t = bk_now_ms();
+    ee_after_batch(x->tr, x->s, acc);
+    if (x->grid) ee_after_batch(x->grid, x->s, acc);
+    if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
+    x->ms_track += bk_now_ms() - t;
+    show_progress(x, done);
+  }
+  if (!keep_going(x, done)) return 0;
+  uint64_t n = x->batches ? ph_batch_photons(x->photons, x->batches, done) : x->photons;
+  return load_batch(x, x->first_id + done, n, run, err);
+}
+
+/* The integrator needs no twin: no refraction (straight DDA, exact), or it
+ * is the truth's own. */
+static int step_is_exact(const pm_setup_t *s) {
+  return !s->has_refraction || (s->params.integrator == integrator_kind(INTEGRATOR_RK4)->device &&
+                                s->params.step <= BT_TRUTH_STEP);
+}
+
+static void set_mode(bt_run_t *x, const scene_t *scene) {
+  uint64_t n = (uint64_t)scene->photon_count;
+  int b = scene->batches > 0 ? scene->batches : 1;
+  x->target = scene->target_error;
+  x->budget_ms = scene->time_budget_s * 1000.0;
+  if (x->target > 0.0 || x->budget_ms > 0.0) {
+    x->photons = n / (uint64_t)b > 0 ? n / (uint64_t)b : 1;
+    double cap = floor((double)PH_MAX_PHOTONS / (double)x->photons);
+    x->cap = cap > BT_MAX_OPEN_BATCHES ? BT_MAX_OPEN_BATCHES : (int)cap;
+  } else {
+    x->photons = n;
+    x->batches = (uint64_t)b > n && n > 0 ? (int)n : b;
+    x->cap = x->batches;
+  }
+}
+
+static void report(const bt_run_t *x, const bt_result_t *res, const pm_stats_t *st,
+                   bk_timings_t *timings, double ms_march) {
+  double sec = ms_march > 0.0 ? ms_march / 1000.0 : 1e-9;
+  bk_timings_add(timings, "photon marching", ms_march,
+                 "%d batches of %llu, %.1f M photon-steps/s, %.0f M voxels/s", res->batches,
+                 (unsigned long long)res->batch_photons, st->steps / sec * 1e-6,
+                 st->voxels / sec * 1e-6);
+  const ee_terms_t *t = &res->terms;
+  char step[48];
+  if (x->step_exact) snprintf(step, sizeof step, "step 0 (exact)");
+  else snprintf(step, sizeof step, "step %.4f (%d twins)", t->step, t->twin_batches);
+  if (t->estimate >= 0.0)
+    bk_timings_add(timings, "error estimate", res->ms_twin + res->ms_track,
+                   "error %.4f = noise %.4f (%d batches) + %s", t->estimate, t->noise,
+                   t->batches, step);
+  else
+    bk_timings_add(timings, "error estimate", res->ms_twin + res->ms_track,
+                   "unknown: %d batch(es), noise needs 2 (photons.batches)", t->batches);
+}
+
+/* Stops explained: a budget too short, a target not reached. */
+static void warn_stop(const bt_run_t *x, bt_result_t *res) {
+  const char *path = x->scene->path;
+  if (x->stop_reason == 2 && res->batches < 2) {
+    res->budget_short = 1;
+    bk_warn("%s: photons.time_budget_s %g s is shorter than two batches of %llu photons (%.3g s "
+            "each): wrote %d batch(es) with no noise estimate; raise the budget or lower "
+            "photons.count to make batches smaller",
+            path, x->budget_ms / 1000.0, (unsigned long long)x->photons,
+            (bk_now_ms() - x->t_main) / 1000.0 / (res->batches ? res->batches : 1), res->batches);
+  }
+  if (x->target > 0.0 && x->stop_reason != 1) {
+    res->target_missed = 1;
+    bk_warn("%s: photons.target_error %g not reached: error estimate %.4f after %d batches "
+            "(%s)", path, x->target, res->terms.estimate, res->batches,
+            x->stop_reason == 2 ? "the time budget ended it" : "the batch limit ended it");
+  }
+}
+
+/* Twin, then the main batches; acc zeroed by the caller. */
+static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *acc,
+                   pm_stats_t *stats, double *ms_march, bk_error_t *err) {
+  const pm_setup_t *s = x->s;
+  int rc = BK_OK;
+  x->t0 = bk_now_ms();
+  if (!x->step_exact && s->lights.photons > 0 && x->batches != 1 && !x->o->shard_count) {
+    uint64_t total = x->batches ? x->photons : x->photons * BT_MIN_BATCHES;
+    uint64_t n = (uint64_t)(total * BT_TWIN_FRACTION / BT_TWIN_BATCHES);
+    x->photons = n > BT_TWIN_MIN ? n : BT_TWIN_MIN;
+    uint64_t keep = x->batches ? total : total / BT_MIN_BATCHES;
+    res->terms.twin_photons = x->photons;
+    rc = run_twin(cl, x, acc, err);
+    x->photons = keep;
+  }
+  res->ms_twin = bk_now_ms() - x->t0;
+  if (rc) return rc;
+  x->t_main = bk_now_ms();
+  bk_progress_begin(&x->prog, x->label, 1000000);
+  rc = pm_run_batches(cl, s, acc, stats, main_next, x, err);
+  bk_progress_end(&x->prog);
+  *ms_march = bk_now_ms() - x->t_main;
+  return rc;
+}
+
+int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const bt_options_t *o,
+            float *radiance, bt_result_t *res, pm_stats_t *stats, bk_timings_t *timings,
+            bk_error_t *err) {
+  pm_setup_t s;
+  ee_tracker_t tr, grid;
+  uint64_t *acc = NULL;
+  bt_run_t x;
+  memset(res, 0, sizeof *res);
+  memset(stats, 0, sizeof *stats);
+  memset(&x, 0, sizeof x);
+  memset(&tr, 0, sizeof tr);
+  memset(&grid, 0, sizeof grid);
+  int rc = pm_prepare(scene, vol, &s, timings, stats, err);
+  if (rc != BK_OK) return rc;
+  x.scene = scene, x.o = o, x.s = &s, x.tr = &tr;
+  snprintf(x.label, sizeof x.label, "photon marching");
+  set_mode(&x, scene);
+  if (o->shard_count && (x.target > 0.0 || x.budget_ms > 0.0 || o->error_grid)) {
+    pm_setup_free(&s);
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: --shard traces a fixed share of a fixed photon count: it cannot be "
+                   "combined with a target error, a time budget or --error-grid", scene->path);
+  }
+  if (o->error_grid && x.batches == 1) {
+    pm_setup_free(&s);
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: --error-grid needs at least 2 batches (photons.batches is 1)", scene->path);
+  }
+  pm_scale_batches(&s, (double)x.cap);
+  x.step_exact = step_is_exact(&s);
+  double ms_march = 0.0;
+  rc = ee_tracker_init(&tr, &s, 0, err);
+  if (!rc && o->error_grid && !(rc = ee_tracker_init(&grid, &s, 1, err))) x.grid = &grid;
+  if (!rc) {
+    rc = BK_ERR_RUNTIME;
+    acc = bk_calloc(s.voxels, s.channels * sizeof(uint64_t), "march: radiance accumulator", err);
+  }
+  if (acc) rc = run_all(cl, &x, res, acc, stats, &ms_march, err);
+  if (rc) goto done;
+  res->batches = x.done;
+  res->integrator = scene->integrator;
+  for (int k = 0; k < INTEGRATOR_KIND_COUNT; k++)
+    if (integrator_kinds[k].device == s.params.integrator) res->integrator = integrator_kinds[k].id;
+  res->step = s.params.step;
+  res->batch_photons = x.batches ? ph_batch_photons(x.photons, x.batches, 0) : x.photons;
+  double t = bk_now_ms();
+  for (int c = 0; c < 3 && x.done > 1; c++) s.to_radiance[c] /= (double)x.done;
+  ee_terms(&tr, x.done, x.step_exact, &res->terms);
+  if (o->sums) { /* a shard: the sums, scaled for the whole bake's batches */
+    pm_sums_keep(&s, acc, o->sums);
+    acc = NULL;
+    res->terms.estimate = res->terms.noise = res->terms.step = -1.0;
+  } else {
+    pm_to_radiance(&s, acc, radiance);
+  }
+  res->terms.twin_photons = x.step_exact ? 0 : res->terms.twin_photons;
+  if (x.grid) res->error_grid = ee_take_error_grid(&grid, x.done);
+  res->ms_track = x.ms_track + bk_now_ms() - t;
+  stats->ms_march = ms_march;
+  if (timings) report(&x, res, stats, timings, ms_march);
+  pm_report_scattering(&s, stats, timings);
+  warn_stop(&x, res);
+done:
+  free(acc);
+  ee_tracker_free(&tr);
+  ee_tracker_free(&grid);
+  pm_setup_free(&s);
+  return rc;
+}

@@ -1,0 +1,80 @@
+/* batches.h: the reference march in independent batches, with its error
+ * measured as it goes (error_est.h) and steered by a target or a time budget.
+ *
+ * Batch b of a bake is a Hammersley set of n_b photons per the usual light
+ * shares, with Cranley–Patterson rotations hashed from (seed, light, b)
+ * (ph_prepare_batch); batch 0 is the set an unbatched bake of n_b photons
+ * traces, so `photons.batches` 1 reproduces such a bake bit for bit. Each
+ * batch carries the lights' whole power, so each is a whole estimate; the
+ * fixed-point sums of all batches are exact and order-free, and the result
+ * is their sum divided by the number of batches. A contiguous group of whole
+ * batches can therefore be traced alone (a photon shard) and its sums added
+ * to the others' later; the only shared choice is the fixed-point scale
+ * (pm_scale_batches with the same cap).
+ *
+ * Modes: fixed (photons.count split into photons.batches batches);
+ * target (photons.target_error E: batches of count/batches photons added
+ * until ε̂ <= E, at least BT_MIN_BATCHES); budget (photons.time_budget_s S:
+ * batches added while the next one, at the mean batch time so far, ends
+ * within S seconds of the march's start). Target and budget combine: the
+ * first to stop wins. Target mode also chooses the integrator and step
+ * (choose_integrator in batches.c) from the twins' bias estimates. */
+#ifndef BAKER_BATCHES_H
+#define BAKER_BATCHES_H
+
+#include "clhost.h"
+#include "error_est.h"
+#include "march.h"
+#include "scene.h"
+#include "voxelize.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define BT_MIN_BATCHES 4  /* open-ended modes stop no earlier */
+/* Open-ended modes stop here at the latest: the fixed-point scale is set for
+ * this many batches (a deposit of one photon across one voxel is then still
+ * about 2^62 / (4096 n_b path bound) quanta, thousands at 128^3). */
+#define BT_MAX_OPEN_BATCHES 4096
+#define BT_TWIN_BATCHES 4 /* twin batches behind the step term */
+/* Twin photons: this fraction of the bake's photon count over all twin
+ * batches (at least BT_TWIN_MIN per batch). */
+#define BT_TWIN_FRACTION (1.0 / 64.0)
+#define BT_TWIN_MIN 1024u
+/* The truth's integrator: RK4 at this step (voxels). */
+#define BT_TRUTH_STEP 0.125f
+
+typedef struct bt_options {
+  int error_grid; /* keep every voxel's statistics and return radiance_error */
+  /* A photon shard (baker/shard.h): share shard_index of shard_count of
+   * every batch is traced (pm_share_range), no error is estimated (the
+   * spread needs every shard's batches), and the raw sums go to *sums
+   * instead of radiance. 0: the whole bake. */
+  int shard_index, shard_count;
+  pm_sums_t *sums;
+} bt_options_t;
+
+typedef struct bt_result {
+  ee_terms_t terms;
+  int batches;         /* batches traced */
+  uint64_t batch_photons;
+  double ms_twin, ms_track; /* the step twin; the per-batch statistics */
+  float *error_grid;   /* opts.error_grid and >= 2 batches: the caller frees */
+  int budget_short;    /* the time budget ended the bake before 2 batches */
+  int target_missed;   /* the target was not reached (batch cap or budget) */
+  integrator_t integrator; /* what marched: the scene's, or target mode's choice */
+  float step;
+} bt_result_t;
+
+/* The march stage in batches (pm_bake's place in the pipeline): radiance as
+ * pm_bake writes it, and the error. Timings get "photon marching" and
+ * "error estimate" rows. */
+int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const bt_options_t *o,
+            float *radiance, bt_result_t *res, pm_stats_t *stats, bk_timings_t *timings,
+            bk_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

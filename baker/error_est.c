@@ -1,0 +1,251 @@
+/* error_est.c: per-voxel batch statistics and the bake's error terms (see
+ * error_est.h). */
+#include "error_est.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/parallel.h"
+
+static const double lum_w[3] = {EE_LUM_R, EE_LUM_G, EE_LUM_B};
+
+int ee_tracker_init(ee_tracker_t *t, const pm_setup_t *s, int all, bk_error_t *err) {
+  memset(t, 0, sizeof *t);
+  t->shift = all ? 0 : 1;
+  t->mx = (s->dims.nx + t->shift) >> t->shift;
+  t->my = (s->dims.ny + t->shift) >> t->shift;
+  t->mz = (s->dims.nz + t->shift) >> t->shift;
+  t->count = (size_t)t->mx * t->my * t->mz;
+  t->prev = bk_calloc(t->count, sizeof(float), "error estimate: batch sums", err);
+  t->sumsq = bk_calloc(t->count, sizeof(float), "error estimate: batch squares", err);
+  if (!t->prev || !t->sumsq) {
+    ee_tracker_free(t);
+    return BK_ERR_RUNTIME;
+  }
+  /* one batch's quanta -> luminance; a one-channel march carries the sum of
+   * RGB and to_radiance holds its colour */
+  for (int c = 0; c < 3; c++) t->lum[c] = lum_w[c] * s->to_radiance[c];
+  if (s->channels == 1) t->lum[0] = t->lum[0] + t->lum[1] + t->lum[2], t->lum[1] = t->lum[2] = 0;
+  return BK_OK;
+}
+
+void ee_tracker_free(ee_tracker_t *t) {
+  free(t->prev);
+  free(t->sumsq);
+  free(t->dsum);
+  free(t->dsumsq);
+  free(t->twin_tmp);
+  memset(t, 0, sizeof *t);
+}
+
+/* Tracked voxel k's index in the grid. */
+static size_t voxel_of(const ee_tracker_t *t, const pm_setup_t *s, size_t k) {
+  size_t a = k % (size_t)t->mx, b = (k / (size_t)t->mx) % (size_t)t->my;
+  size_t c = k / ((size_t)t->mx * t->my);
+  a <<= t->shift, b <<= t->shift, c <<= t->shift;
+  return a + (size_t)s->dims.nx * (b + (size_t)s->dims.ny * c);
+}
+
+static float lum_at(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, size_t v) {
+  if (s->channels == 1) return (float)((double)acc[v] * t->lum[0]);
+  const uint64_t *a = acc + 3 * v;
+  return (float)((double)a[0] * t->lum[0] + (double)a[1] * t->lum[1] + (double)a[2] * t->lum[2]);
+}
+
+typedef struct ee_ctx {
+  ee_tracker_t *t;
+  const pm_setup_t *s;
+  const uint64_t *acc;
+  const float *fine;
+  float *out;
+} ee_ctx_t;
+
+static void after_batch_range(void *arg, size_t lo, size_t hi) {
+  ee_ctx_t *x = arg;
+  ee_tracker_t *t = x->t;
+  for (size_t k = lo; k < hi; k++) {
+    float cur = lum_at(t, x->s, x->acc, voxel_of(t, x->s, k));
+    float b = cur - t->prev[k];
+    t->sumsq[k] += b * b;
+    t->prev[k] = cur;
+  }
+}
+
+void ee_after_batch(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc) {
+  ee_ctx_t x = {t, s, acc, NULL, NULL};
+  bk_parallel(t->count, BK_GRAIN, after_batch_range, &x);
+}
+
+static void read_range(void *arg, size_t lo, size_t hi) {
+  ee_ctx_t *x = arg;
+  for (size_t k = lo; k < hi; k++) x->out[k] = lum_at(x->t, x->s, x->acc, voxel_of(x->t, x->s, k));
+}
+
+void ee_read(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, float *out) {
+  ee_ctx_t x = {(ee_tracker_t *)t, s, acc, NULL, out};
+  bk_parallel(t->count, BK_GRAIN, read_range, &x);
+}
+
+static void twin_range(void *arg, size_t lo, size_t hi) {
+  ee_ctx_t *x = arg;
+  ee_tracker_t *t = x->t;
+  for (size_t k = lo; k < hi; k++) {
+    float d = lum_at(t, x->s, x->acc, voxel_of(t, x->s, k)) - x->fine[k];
+    t->dsum[k] += d;
+    t->dsumsq[k] += d * d;
+  }
+}
+
+int ee_twin_add(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, const float *fine,
+                bk_error_t *err) {
+  if (!t->dsum) {
+    t->dsum = bk_calloc(t->count, sizeof(float), "error estimate: twin sums", err);
+    t->dsumsq = bk_calloc(t->count, sizeof(float), "error estimate: twin squares", err);
+    if (!t->dsum || !t->dsumsq) return BK_ERR_RUNTIME;
+  }
+  ee_ctx_t x = {t, s, acc, fine, NULL};
+  bk_parallel(t->count, BK_GRAIN, twin_range, &x);
+  t->twins++;
+  return BK_OK;
+}
+
+/* The value of rank floor(q (n - 1)) of v (reordered), by quickselect. */
+static float quantile(float *v, size_t n, double q) {
+  if (n == 0) return 0.0f;
+  size_t want = (size_t)(q * (double)(n - 1)), lo = 0, hi = n - 1;
+  while (lo < hi) {
+    float pivot = v[lo + (hi - lo) / 2];
+    size_t i = lo, j = hi;
+    while (i <= j) {
+      while (v[i] < pivot) i++;
+      while (v[j] > pivot) j--;
+      if (i <= j) {
+        float tmp = v[i];
+        v[i] = v[j], v[j] = tmp;
+        i++;
+        if (j == 0) break;
+        j--;
+      }
+    }
+    if (want <= j) hi = j;
+    else if (want >= i) lo = i;
+    else break;
+  }
+  return v[want];
+}
+
+/* 2% of the 99.9th percentile of lum (n values); 0 when it cannot be had. */
+static double lit_threshold(const float *lum, size_t n) {
+  float *tmp = malloc(n * sizeof *tmp);
+  if (!tmp) return 0.0;
+  memcpy(tmp, lum, n * sizeof *tmp);
+  double p = quantile(tmp, n, EE_LIT_PERCENTILE);
+  free(tmp);
+  return EE_LIT_FRACTION * p;
+}
+
+void ee_terms(const ee_tracker_t *t, int batches, int step_exact, ee_terms_t *out) {
+  const double B = batches, T = t->twins;
+  out->batches = batches;
+  out->twin_batches = step_exact ? 0 : t->twins;
+  out->noise = out->step = out->estimate = EE_UNKNOWN;
+  float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
+  if (!mean || batches < 1) {
+    free(mean);
+    return;
+  }
+  for (size_t k = 0; k < t->count; k++) mean[k] = (float)(t->prev[k] / B);
+  double thr = lit_threshold(mean, t->count);
+  double sum_m = 0.0, sum_var = 0.0, sum_b2 = 0.0;
+  size_t lit = 0;
+  for (size_t k = 0; k < t->count; k++) {
+    double m = mean[k];
+    if (!(thr > 0.0) || m < thr) continue;
+    lit++;
+    sum_m += m;
+    if (batches > 1) sum_var += fmax(0.0, (t->sumsq[k] - B * m * m) / (B - 1.0)) / B;
+    if (T > 1) {
+      double dbar = t->dsum[k] / T;
+      double var_d = fmax(0.0, (t->dsumsq[k] - T * dbar * dbar) / (T - 1.0)) / T;
+      sum_b2 += dbar * dbar - var_d;
+    }
+  }
+  free(mean);
+  if (!lit || !(sum_m > 0.0)) { /* nothing lit: nothing to be wrong about */
+    out->noise = batches > 1 ? 0.0 : EE_UNKNOWN;
+    out->step = step_exact || T > 1 ? 0.0 : EE_UNKNOWN;
+  } else {
+    double mm = sum_m / (double)lit;
+    if (batches > 1) out->noise = sqrt(sum_var / (double)lit) / mm;
+    if (step_exact) out->step = 0.0;
+    else if (T > 1) out->step = sqrt(fmax(0.0, sum_b2 / (double)lit)) / mm;
+  }
+  if (out->noise >= 0.0 && out->step >= 0.0)
+    out->estimate = sqrt(out->noise * out->noise + out->step * out->step);
+}
+
+float *ee_take_error_grid(ee_tracker_t *t, int batches) {
+  if (t->shift != 0 || batches < 2) return NULL;
+  const double B = batches;
+  float *g = t->sumsq;
+  for (size_t k = 0; k < t->count; k++) {
+    double m = t->prev[k] / B;
+    g[k] = (float)sqrt(fmax(0.0, (g[k] - B * m * m) / (B - 1.0)) / B);
+  }
+  t->sumsq = NULL;
+  return g;
+}
+
+double ee_true_error(const float *radiance, const float *truth, size_t voxels) {
+  float *lt = calloc(voxels ? voxels : 1, sizeof *lt);
+  if (!lt) return NAN;
+  for (size_t i = 0; i < voxels; i++)
+    lt[i] = (float)(lum_w[0] * truth[3 * i] + lum_w[1] * truth[3 * i + 1] +
+                    lum_w[2] * truth[3 * i + 2]);
+  double thr = lit_threshold(lt, voxels);
+  double se = 0.0, st = 0.0;
+  size_t lit = 0;
+  for (size_t i = 0; i < voxels; i++) {
+    if (!(thr > 0.0) || lt[i] < thr) continue;
+    double l = lum_w[0] * radiance[3 * i] + lum_w[1] * radiance[3 * i + 1] +
+               lum_w[2] * radiance[3 * i + 2];
+    se += (l - lt[i]) * (l - lt[i]);
+    st += lt[i];
+    lit++;
+  }
+  free(lt);
+  return lit && st > 0.0 ? sqrt(se / (double)lit) / (st / (double)lit) : 0.0;
+}
+
+void ee_twin_reset(ee_tracker_t *t) {
+  if (t->dsum) memset(t->dsum, 0, t->count * sizeof(float));
+  if (t->dsumsq) memset(t->dsumsq, 0, t->count * sizeof(float));
+  t->twins = 0;
+}
+
+double ee_twin_step(const ee_tracker_t *t, const float *fine) {
+  const double T = t->twins;
+  float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
+  if (!mean || T < 2) {
+    free(mean);
+    return EE_UNKNOWN;
+  }
+  for (size_t k = 0; k < t->count; k++) {
+    double m = 0.0;
+    for (int b = 0; b < t->twins; b++) m += fine[(size_t)b * t->count + k];
+    mean[k] = (float)(m / T);
+  }
+  double thr = lit_threshold(mean, t->count), sum_m = 0.0, sum_b2 = 0.0;
+  size_t lit = 0;
+  for (size_t k = 0; k < t->count; k++) {
+    if (!(thr > 0.0) || mean[k] < thr) continue;
+    double dbar = t->dsum[k] / T;
+    double var_d = fmax(0.0, (t->dsumsq[k] - T * dbar * dbar) / (T - 1.0)) / T;
+    sum_b2 += dbar * dbar - var_d;
+    sum_m += mean[k];
+    lit++;
+  }
+  free(mean);
+  return lit && sum_m > 0.0 ? sqrt(fmax(0.0, sum_b2 / (double)lit)) / (sum_m / (double)lit) : 0.0;
+}

@@ -1,0 +1,101 @@
+/* error_est.h: the error of a bake, estimated while it runs (docs/error.md).
+ *
+ * Definitions (DESIGN.md §8): truth T is the radiance of the same grid with
+ * unlimited photons and RK4 at step 1/8 voxel; lit voxels are those whose
+ * luminance (Rec. 709) is at least 2% of the 99.9th percentile; the error ε
+ * is sqrt(mean_lit (L − T)²) / mean_lit T. Its two parts, estimated without
+ * the truth:
+ *
+ *  noise  the photons are traced in B independent batches (rotated
+ *         Hammersley sets, baker/batches.h), each a whole estimate x_b; the
+ *         bake writes their mean, whose variance per voxel is
+ *         s² / B with s² = Σ (x_b − x̄)² / (B − 1). ε_noise² =
+ *         mean_lit(s²/B) / mean_lit(x̄)².
+ *  step   the integrator's bias: T twin batches of photons traced twice from
+ *         the same starting points, with the bake's integrator and with the
+ *         truth's (RK4, 1/8 voxel); per voxel d_t their difference. The
+ *         mean d̄ estimates the bias plus noise of its own, removed with the
+ *         spread of d_t: ε_step² = max(0, mean_lit(d̄² − var(d̄))) /
+ *         mean_lit(x̄)².
+ *  ε̂ = sqrt(ε_noise² + ε_step²).
+ *
+ * What is kept per voxel: by default only the voxels with even (i, j, k),
+ * an eighth of the grid, a systematic sample on which the lit set, the
+ * percentile and the means are taken (8 bytes per tracked voxel: 1 byte per
+ * voxel, 3 more while the twins run); the error grid has a second tracker
+ * over every voxel (8 bytes per voxel, 4 of which become the
+ * `radiance_error` grid). */
+#ifndef BAKER_ERROR_EST_H
+#define BAKER_ERROR_EST_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "march.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Luminance weights of linear Rec. 709 RGB. */
+#define EE_LUM_R 0.2126
+#define EE_LUM_G 0.7152
+#define EE_LUM_B 0.0722
+/* Lit voxels: luminance >= this fraction of the 99.9th percentile. */
+#define EE_LIT_FRACTION 0.02
+#define EE_LIT_PERCENTILE 0.999
+/* A term that was not measured (one batch: no spread). */
+#define EE_UNKNOWN (-1.0)
+
+typedef struct ee_terms {
+  double estimate, noise, step; /* ε̂, ε_noise, ε_step; EE_UNKNOWN when not measured */
+  int batches;                  /* B behind the noise term */
+  int twin_batches;             /* T behind the step term (0: exact, no twin needed) */
+  uint64_t twin_photons;        /* photons per twin batch */
+} ee_terms_t;
+
+typedef struct ee_tracker {
+  int shift;          /* 1: voxels with even (i, j, k); 0: every voxel */
+  int mx, my, mz;     /* tracked lattice */
+  size_t count;
+  float *prev;        /* per tracked voxel: the luminance sum of the batches so far */
+  float *sumsq;       /* ... and the sum of the squares of each batch's luminance */
+  int twins;          /* twin batches recorded */
+  float *dsum, *dsumsq; /* twin: sums of d_t and d_t² (NULL until a twin runs) */
+  float *twin_tmp;    /* twin: the truth integrator's luminance of the twin in flight */
+  double lum[3];      /* luminance per accumulator quantum, per channel (one batch) */
+} ee_tracker_t;
+
+/* Tracks every voxel (all = 1, for the error grid) or the even lattice. */
+int ee_tracker_init(ee_tracker_t *t, const pm_setup_t *s, int all, bk_error_t *err);
+void ee_tracker_free(ee_tracker_t *t);
+/* After a batch: acc holds the sums of `done` batches. */
+void ee_after_batch(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc);
+/* The luminance of acc (one batch's sums) on the tracked voxels into out. */
+void ee_read(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, float *out);
+/* Twin: `fine` holds the truth integrator's luminance, acc the bake
+ * integrator's sums of the same photons. */
+int ee_twin_add(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, const float *fine,
+                bk_error_t *err);
+/* Forget the twins recorded (another integrator is measured next). */
+void ee_twin_reset(ee_tracker_t *t);
+/* The step term of the twins recorded, on the lit set and mean of the truth
+ * integrator's luminance `fine` (one array of count per twin): for choosing
+ * an integrator before the bake's own batches exist. */
+double ee_twin_step(const ee_tracker_t *t, const float *fine);
+/* The terms after `batches` batches (noise EE_UNKNOWN below 2; step 0 when
+ * step_exact, EE_UNKNOWN without twins). */
+void ee_terms(const ee_tracker_t *t, int batches, int step_exact, ee_terms_t *out);
+/* Every voxel tracked: the standard error of the luminance of the mean of
+ * `batches` batches, written over sumsq (which the grid then owns: the
+ * tracker forgets it). NULL when not every voxel is tracked or B < 2. */
+float *ee_take_error_grid(ee_tracker_t *t, int batches);
+
+/* ε of a grid against a truth grid (both 3 floats per voxel), by the
+ * definitions above on every voxel: for tests and benchmarks. */
+double ee_true_error(const float *radiance, const float *truth, size_t voxels);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,178 @@
+/* test_error.c: the bake's error estimate (baker/batches.h, error_est.h)
+ * against the truth, on the sphere scene (an n = 1.5 ball in fog under a
+ * spot light) at 32^3 so that each case takes seconds on 2 cores.
+ *
+ * Usage: test_error SCENE_DIR OUT_DIR TEST, TEST one of
+ *  honest   ε̂ within [0.67, 1.5] x the true ε (docs/error.md) for Euler and
+ *           RK4 at two photon counts, the truth RK4 at step 1/8 with 16x
+ *           the largest count
+ *  bits     one batch reproduces the unbatched march bit for bit; a
+ *           batched bake with a seed reproduces itself; batches traced in
+ *           two runs and added equal the whole (shards)
+ *  cli      baker bake: metadata error_estimate/noise/step, radiance_error,
+ *           --stats JSON; bad --target-error/--time-budget refused; a budget
+ *           shorter than two batches warns and still writes a file */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bake.h"
+#include "batches.h"
+#include "vdbio.h"
+#include "voxelize.h"
+#include "test_util.h"
+
+#define TEST_RES 32
+
+static const char *scene_dir, *out_dir;
+static clh_context_t cl;
+static scene_t scene;
+static volume_t vol;
+static size_t V;
+
+static void setup(void) {
+  bk_error_t err;
+  char path[1024];
+  memset(&err, 0, sizeof err);
+  snprintf(path, sizeof path, "%s/sphere.json", scene_dir);
+  REQUIRE(scene_load(path, &scene, &err) == BK_OK, "%s", err.msg);
+  scene.resolution = TEST_RES;
+  REQUIRE(vox_build(&scene, &vol, NULL, &err) == BK_OK, "%s", err.msg);
+  V = grid_count(&vol.dims);
+  REQUIRE(clh_init(&cl, NULL, &err) == BK_OK, "clh_init: %s", err.msg);
+}
+
+static float *bake(integrator_t integ, float step, long long photons, int batches, unsigned seed,
+                   bt_result_t *res) {
+  bk_error_t err;
+  pm_stats_t st;
+  bt_result_t local;
+  bt_options_t o = {0};
+  memset(&err, 0, sizeof err);
+  float *r = calloc(3 * V, sizeof(float));
+  REQUIRE(r, "out of memory");
+  scene.integrator = integ;
+  scene.step = step;
+  scene.photon_count = photons;
+  scene.batches = batches;
+  scene.seed = seed;
+  REQUIRE(bt_bake(&cl, &scene, &vol, &o, r, res ? res : &local, &st, NULL, &err) == BK_OK,
+          "bt_bake: %s", err.msg);
+  return r;
+}
+
+static int test_honest(void) {
+  float *truth = bake(INTEGRATOR_RK4, 0.125f, 16 * 40000, 8, 99, NULL);
+  struct { integrator_t i; float step; long long n; } cases[] = {
+      {INTEGRATOR_EULER, 0.5f, 10000}, {INTEGRATOR_EULER, 0.5f, 40000},
+      {INTEGRATOR_RK4, 0.5f, 10000},   {INTEGRATOR_EULER, 1.0f, 40000}};
+  for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+    bt_result_t res;
+    float *r = bake(cases[c].i, cases[c].step, cases[c].n, 8, 1, &res);
+    double eps = ee_true_error(r, truth, V), est = res.terms.estimate;
+    printf("honest: %s step %g, %lld photons: estimate %.4f (noise %.4f, step %.4f), true %.4f, "
+           "ratio %.2f\n",
+           cases[c].i == INTEGRATOR_RK4 ? "rk4" : "euler", (double)cases[c].step, cases[c].n, est,
+           res.terms.noise, res.terms.step, eps, est / eps);
+    EXPECT(est >= 0.67 * eps && est <= 1.5 * eps, "estimate %.4f, true %.4f", est, eps);
+    free(r);
+  }
+  free(truth);
+  return tu_failures ? 1 : 0;
+}
+
+static int test_bits(void) {
+  bk_error_t err;
+  pm_stats_t st;
+  memset(&err, 0, sizeof err);
+  float *plain = calloc(3 * V, sizeof(float));
+  REQUIRE(plain, "out of memory");
+  scene.integrator = INTEGRATOR_EULER, scene.step = 0.5f, scene.photon_count = 20000;
+  scene.seed = 5;
+  REQUIRE(pm_bake(&cl, &scene, &vol, plain, &st, NULL, &err) == BK_OK, "%s", err.msg);
+  float *one = bake(INTEGRATOR_EULER, 0.5f, 20000, 1, 5, NULL);
+  EXPECT(memcmp(one, plain, 3 * V * sizeof(float)) == 0, "one batch differs from pm_bake");
+  float *a = bake(INTEGRATOR_EULER, 0.5f, 20000, 8, 5, NULL);
+  float *b = bake(INTEGRATOR_EULER, 0.5f, 20000, 8, 5, NULL);
+  EXPECT(memcmp(a, b, 3 * V * sizeof(float)) == 0, "a seeded batched bake is not reproducible");
+  EXPECT(memcmp(a, plain, 3 * V * sizeof(float)) != 0, "8 batches traced the same set as 1");
+  float *c = bake(INTEGRATOR_EULER, 0.5f, 20000, 8, 6, NULL);
+  EXPECT(memcmp(a, c, 3 * V * sizeof(float)) != 0, "the seed changes nothing");
+  free(plain), free(one), free(a), free(b), free(c);
+  return tu_failures ? 1 : 0;
+}
+
+static void meta(const char *path, const char *key, char *got, size_t len) {
+  bk_error_t err;
+  memset(&err, 0, sizeof err);
+  REQUIRE(vdbio_read_meta(path, key, got, len, &err) == BK_OK, "%s", err.msg);
+  REQUIRE(got[0], "%s: no metadata %s", path, key);
+}
+
+static int run_bake(const char **extra, int n_extra, const char *out) {
+  char scene_path[1024];
+  snprintf(scene_path, sizeof scene_path, "%s/sphere.json", scene_dir);
+  const char *args[32] = {"bake", scene_path, "-o", out, "--resolution", "32", "--photons",
+                          "20000", "--force", "-q"};
+  int n = 10;
+  for (int i = 0; i < n_extra && n < 32; i++) args[n++] = extra[i];
+  return bake_main(n, (char **)args);
+}
+
+static int test_cli(void) {
+  char out[1024], stats[1024], got[256];
+  snprintf(out, sizeof out, "%s/error_cli.vdb", out_dir);
+  snprintf(stats, sizeof stats, "%s/error_cli.json", out_dir);
+  const char *a1[] = {"--error-grid", "--stats", stats};
+  REQUIRE(run_bake(a1, 3, out) == 0, "bake --error-grid --stats failed");
+  const char *keys[] = {"error_estimate", "error_noise", "error_step"};
+  for (int k = 0; k < 3; k++) {
+    meta(out, keys[k], got, sizeof got);
+    EXPECT(atof(got) > 0.0 && atof(got) < 1.0, "%s = %s", keys[k], got);
+  }
+  bk_error_t err;
+  vdbio_dense_t g;
+  memset(&err, 0, sizeof err);
+  REQUIRE(vdbio_read_dense(out, "radiance_error", 0, &g, &err) == BK_OK, "%s", err.msg);
+  size_t n = (size_t)g.nx * g.ny * g.nz, positive = 0;
+  for (size_t v = 0; v < n; v++) positive += g.data[v] > 0.0f;
+  EXPECT(positive > n / 100, "radiance_error: %zu of %zu voxels positive", positive, n);
+  char *json = NULL;
+  size_t len = 0;
+  REQUIRE(bk_read_file(stats, &json, &len, &err) == BK_OK, "%s", err.msg);
+  const char *want[] = {"\"stages\"", "\"photon marching\"", "\"error estimate\"",
+                        "\"peak_rss_bytes\"", "\"estimate\": 0.", "\"traced\": 20000"};
+  for (size_t i = 0; i < sizeof want / sizeof want[0]; i++)
+    EXPECT(strstr(json, want[i]), "%s lacks %s", stats, want[i]);
+  free(json);
+  const char *bad[][2] = {{"--target-error", "0"},   {"--target-error", "-0.1"},
+                          {"--target-error", "nan"}, {"--target-error", "2"},
+                          {"--time-budget", "0"},    {"--time-budget", "-3"},
+                          {"--time-budget", "inf"},  {"--batches", "0"}};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
+    EXPECT(run_bake(bad[i], 2, out) == BK_ERR_INPUT, "%s %s accepted", bad[i][0], bad[i][1]);
+  /* a budget far shorter than a batch: a warning, a file, no hang */
+  snprintf(out, sizeof out, "%s/error_cli_budget.vdb", out_dir);
+  const char *a2[] = {"--time-budget", "0.000001"};
+  REQUIRE(run_bake(a2, 2, out) == 0, "a too short budget failed the bake");
+  meta(out, "error_estimate", got, sizeof got);
+  EXPECT(atof(got) == -1.0, "one batch: error_estimate %s, expected -1", got);
+  return tu_failures ? 1 : 0;
+}
+
+int main(int argc, char **argv) {
+  if (argc != 4) {
+    fprintf(stderr, "usage: %s SCENE_DIR OUT_DIR honest|bits|cli\n", argv[0]);
+    return 2;
+  }
+  scene_dir = argv[1], out_dir = argv[2];
+  const char *t = argv[3];
+  if (!strcmp(t, "cli")) return test_cli();
+  setup();
+  if (!strcmp(t, "honest")) return test_honest();
+  if (!strcmp(t, "bits")) return test_bits();
+  fprintf(stderr, "unknown test %s\n", t);
+  return 2;
+}
