@@ -8,6 +8,7 @@
 #include "vdbio_internal.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/Dense.h>
 #include <openvdb/tools/Interpolation.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -318,14 +319,33 @@ static void vdbio_fill_any(const vdb::GridBase::Ptr &g, const vdb::Coord &min,
     vdbio_fill(*vdb::gridConstPtrCast<vdb::Vec3DGrid>(g), min, like, d);
 }
 
+/* d->data over `box` at the grid's own indices: leaf by leaf
+ * (tools::copyToDense) for float and Vec3f grids, through an accessor for
+ * the double ones, which need a conversion. */
+static void vdbio_copy_any(const vdb::GridBase::Ptr &g, const vdb::CoordBBox &box,
+                           vdbio_dense_t *d) {
+  if (g->isType<vdb::FloatGrid>()) {
+    vdb::tools::Dense<float, vdb::tools::LayoutXYZ> dense(box, d->data);
+    vdb::tools::copyToDense(*vdb::gridConstPtrCast<vdb::FloatGrid>(g), dense);
+  } else if (g->isType<vdb::Vec3SGrid>()) {
+    vdb::tools::Dense<vdb::Vec3s, vdb::tools::LayoutXYZ> dense(
+        box, reinterpret_cast<vdb::Vec3s *>(d->data));
+    vdb::tools::copyToDense(*vdb::gridConstPtrCast<vdb::Vec3SGrid>(g), dense);
+  } else {
+    vdbio_fill_any(g, box.min(), NULL, d);
+  }
+}
+
 /* The grid's checksum against the file's record: *checked = 1 when there is
  * one and it matches, 0 when the file has none; BK_ERR_INPUT naming the grid
  * when it does not match. */
 static int vdbio_read_checked(const vdb::GridBase::Ptr &g, const vdb::MetaMap *meta,
-                              const char *path, const char *name, int *checked, bk_error_t *err) {
+                              const char *path, const char *name, int *checked, bk_error_t *err,
+                              const float *dense = nullptr,
+                              const vdb::CoordBBox *dense_box = nullptr) {
   std::string detail;
   *checked = 0;
-  switch (vdbio_check_grid(*g, meta, name, detail)) {
+  switch (vdbio_check_grid(*g, meta, name, detail, dense, dense_box)) {
   case VDBIO_VERIFY_UNCHECKED:
     return BK_OK;
   case VDBIO_VERIFY_OK:
@@ -373,13 +393,27 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
     const int ch = vdbio_channels(g, path, grid_name, err);
     if (!ch)
       return BK_ERR_INPUT;
-    if (checked && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
+    /* float and Vec3f grids read over their own box are checked on the
+     * dense copy (one pass less); a grid refused before that copy is still
+     * checked first, so that a corrupt file reads as corrupt */
+    const bool late_check = checked && pad == 0 &&
+                            (g->isType<vdb::FloatGrid>() || g->isType<vdb::Vec3SGrid>());
+    if (checked && !late_check &&
+        (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
       return rc;
+    auto refuse = [&](int code) {
+      std::string why = err->msg;
+      if (late_check && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
+        return rc;
+      std::snprintf(err->msg, sizeof err->msg, "%s", why.c_str());
+      err->code = code;
+      return code;
+    };
     const vdb::math::Transform &xf = g->transform();
     if (!xf.isLinear())
-      return bk_fail(err, BK_ERR_INPUT,
-                     "%s: grid \"%s\" has a non-linear (%s) transform, which is unsupported", path,
-                     grid_name, xf.mapType().c_str());
+      return refuse(bk_fail(err, BK_ERR_INPUT,
+                            "%s: grid \"%s\" has a non-linear (%s) transform, which is unsupported",
+                            path, grid_name, xf.mapType().c_str()));
 
     vdb::CoordBBox box = g->evalActiveVoxelBoundingBox();
     if (box.empty()) {
@@ -391,10 +425,10 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
         lo[a] = (int64_t)box.min()[a] - pad;
         hi[a] = (int64_t)box.max()[a] + pad;
         if (lo[a] < INT32_MIN || hi[a] > INT32_MAX || hi[a] - lo[a] + 1 > GRID_MAX_AXIS)
-          return bk_fail(err, BK_ERR_INPUT,
+          return refuse(bk_fail(err, BK_ERR_INPUT,
                          "%s: grid \"%s\": its active box spans %lld voxels along axis %d (with "
                          "pad %d), more than the %d a dense read allows",
-                         path, grid_name, (long long)(hi[a] - lo[a] + 1), a, pad, GRID_MAX_AXIS);
+                         path, grid_name, (long long)(hi[a] - lo[a] + 1), a, pad, GRID_MAX_AXIS));
       }
       box = vdb::CoordBBox(vdb::Coord((int)lo[0], (int)lo[1], (int)lo[2]),
                            vdb::Coord((int)hi[0], (int)hi[1], (int)hi[2]));
@@ -429,8 +463,12 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
     out->voxel_size = uniform ? sx : std::min(vs[0], std::min(vs[1], vs[2]));
 
     if ((rc = vdbio_alloc_dense(out, path, grid_name, err)))
+      return refuse(rc);
+    vdbio_copy_any(g, box, out);
+    /* the checksum after the copy, which it then reads instead of the tree */
+    if (checked && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err,
+                                            out->data, &box)))
       return rc;
-    vdbio_fill_any(g, box.min(), NULL, out);
   }
   VDBIO_CATCH_READ(path, (const char *)NULL)
   if (rc)

@@ -105,18 +105,36 @@ static uint64_t ck_grid_hash(const GridT &grid, int nx, int ny, int nz, int ch) 
  * covers the rest. */
 template <typename GridT>
 static bool ck_outside_is_background(const GridT &grid, int nx, int ny, int nz) {
-  using ValueT = typename GridT::ValueType;
-  const ValueT bg = grid.background();
+  using TreeT = typename GridT::TreeType;
+  const typename GridT::ValueType bg = grid.background();
   const vdb::CoordBBox box(vdb::Coord(0, 0, 0), vdb::Coord(nx - 1, ny - 1, nz - 1));
-  for (auto it = grid.tree().cbeginValueAll(); it; ++it) {
-    if (it.getDepth() == (int)GridT::TreeType::DEPTH - 1 && box.isInside(it.getCoord()))
-      continue; /* a voxel in the box: hashed */
+  /* the tiles of the internal nodes, then the voxels of the leaves that
+   * reach outside the box (a leaf inside it is all hashed) */
+  auto tile = grid.tree().cbeginValueAll();
+  tile.setMaxDepth(TreeT::DEPTH - 2);
+  for (; tile; ++tile) {
     vdb::CoordBBox b;
-    it.getBoundingBox(b);
-    if (!box.isInside(b) && !(*it == bg))
+    tile.getBoundingBox(b);
+    if (!box.isInside(b) && !(*tile == bg))
       return false;
   }
+  for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
+    if (box.isInside(leaf->getNodeBoundingBox()))
+      continue;
+    for (auto v = leaf->cbeginValueAll(); v; ++v)
+      if (!box.isInside(v.getCoord()) && !(*v == bg))
+        return false;
+  }
   return true;
+}
+
+/* The hash of a grid already copied to `dense` over exactly the box (the
+ * same values ck_grid_hash copies slice by slice). */
+template <typename GridT>
+static uint64_t ck_dense_hash(const GridT &grid, const float *dense, size_t voxels, int ch) {
+  const typename GridT::ValueType b = grid.background();
+  return ck_mix_background(ck_hash(dense, voxels, ch, false, CK_OFFSET),
+                           reinterpret_cast<const float *>(&b), ch);
 }
 
 static std::string ck_meta(const vdb::MetaMap &meta, const std::string &key) {
@@ -125,7 +143,8 @@ static std::string ck_meta(const vdb::MetaMap &meta, const std::string &key) {
 }
 
 vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMap *meta,
-                                       const std::string &name, std::string &detail) {
+                                       const std::string &name, std::string &detail,
+                                       const float *dense, const vdb::CoordBBox *dense_box) {
   const std::string want = meta ? ck_meta(*meta, "checksum_" + name) : std::string();
   int box[3] = {0, 0, 0};
   if (meta && (std::sscanf(ck_meta(*meta, "checksum_box").c_str(), "%d %d %d", &box[0], &box[1],
@@ -137,11 +156,16 @@ vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMa
   }
   uint64_t h = 0;
   bool outside_ok = true;
+  /* the caller's copy, when it covers exactly the box: no second copy */
+  const bool use_dense =
+      dense && dense_box &&
+      *dense_box == vdb::CoordBBox(vdb::Coord(0, 0, 0), vdb::Coord(box[0] - 1, box[1] - 1, box[2] - 1));
+  const size_t voxels = (size_t)box[0] * (size_t)box[1] * (size_t)box[2];
   if (const vdb::FloatGrid *f = dynamic_cast<const vdb::FloatGrid *>(&g)) {
-    h = ck_grid_hash(*f, box[0], box[1], box[2], 1);
+    h = use_dense ? ck_dense_hash(*f, dense, voxels, 1) : ck_grid_hash(*f, box[0], box[1], box[2], 1);
     outside_ok = ck_outside_is_background(*f, box[0], box[1], box[2]);
   } else if (const vdb::Vec3SGrid *v = dynamic_cast<const vdb::Vec3SGrid *>(&g)) {
-    h = ck_grid_hash(*v, box[0], box[1], box[2], 3);
+    h = use_dense ? ck_dense_hash(*v, dense, voxels, 3) : ck_grid_hash(*v, box[0], box[1], box[2], 3);
     outside_ok = ck_outside_is_background(*v, box[0], box[1], box[2]);
   } else {
     detail = "unexpected type " + g.valueType();

@@ -37,9 +37,12 @@ void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int
 
 /* One grid against the checksum the file metadata records for it (the rule
  * is in vdbio.h); `detail` says why CORRUPT or UNCHECKED (meta NULL: no
- * file metadata, UNCHECKED). */
+ * file metadata, UNCHECKED). `dense`: the grid's values already copied over
+ * `dense_box` (x fastest), hashed directly when that is the checksum box. */
 vdbio_verify_status_t vdbio_check_grid(const openvdb::GridBase &grid, const openvdb::MetaMap *meta,
-                                       const std::string &name, std::string &detail);
+                                       const std::string &name, std::string &detail,
+                                       const float *dense = nullptr,
+                                       const openvdb::CoordBBox *dense_box = nullptr);
 
 /* The readers themselves (vdbio.cpp), in this process. The functions of
  * vdbio.h run them in an isolated child (vdbio_isolate.cpp). checked ==
