@@ -396,8 +396,8 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
     /* float and Vec3f grids read over their own box are checked on the
      * dense copy (one pass less); a grid refused before that copy is still
      * checked first, so that a corrupt file reads as corrupt */
-    const bool late_check = checked && pad == 0 &&
-                            (g->isType<vdb::FloatGrid>() || g->isType<vdb::Vec3SGrid>());
+    bool late_check = checked && pad == 0 &&
+                      (g->isType<vdb::FloatGrid>() || g->isType<vdb::Vec3SGrid>());
     if (checked && !late_check &&
         (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
       return rc;
@@ -405,6 +405,7 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
       std::string why = err->msg;
       if (late_check && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
         return rc;
+      late_check = false;
       std::snprintf(err->msg, sizeof err->msg, "%s", why.c_str());
       err->code = code;
       return code;
@@ -432,6 +433,13 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
       }
       box = vdb::CoordBBox(vdb::Coord((int)lo[0], (int)lo[1], (int)lo[2]),
                            vdb::Coord((int)hi[0], (int)hi[1], (int)hi[2]));
+    }
+    /* a box other than the checksum's (a damaged file's may be huge) is
+     * checked before anything that size is allocated */
+    if (late_check && !vdbio_is_checksum_box(meta.get(), box)) {
+      late_check = false;
+      if ((rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
+        return rc;
     }
     const vdb::Coord dim = box.dim();
     out->nx = dim[0];
@@ -466,8 +474,8 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
       return refuse(rc);
     vdbio_copy_any(g, box, out);
     /* the checksum after the copy, which it then reads instead of the tree */
-    if (checked && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err,
-                                            out->data, &box)))
+    if (late_check && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err,
+                                               out->data, &box)))
       return rc;
   }
   VDBIO_CATCH_READ(path, (const char *)NULL)

@@ -142,6 +142,14 @@ static std::string ck_meta(const vdb::MetaMap &meta, const std::string &key) {
   return m ? m->str() : std::string();
 }
 
+bool vdbio_is_checksum_box(const vdb::MetaMap *meta, const vdb::CoordBBox &box) {
+  int n[3] = {0, 0, 0};
+  if (!meta || std::sscanf(ck_meta(*meta, "checksum_box").c_str(), "%d %d %d", &n[0], &n[1],
+                           &n[2]) != 3 || n[0] < 1 || n[1] < 1 || n[2] < 1)
+    return false;
+  return box == vdb::CoordBBox(vdb::Coord(0, 0, 0), vdb::Coord(n[0] - 1, n[1] - 1, n[2] - 1));
+}
+
 vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMap *meta,
                                        const std::string &name, std::string &detail,
                                        const float *dense, const vdb::CoordBBox *dense_box) {

@@ -35,6 +35,9 @@ int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_
 void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int grid_count,
                          bool half, openvdb::MetaMap &file_meta);
 
+/* Whether `box` is the box the file's checksums were taken over. */
+bool vdbio_is_checksum_box(const openvdb::MetaMap *meta, const openvdb::CoordBBox &box);
+
 /* One grid against the checksum the file metadata records for it (the rule
  * is in vdbio.h); `detail` says why CORRUPT or UNCHECKED (meta NULL: no
  * file metadata, UNCHECKED). `dense`: the grid's values already copied over
