@@ -376,6 +376,34 @@ static int vdbio_alloc_dense(vdbio_dense_t *d, const char *path, const char *nam
   return d->data ? BK_OK : BK_ERR_RUNTIME;
 }
 
+/* out's index <-> world maps for the dense box `box` of a grid with the
+ * linear transform xf, whether its scale is uniform, and its voxel size. */
+static void vdbio_set_geometry(const vdb::math::Transform &xf, const vdb::CoordBBox &box,
+                               vdbio_dense_t *out) {
+  /* OpenVDB matrices act on row vectors: world = [i j k 1] * M */
+  const vdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();
+  const vdb::Mat4d inv = m.inverse();
+  const vdb::Vec3d w0 = xf.indexToWorld(box.min());
+  for (int r = 0; r < 3; r++) {
+    for (int c = 0; c < 3; c++) {
+      out->index_to_world[r][c] = m(c, r);
+      out->world_to_index[r][c] = inv(c, r);
+    }
+    out->index_to_world[r][3] = w0[r];
+    out->world_to_index[r][3] = inv(3, r) - (double)box.min()[r];
+  }
+  const double sx = m(0, 0), tol = 1e-9 * std::fabs(sx);
+  bool uniform = sx > 0.0;
+  for (int r = 0; r < 3; r++)
+    for (int c = 0; c < 3; c++)
+      if (std::fabs(m(r, c) - (r == c ? sx : 0.0)) > tol)
+        uniform = false;
+  out->uniform_scale = uniform;
+  const vdb::Vec3d vs = xf.voxelSize();
+  /* not uniform: the shortest step, the safe one for marching */
+  out->voxel_size = uniform ? sx : std::min(vs[0], std::min(vs[1], vs[2]));
+}
+
 int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
                             int *checked, bk_error_t *err) {
   if (!path || !out)
@@ -447,28 +475,7 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
     out->nz = dim[2];
     out->channels = ch;
 
-    /* OpenVDB matrices act on row vectors: world = [i j k 1] * M */
-    const vdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();
-    const vdb::Mat4d inv = m.inverse();
-    const vdb::Vec3d w0 = xf.indexToWorld(box.min());
-    for (int r = 0; r < 3; r++) {
-      for (int c = 0; c < 3; c++) {
-        out->index_to_world[r][c] = m(c, r);
-        out->world_to_index[r][c] = inv(c, r);
-      }
-      out->index_to_world[r][3] = w0[r];
-      out->world_to_index[r][3] = inv(3, r) - (double)box.min()[r];
-    }
-    const double sx = m(0, 0), tol = 1e-9 * std::fabs(sx);
-    bool uniform = sx > 0.0;
-    for (int r = 0; r < 3; r++)
-      for (int c = 0; c < 3; c++)
-        if (std::fabs(m(r, c) - (r == c ? sx : 0.0)) > tol)
-          uniform = false;
-    out->uniform_scale = uniform;
-    const vdb::Vec3d vs = xf.voxelSize();
-    /* not uniform: the shortest step, the safe one for marching */
-    out->voxel_size = uniform ? sx : std::min(vs[0], std::min(vs[1], vs[2]));
+    vdbio_set_geometry(xf, box, out);
 
     if ((rc = vdbio_alloc_dense(out, path, grid_name, err)))
       return refuse(rc);
