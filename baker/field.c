@@ -3,6 +3,7 @@
 
 #include <string.h>
 
+#include "base/parallel.h"
 #include "kernels/ray_core.h"
 
 size_t fld_padded_count(int nx, int ny, int nz) {
@@ -29,21 +30,36 @@ static void pad_faces(int nx, int ny, int nz, float *f) {
   memcpy(f + ((size_t)nz + 1) * plane, f + (size_t)nz * plane, plane * sizeof(float));
 }
 
-float *fld_build(int nx, int ny, int nz, double h, const float *ior, bk_error_t *err) {
-  float *f = bk_calloc(fld_padded_count(nx, ny, nz), 4 * sizeof(float), "field: n and grad n", err);
-  if (!f) return NULL;
-  const rc_dims d = {nx, ny, nz};
+/* One thread's z-slices of the field. */
+typedef struct fld_job {
+  rc_dims d;
+  double h;
+  const float *ior;
+  float *f;
+} fld_job_t;
+
+static void fld_slices(void *ctx, size_t k0, size_t k1) {
+  const fld_job_t *job = ctx;
+  const rc_dims d = job->d;
+  const double h = job->h;
   const float inv_h = 1.0f / (float)h;
-  for (int k = 0; k < nz; k++)
-    for (int j = 0; j < ny; j++)
-      for (int i = 0; i < nx; i++) {
-        bk_v3 g = rc_gradient_at(d, inv_h, ior, i, j, k); /* 1/m -> 1/voxel */
-        float *q = f + 4 * rc_pad_index(d, i, j, k);
+  for (int k = (int)k0; k < (int)k1; k++)
+    for (int j = 0; j < d.ny; j++)
+      for (int i = 0; i < d.nx; i++) {
+        bk_v3 g = rc_gradient_at(d, inv_h, job->ior, i, j, k); /* 1/m -> 1/voxel */
+        float *q = job->f + 4 * rc_pad_index(d, i, j, k);
         q[0] = (float)(g.x * h);
         q[1] = (float)(g.y * h);
         q[2] = (float)(g.z * h);
-        q[3] = ior[(size_t)i + (size_t)nx * ((size_t)j + (size_t)ny * k)];
+        q[3] = job->ior[(size_t)i + (size_t)d.nx * ((size_t)j + (size_t)d.ny * k)];
       }
+}
+
+float *fld_build(int nx, int ny, int nz, double h, const float *ior, bk_error_t *err) {
+  float *f = bk_calloc(fld_padded_count(nx, ny, nz), 4 * sizeof(float), "field: n and grad n", err);
+  if (!f) return NULL;
+  fld_job_t job = {{nx, ny, nz}, h, ior, f};
+  bk_parallel((size_t)nz, 4, fld_slices, &job);
   pad_faces(nx, ny, nz, f);
   return f;
 }

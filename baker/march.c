@@ -121,10 +121,13 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
   const grid_dims_t *d = &s->dims;
   const double h = d->voxel_size;
   if (s->has_refraction) {
+    double t0 = bk_now_ms();
     int rc = oct_build(d, vol->ior, &s->pyramid, err);
     if (rc != BK_OK) return rc;
+    double t1 = bk_now_ms();
     s->ng = fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
     if (!s->ng) return BK_ERR_RUNTIME;
+    bk_log(2, "octree: pyramid %.0f ms, {grad n, n} field %.0f ms", t1 - t0, bk_now_ms() - t1);
     s->octree_enabled = 1;
   }
   if (s->homogeneous) return BK_OK;
@@ -172,7 +175,8 @@ static void report_prepare(const pm_setup_t *s, bk_timings_t *timings, double ms
     for (int l = OCT_LEVELS; l >= 1 && at < (int)sizeof note; l--)
       at += snprintf(note + at, sizeof note - at, " %.0f%% in %d^3", 100.0 * v[l] / tot,
                      2 << (2 * (l - 1)));
-    bk_timings_add(timings, "octree", ms_octree, "%s", note);
+    bk_timings_add(timings, "octree", ms_octree, "%s, %.0f M voxels/s", note,
+                   (double)s->voxels / (ms_octree * 1e3 + 1e-9));
   } else {
     bk_timings_add(timings, "octree", ms_octree, "n constant: one straight DDA per photon");
   }

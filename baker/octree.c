@@ -4,80 +4,89 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Min and max of one z-slice over the window [i-H, i+H] x [j-H, j+H]
- * (clipped), separably: along x into tmn/tmx, then along y into mn/mx. */
-static void slice_minmax(int nx, int ny, int H, const float *s, float *tmn, float *tmx, float *mn,
-                         float *mx) {
-  for (int j = 0; j < ny; j++) {
-    const float *row = s + (size_t)j * nx;
-    for (int i = 0; i < nx; i++) {
-      int lo = i - H < 0 ? 0 : i - H, hi = i + H >= nx ? nx - 1 : i + H;
-      float a = row[lo], b = row[lo];
-      for (int q = lo + 1; q <= hi; q++) {
-        a = row[q] < a ? row[q] : a;
-        b = row[q] > b ? row[q] : b;
-      }
-      tmn[(size_t)j * nx + i] = a;
-      tmx[(size_t)j * nx + i] = b;
-    }
-  }
-  for (int j = 0; j < ny; j++) {
-    int lo = j - H < 0 ? 0 : j - H, hi = j + H >= ny ? ny - 1 : j + H;
-    float *omn = mn + (size_t)j * nx, *omx = mx + (size_t)j * nx;
-    memcpy(omn, tmn + (size_t)lo * nx, (size_t)nx * sizeof(float));
-    memcpy(omx, tmx + (size_t)lo * nx, (size_t)nx * sizeof(float));
-    for (int q = lo + 1; q <= hi; q++) {
-      const float *a = tmn + (size_t)q * nx, *b = tmx + (size_t)q * nx;
-      for (int i = 0; i < nx; i++) {
-        omn[i] = a[i] < omn[i] ? a[i] : omn[i];
-        omx[i] = b[i] > omx[i] ? b[i] : omx[i];
-      }
-    }
-  }
+#include "base/parallel.h"
+
+/* A block is constant when its voxels' windows (the block grown by the halo
+ * H, clipped to the grid) hold one value. A box holds one value exactly when
+ * no two face-adjacent voxels in it differ, so each differing adjacent pair
+ * clears the blocks whose grown box holds both of its voxels, and a voxel
+ * costs three comparisons: the scan runs at memory speed. The exact
+ * comparison (!=) is the one the march relies on (-0 == 0). */
+
+/* Blocks b along one axis (block size B, n voxels, `last` the last block)
+ * whose grown box [bB - H, min(bB + B - 1, n - 1) + H] holds [a0, a1]. */
+static void pair_blocks(int a0, int a1, int H, int last, int *b0, int *b1) {
+  const int B = 1 << OCT_BLOCK_SHIFT;
+  int lo = a1 - H - (B - 1);
+  lo = lo <= 0 ? 0 : (lo + B - 1) >> OCT_BLOCK_SHIFT;
+  int hi = (a0 + H) >> OCT_BLOCK_SHIFT;
+  *b0 = lo;
+  *b1 = hi > last ? last : hi;
 }
 
-/* Scratch of one channel's scan: two planes, a plane for a strided channel's
- * slice, then a ring of 2H+1 slices of (min, max) planes. */
+/* What one thread of the scan needs: the grid, the source, the halo and the
+ * finest blocks' flags. */
 typedef struct oct_scan {
-  int nx, ny, nz, H;
-  float *tmn, *tmx, *slice, *ring;
+  int nx, ny, nz, H, bx, by;
+  const oct_source_t *src;
+  int nsrc;
+  unsigned char *c0;
 } oct_scan_t;
 
-/* Slice k of channel ch of src as a contiguous plane. */
-static const float *channel_slice(oct_scan_t *w, const oct_source_t *src, int ch, int k) {
-  const size_t plane = (size_t)w->nx * w->ny;
-  const float *p = src->values + (size_t)src->stride * plane * k + ch;
-  if (src->stride == 1) return p;
-  for (size_t v = 0; v < plane; v++) w->slice[v] = p[(size_t)src->stride * v];
-  return w->slice;
+static inline float src_at(const oct_source_t *s, int ch, size_t v) {
+  return s->values[(size_t)s->stride * v + (size_t)ch];
 }
 
-/* Clears, in the finest blocks c0 (bx x by per z), every block holding a
- * voxel whose window sees channel ch of src vary. */
-static void scan_channel(oct_scan_t *w, const oct_source_t *src, int ch,
-                         unsigned char *c0, int bx, int by) {
-  const int nx = w->nx, ny = w->ny, nz = w->nz, H = w->H, W = 2 * H + 1;
-  const size_t plane = (size_t)nx * ny;
-  int computed = 0; /* slices [0, computed) are in the ring */
-  for (int kc = 0; kc < nz; kc++) {
-    int klo = kc - H < 0 ? 0 : kc - H, khi = kc + H >= nz ? nz - 1 : kc + H;
-    for (; computed <= khi; computed++) {
-      float *mn = w->ring + (size_t)(2 * (computed % W)) * plane, *mx = mn + plane;
-      slice_minmax(nx, ny, H, channel_slice(w, src, ch, computed), w->tmn, w->tmx, mn, mx);
+/* Clears the blocks of rows [kb0, kb1] whose grown box holds the voxel box
+ * [x0,x1] x [y0,y1] x [z0,z1]. */
+static void clear_pair(const oct_scan_t *w, int kb0, int kb1, int x0, int x1, int y0, int y1,
+                       int z0, int z1) {
+  int i0, i1, j0, j1, k0, k1;
+  pair_blocks(x0, x1, w->H, w->bx - 1, &i0, &i1);
+  pair_blocks(y0, y1, w->H, w->by - 1, &j0, &j1);
+  pair_blocks(z0, z1, w->H, kb1, &k0, &k1);
+  if (k0 < kb0) k0 = kb0;
+  for (int k = k0; k <= k1; k++)
+    for (int j = j0; j <= j1; j++)
+      memset(w->c0 + (size_t)i0 + (size_t)w->bx * ((size_t)j + (size_t)w->by * k), 0,
+             (size_t)(i1 - i0 + 1));
+}
+
+/* Whether voxel (i, row) differs from its +x, +y (when `dy`) or +z (when
+ * `dz`) neighbour in any channel: bit 0, 1, 2. */
+static int voxel_differs(const oct_scan_t *w, size_t v, int i, int dy, int dz) {
+  const size_t sy = (size_t)w->nx, sz = sy * (size_t)w->ny;
+  int bits = 0;
+  for (int s = 0; s < w->nsrc; s++)
+    for (int ch = 0; ch < w->src[s].channels; ch++) {
+      float a = src_at(&w->src[s], ch, v);
+      if (i + 1 < w->nx && src_at(&w->src[s], ch, v + 1) != a) bits |= 1;
+      if (dy && src_at(&w->src[s], ch, v + sy) != a) bits |= 2;
+      if (dz && src_at(&w->src[s], ch, v + sz) != a) bits |= 4;
     }
-    unsigned char *crow = c0 + (size_t)bx * by * (kc >> OCT_BLOCK_SHIFT);
-    for (int j = 0; j < ny; j++)
-      for (int i = 0; i < nx; i++) {
-        size_t at = (size_t)j * nx + i;
-        float a = w->ring[(size_t)(2 * (klo % W)) * plane + at], b = a;
-        for (int k = klo; k <= khi; k++) {
-          const float *mn = w->ring + (size_t)(2 * (k % W)) * plane;
-          a = mn[at] < a ? mn[at] : a;
-          b = mn[plane + at] > b ? mn[plane + at] : b;
-        }
-        if (a != b) crow[(i >> OCT_BLOCK_SHIFT) + (size_t)bx * (j >> OCT_BLOCK_SHIFT)] = 0;
+  return bits;
+}
+
+/* Block rows [kb0, kb1): the slices their grown boxes reach, every voxel's
+ * three forward pairs. Only these rows' flags are written, so threads on
+ * other rows never touch the same byte. */
+static void scan_rows(void *ctx, size_t kb0, size_t kb1) {
+  const oct_scan_t *w = ctx;
+  const int B = 1 << OCT_BLOCK_SHIFT, H = w->H;
+  const int lo = (int)kb0 * B - H, hi = (int)kb1 * B - 1 + H;
+  const int z0 = lo < 0 ? 0 : lo, z1 = hi > w->nz - 1 ? w->nz - 1 : hi;
+  for (int k = z0; k <= z1; k++)
+    for (int j = 0; j < w->ny; j++) {
+      const size_t row = (size_t)w->nx * ((size_t)j + (size_t)w->ny * k);
+      const int dy = j + 1 < w->ny, dz = k + 1 <= z1;
+      for (int i = 0; i < w->nx; i++) {
+        int bits = voxel_differs(w, row + (size_t)i, i, dy, dz);
+        if (!bits) continue;
+        if (bits & 1) clear_pair(w, (int)kb0, (int)kb1 - 1, i, i + 1, j, j, k, k);
+        if (bits & 2) clear_pair(w, (int)kb0, (int)kb1 - 1, i, i, j, j + 1, k, k);
+        if (bits & 4) clear_pair(w, (int)kb0, (int)kb1 - 1, i, i, j, j, k, k + 1);
       }
-  }
+    }
 }
 
 /* AND of the children of each parent block (factor 4 per axis). */
@@ -115,11 +124,9 @@ static void fill_levels(int nx, int ny, int nz, unsigned char **c, int dims[][3]
 int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, int halo,
                      oct_pyramid_t *out, bk_error_t *err) {
   int rc = BK_ERR_RUNTIME;
-  const size_t plane = (size_t)nx * ny;
   /* each voxel's window must overlap its neighbour's for the windows to
    * chain into one constant block: at least 1 */
   const int H = halo < 1 ? 1 : halo > OCT_MAX_HALO ? OCT_MAX_HALO : halo;
-  float *work = NULL;
   unsigned char *c[OCT_LEVELS] = {NULL};
   int dims[OCT_LEVELS][3];
   memset(out, 0, sizeof *out);
@@ -130,24 +137,22 @@ int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, 
   out->bx = dims[0][0], out->by = dims[0][1], out->bz = dims[0][2];
   const size_t nb0 = (size_t)out->bx * out->by * out->bz;
 
-  work = bk_calloc(plane, (3 + 2 * (2 * H + 1)) * sizeof(float), "octree: slice buffers", err);
   out->level = bk_calloc(nb0, 1, "octree: block levels", err);
-  if (!work || !out->level) goto error;
+  if (!out->level) goto error;
   for (int l = 0; l < OCT_LEVELS; l++) {
     c[l] = bk_calloc((size_t)dims[l][0] * dims[l][1] * dims[l][2], 1, "octree: blocks", err);
     if (!c[l]) goto error;
   }
   memset(c[0], 1, nb0);
-  oct_scan_t w = {nx, ny, nz, H, work, work + plane, work + 2 * plane, work + 3 * plane};
-  for (int s = 0; s < nsrc; s++)
-    for (int ch = 0; ch < src[s].channels; ch++) scan_channel(&w, &src[s], ch, c[0], out->bx, out->by);
+  oct_scan_t w = {nx, ny, nz, H, out->bx, out->by, src, nsrc, c[0]};
+  /* a thread's slab re-reads 2H slices: at least 16 block rows each */
+  bk_parallel((size_t)out->bz, 16, scan_rows, &w);
   /* a parent is constant when all its children are: neighbouring constant
    * blocks overlap in their halos, so they share one value */
   for (int l = 1; l < OCT_LEVELS; l++) coarsen(c[l - 1], dims[l - 1], c[l], dims[l]);
   fill_levels(nx, ny, nz, c, dims, out);
   rc = BK_OK;
 error:
-  free(work);
   for (int l = 0; l < OCT_LEVELS; l++) free(c[l]);
   if (rc != BK_OK) oct_free(out);
   return rc;

@@ -22,8 +22,10 @@
  *
  * Storing the coarsest level per finest block (a flattened octree) makes the
  * march's question "how far may I go straight?" a single byte lookup. The
- * build is a separable min/max filter of width 2 OCT_HALO + 1 over a rolling
- * window of five z-slices, so its extra memory is O(nx ny), not O(voxels). */
+ * build compares every voxel with its three forward neighbours (a box holds
+ * one value when no adjacent pair in it differs) and clears the blocks whose
+ * halo-grown box holds a differing pair: one parallel pass over the field
+ * (bk_parallel, slabs of block rows), no memory beyond the flags. */
 #ifndef BAKER_OCTREE_H
 #define BAKER_OCTREE_H
 

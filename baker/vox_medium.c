@@ -4,7 +4,31 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "base/parallel.h"
 #include "vdbio.h"
+
+/* The uniform medium over voxels [lo, hi): the grid's first touch, hundreds
+ * of MiB at 256^3, so spread over the cores. */
+typedef struct medium_fill {
+  const scene_t *scene;
+  volume_t *out;
+} medium_fill_t;
+
+static void fill_ior_range(void *ctx, size_t lo, size_t hi) {
+  const medium_fill_t *f = ctx;
+  for (size_t v = lo; v < hi; v++) f->out->ior[v] = f->scene->medium_ior;
+}
+
+static void fill_sigma_range(void *ctx, size_t lo, size_t hi) {
+  const medium_fill_t *f = ctx;
+  const float *ms = f->scene->medium_sigma_s, *ma = f->scene->medium_sigma_a;
+  float *s = f->out->sigma_s, *a = f->out->sigma_a;
+  for (size_t v = lo; v < hi; v++)
+    for (int ch = 0; ch < 3; ch++) {
+      s[3 * v + ch] = ms[ch];
+      a[3 * v + ch] = ma[ch];
+    }
+}
 
 int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
   const grid_dims_t *d = &out->dims;
@@ -34,7 +58,8 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
       bk_warn("%s: %s: grid \"%s\": %zu voxels had n < 1 (lowest %g), raised to 1", ref->where,
               ref->file, ref->grid, clamped, lowest);
   } else {
-    for (size_t v = 0; v < count; v++) out->ior[v] = scene->medium_ior;
+    medium_fill_t f = {scene, out};
+    bk_parallel(count, BK_GRAIN, fill_ior_range, &f);
   }
 
   if (scene->density_vdb.present) {
@@ -67,11 +92,8 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
       bk_warn("%s: %s: grid \"%s\": %zu voxels had a negative density, set to 0", ref->where,
               ref->file, ref->grid, clamped);
   } else {
-    for (size_t v = 0; v < count; v++)
-      for (int ch = 0; ch < 3; ch++) {
-        out->sigma_s[3 * v + ch] = scene->medium_sigma_s[ch];
-        out->sigma_a[3 * v + ch] = scene->medium_sigma_a[ch];
-      }
+    medium_fill_t f = {scene, out};
+    bk_parallel(count, BK_GRAIN, fill_sigma_range, &f);
   }
 
 error:

@@ -8,6 +8,7 @@
 #include "vdbio_internal.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/Dense.h>
 #include <openvdb/tools/Interpolation.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -318,14 +319,33 @@ static void vdbio_fill_any(const vdb::GridBase::Ptr &g, const vdb::Coord &min,
     vdbio_fill(*vdb::gridConstPtrCast<vdb::Vec3DGrid>(g), min, like, d);
 }
 
+/* d->data over `box` at the grid's own indices: leaf by leaf
+ * (tools::copyToDense) for float and Vec3f grids, through an accessor for
+ * the double ones, which need a conversion. */
+static void vdbio_copy_any(const vdb::GridBase::Ptr &g, const vdb::CoordBBox &box,
+                           vdbio_dense_t *d) {
+  if (g->isType<vdb::FloatGrid>()) {
+    vdb::tools::Dense<float, vdb::tools::LayoutXYZ> dense(box, d->data);
+    vdb::tools::copyToDense(*vdb::gridConstPtrCast<vdb::FloatGrid>(g), dense);
+  } else if (g->isType<vdb::Vec3SGrid>()) {
+    vdb::tools::Dense<vdb::Vec3s, vdb::tools::LayoutXYZ> dense(
+        box, reinterpret_cast<vdb::Vec3s *>(d->data));
+    vdb::tools::copyToDense(*vdb::gridConstPtrCast<vdb::Vec3SGrid>(g), dense);
+  } else {
+    vdbio_fill_any(g, box.min(), NULL, d);
+  }
+}
+
 /* The grid's checksum against the file's record: *checked = 1 when there is
  * one and it matches, 0 when the file has none; BK_ERR_INPUT naming the grid
  * when it does not match. */
 static int vdbio_read_checked(const vdb::GridBase::Ptr &g, const vdb::MetaMap *meta,
-                              const char *path, const char *name, int *checked, bk_error_t *err) {
+                              const char *path, const char *name, int *checked, bk_error_t *err,
+                              const float *dense = nullptr,
+                              const vdb::CoordBBox *dense_box = nullptr) {
   std::string detail;
   *checked = 0;
-  switch (vdbio_check_grid(*g, meta, name, detail)) {
+  switch (vdbio_check_grid(*g, meta, name, detail, dense, dense_box)) {
   case VDBIO_VERIFY_UNCHECKED:
     return BK_OK;
   case VDBIO_VERIFY_OK:
@@ -356,6 +376,34 @@ static int vdbio_alloc_dense(vdbio_dense_t *d, const char *path, const char *nam
   return d->data ? BK_OK : BK_ERR_RUNTIME;
 }
 
+/* out's index <-> world maps for the dense box `box` of a grid with the
+ * linear transform xf, whether its scale is uniform, and its voxel size. */
+static void vdbio_set_geometry(const vdb::math::Transform &xf, const vdb::CoordBBox &box,
+                               vdbio_dense_t *out) {
+  /* OpenVDB matrices act on row vectors: world = [i j k 1] * M */
+  const vdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();
+  const vdb::Mat4d inv = m.inverse();
+  const vdb::Vec3d w0 = xf.indexToWorld(box.min());
+  for (int r = 0; r < 3; r++) {
+    for (int c = 0; c < 3; c++) {
+      out->index_to_world[r][c] = m(c, r);
+      out->world_to_index[r][c] = inv(c, r);
+    }
+    out->index_to_world[r][3] = w0[r];
+    out->world_to_index[r][3] = inv(3, r) - (double)box.min()[r];
+  }
+  const double sx = m(0, 0), tol = 1e-9 * std::fabs(sx);
+  bool uniform = sx > 0.0;
+  for (int r = 0; r < 3; r++)
+    for (int c = 0; c < 3; c++)
+      if (std::fabs(m(r, c) - (r == c ? sx : 0.0)) > tol)
+        uniform = false;
+  out->uniform_scale = uniform;
+  const vdb::Vec3d vs = xf.voxelSize();
+  /* not uniform: the shortest step, the safe one for marching */
+  out->voxel_size = uniform ? sx : std::min(vs[0], std::min(vs[1], vs[2]));
+}
+
 int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
                             int *checked, bk_error_t *err) {
   if (!path || !out)
@@ -373,13 +421,28 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
     const int ch = vdbio_channels(g, path, grid_name, err);
     if (!ch)
       return BK_ERR_INPUT;
-    if (checked && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
+    /* float and Vec3f grids read over their own box are checked on the
+     * dense copy (one pass less); a grid refused before that copy is still
+     * checked first, so that a corrupt file reads as corrupt */
+    bool late_check = checked && pad == 0 &&
+                      (g->isType<vdb::FloatGrid>() || g->isType<vdb::Vec3SGrid>());
+    if (checked && !late_check &&
+        (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
       return rc;
+    auto refuse = [&](int code) {
+      std::string why = err->msg;
+      if (late_check && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
+        return rc;
+      late_check = false;
+      std::snprintf(err->msg, sizeof err->msg, "%s", why.c_str());
+      err->code = code;
+      return code;
+    };
     const vdb::math::Transform &xf = g->transform();
     if (!xf.isLinear())
-      return bk_fail(err, BK_ERR_INPUT,
-                     "%s: grid \"%s\" has a non-linear (%s) transform, which is unsupported", path,
-                     grid_name, xf.mapType().c_str());
+      return refuse(bk_fail(err, BK_ERR_INPUT,
+                            "%s: grid \"%s\" has a non-linear (%s) transform, which is unsupported",
+                            path, grid_name, xf.mapType().c_str()));
 
     vdb::CoordBBox box = g->evalActiveVoxelBoundingBox();
     if (box.empty()) {
@@ -391,13 +454,20 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
         lo[a] = (int64_t)box.min()[a] - pad;
         hi[a] = (int64_t)box.max()[a] + pad;
         if (lo[a] < INT32_MIN || hi[a] > INT32_MAX || hi[a] - lo[a] + 1 > GRID_MAX_AXIS)
-          return bk_fail(err, BK_ERR_INPUT,
+          return refuse(bk_fail(err, BK_ERR_INPUT,
                          "%s: grid \"%s\": its active box spans %lld voxels along axis %d (with "
                          "pad %d), more than the %d a dense read allows",
-                         path, grid_name, (long long)(hi[a] - lo[a] + 1), a, pad, GRID_MAX_AXIS);
+                         path, grid_name, (long long)(hi[a] - lo[a] + 1), a, pad, GRID_MAX_AXIS));
       }
       box = vdb::CoordBBox(vdb::Coord((int)lo[0], (int)lo[1], (int)lo[2]),
                            vdb::Coord((int)hi[0], (int)hi[1], (int)hi[2]));
+    }
+    /* a box other than the checksum's (a damaged file's may be huge) is
+     * checked before anything that size is allocated */
+    if (late_check && !vdbio_is_checksum_box(meta.get(), box)) {
+      late_check = false;
+      if ((rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err)))
+        return rc;
     }
     const vdb::Coord dim = box.dim();
     out->nx = dim[0];
@@ -405,32 +475,15 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
     out->nz = dim[2];
     out->channels = ch;
 
-    /* OpenVDB matrices act on row vectors: world = [i j k 1] * M */
-    const vdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();
-    const vdb::Mat4d inv = m.inverse();
-    const vdb::Vec3d w0 = xf.indexToWorld(box.min());
-    for (int r = 0; r < 3; r++) {
-      for (int c = 0; c < 3; c++) {
-        out->index_to_world[r][c] = m(c, r);
-        out->world_to_index[r][c] = inv(c, r);
-      }
-      out->index_to_world[r][3] = w0[r];
-      out->world_to_index[r][3] = inv(3, r) - (double)box.min()[r];
-    }
-    const double sx = m(0, 0), tol = 1e-9 * std::fabs(sx);
-    bool uniform = sx > 0.0;
-    for (int r = 0; r < 3; r++)
-      for (int c = 0; c < 3; c++)
-        if (std::fabs(m(r, c) - (r == c ? sx : 0.0)) > tol)
-          uniform = false;
-    out->uniform_scale = uniform;
-    const vdb::Vec3d vs = xf.voxelSize();
-    /* not uniform: the shortest step, the safe one for marching */
-    out->voxel_size = uniform ? sx : std::min(vs[0], std::min(vs[1], vs[2]));
+    vdbio_set_geometry(xf, box, out);
 
     if ((rc = vdbio_alloc_dense(out, path, grid_name, err)))
+      return refuse(rc);
+    vdbio_copy_any(g, box, out);
+    /* the checksum after the copy, which it then reads instead of the tree */
+    if (late_check && (rc = vdbio_read_checked(g, meta.get(), path, grid_name, checked, err,
+                                               out->data, &box)))
       return rc;
-    vdbio_fill_any(g, box.min(), NULL, out);
   }
   VDBIO_CATCH_READ(path, (const char *)NULL)
   if (rc)

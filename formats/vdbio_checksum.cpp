@@ -5,6 +5,7 @@
 #include "vdbio_internal.h"
 
 #include <openvdb/tools/Dense.h>
+#include <tbb/parallel_for.h>
 
 #include <cinttypes>
 #include <cmath>
@@ -65,12 +66,16 @@ void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int
   char box[96];
   std::snprintf(box, sizeof box, "%d %d %d", dims->nx, dims->ny, dims->nz);
   file_meta.insertMeta("checksum_box", vdb::StringMetadata(box));
-  for (int g = 0; g < count; g++) {
+  /* one serial hash per grid (the rule is sequential), the grids side by side */
+  std::vector<uint64_t> h((size_t)count);
+  tbb::parallel_for(0, count, [&](int g) {
     const int ch = grids[g].type == VDBIO_VEC3 ? 3 : 1;
     const float bg[3] = {grids[g].background, grids[g].background, grids[g].background};
-    const uint64_t h = ck_mix_background(ck_hash(grids[g].data, n, ch, half, CK_OFFSET), bg, ch);
-    file_meta.insertMeta(std::string("checksum_") + grids[g].name, vdb::StringMetadata(ck_hex(h)));
-  }
+    h[(size_t)g] = ck_mix_background(ck_hash(grids[g].data, n, ch, half, CK_OFFSET), bg, ch);
+  });
+  for (int g = 0; g < count; g++)
+    file_meta.insertMeta(std::string("checksum_") + grids[g].name,
+                         vdb::StringMetadata(ck_hex(h[(size_t)g])));
 }
 
 /* --- checking ---------------------------------------------------------------- */
@@ -100,18 +105,36 @@ static uint64_t ck_grid_hash(const GridT &grid, int nx, int ny, int nz, int ch) 
  * covers the rest. */
 template <typename GridT>
 static bool ck_outside_is_background(const GridT &grid, int nx, int ny, int nz) {
-  using ValueT = typename GridT::ValueType;
-  const ValueT bg = grid.background();
+  using TreeT = typename GridT::TreeType;
+  const typename GridT::ValueType bg = grid.background();
   const vdb::CoordBBox box(vdb::Coord(0, 0, 0), vdb::Coord(nx - 1, ny - 1, nz - 1));
-  for (auto it = grid.tree().cbeginValueAll(); it; ++it) {
-    if (it.getDepth() == (int)GridT::TreeType::DEPTH - 1 && box.isInside(it.getCoord()))
-      continue; /* a voxel in the box: hashed */
+  /* the tiles of the internal nodes, then the voxels of the leaves that
+   * reach outside the box (a leaf inside it is all hashed) */
+  auto tile = grid.tree().cbeginValueAll();
+  tile.setMaxDepth(TreeT::DEPTH - 2);
+  for (; tile; ++tile) {
     vdb::CoordBBox b;
-    it.getBoundingBox(b);
-    if (!box.isInside(b) && !(*it == bg))
+    tile.getBoundingBox(b);
+    if (!box.isInside(b) && !(*tile == bg))
       return false;
   }
+  for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
+    if (box.isInside(leaf->getNodeBoundingBox()))
+      continue;
+    for (auto v = leaf->cbeginValueAll(); v; ++v)
+      if (!box.isInside(v.getCoord()) && !(*v == bg))
+        return false;
+  }
   return true;
+}
+
+/* The hash of a grid already copied to `dense` over exactly the box (the
+ * same values ck_grid_hash copies slice by slice). */
+template <typename GridT>
+static uint64_t ck_dense_hash(const GridT &grid, const float *dense, size_t voxels, int ch) {
+  const typename GridT::ValueType b = grid.background();
+  return ck_mix_background(ck_hash(dense, voxels, ch, false, CK_OFFSET),
+                           reinterpret_cast<const float *>(&b), ch);
 }
 
 static std::string ck_meta(const vdb::MetaMap &meta, const std::string &key) {
@@ -119,8 +142,17 @@ static std::string ck_meta(const vdb::MetaMap &meta, const std::string &key) {
   return m ? m->str() : std::string();
 }
 
+bool vdbio_is_checksum_box(const vdb::MetaMap *meta, const vdb::CoordBBox &box) {
+  int n[3] = {0, 0, 0};
+  if (!meta || std::sscanf(ck_meta(*meta, "checksum_box").c_str(), "%d %d %d", &n[0], &n[1],
+                           &n[2]) != 3 || n[0] < 1 || n[1] < 1 || n[2] < 1)
+    return false;
+  return box == vdb::CoordBBox(vdb::Coord(0, 0, 0), vdb::Coord(n[0] - 1, n[1] - 1, n[2] - 1));
+}
+
 vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMap *meta,
-                                       const std::string &name, std::string &detail) {
+                                       const std::string &name, std::string &detail,
+                                       const float *dense, const vdb::CoordBBox *dense_box) {
   const std::string want = meta ? ck_meta(*meta, "checksum_" + name) : std::string();
   int box[3] = {0, 0, 0};
   if (meta && (std::sscanf(ck_meta(*meta, "checksum_box").c_str(), "%d %d %d", &box[0], &box[1],
@@ -132,11 +164,16 @@ vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMa
   }
   uint64_t h = 0;
   bool outside_ok = true;
+  /* the caller's copy, when it covers exactly the box: no second copy */
+  const bool use_dense =
+      dense && dense_box &&
+      *dense_box == vdb::CoordBBox(vdb::Coord(0, 0, 0), vdb::Coord(box[0] - 1, box[1] - 1, box[2] - 1));
+  const size_t voxels = (size_t)box[0] * (size_t)box[1] * (size_t)box[2];
   if (const vdb::FloatGrid *f = dynamic_cast<const vdb::FloatGrid *>(&g)) {
-    h = ck_grid_hash(*f, box[0], box[1], box[2], 1);
+    h = use_dense ? ck_dense_hash(*f, dense, voxels, 1) : ck_grid_hash(*f, box[0], box[1], box[2], 1);
     outside_ok = ck_outside_is_background(*f, box[0], box[1], box[2]);
   } else if (const vdb::Vec3SGrid *v = dynamic_cast<const vdb::Vec3SGrid *>(&g)) {
-    h = ck_grid_hash(*v, box[0], box[1], box[2], 3);
+    h = use_dense ? ck_dense_hash(*v, dense, voxels, 3) : ck_grid_hash(*v, box[0], box[1], box[2], 3);
     outside_ok = ck_outside_is_background(*v, box[0], box[1], box[2]);
   } else {
     detail = "unexpected type " + g.valueType();

@@ -43,11 +43,17 @@ int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
 void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int grid_count,
                          bool half, openvdb::MetaMap &file_meta);
 
+/* Whether `box` is the box the file's checksums were taken over. */
+bool vdbio_is_checksum_box(const openvdb::MetaMap *meta, const openvdb::CoordBBox &box);
+
 /* One grid against the checksum the file metadata records for it (the rule
  * is in vdbio.h); `detail` says why CORRUPT or UNCHECKED (meta NULL: no
- * file metadata, UNCHECKED). */
+ * file metadata, UNCHECKED). `dense`: the grid's values already copied over
+ * `dense_box` (x fastest), hashed directly when that is the checksum box. */
 vdbio_verify_status_t vdbio_check_grid(const openvdb::GridBase &grid, const openvdb::MetaMap *meta,
-                                       const std::string &name, std::string &detail);
+                                       const std::string &name, std::string &detail,
+                                       const float *dense = nullptr,
+                                       const openvdb::CoordBBox *dense_box = nullptr);
 
 /* The readers themselves (vdbio.cpp), in this process. The functions of
  * vdbio.h run them in an isolated child (vdbio_isolate.cpp). checked ==

@@ -8,8 +8,12 @@
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/ChangeBackground.h>
-#include <openvdb/tools/Dense.h>
+#include <openvdb/tools/Prune.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cerrno>
 #include <cstdio>
@@ -17,6 +21,7 @@
 #include <new>
 #include <set>
 #include <string>
+#include <vector>
 
 namespace vdb = openvdb;
 
@@ -32,20 +37,109 @@ static vdb::math::Transform::Ptr vdbio_cell_centred_transform(const grid_dims_t 
   return xf;
 }
 
-/* Dense x-fastest array -> sparse grid; exact zeros stay inactive (tolerance
- * 0), then the background (and those inactive values) become `bg`, the value
- * outside the grid. The active voxels do not depend on bg, so a grid whose
- * background changes keeps its voxels. copyFromDense only reads the array,
- * hence the const_cast. */
+/* Dense x-fastest array -> sparse grid, as tools::copyFromDense at
+ * tolerance 0 builds it, leaf by leaf: a voxel whose channels are all zero
+ * (or NaN: OpenVDB's !(|v - 0| > 0)) stays inactive at the background; an
+ * 8^3 block with every voxel inactive is left out, one with every voxel
+ * active and one value becomes an active tile, any other a leaf filled
+ * directly from the array's rows (copyFromDense reads them along z, a whole
+ * slice apart). Blocks are built in parallel and inserted in order, then
+ * tiles pruned as copyFromDense does, so the tree is the same. Then the
+ * background (and those inactive values) become `bg`, the value outside the
+ * grid; the active voxels do not depend on bg. */
+template <typename ValueT> struct vdbio_block {
+  static const int C = sizeof(ValueT) / sizeof(float);
+  static bool is_background(const float *v) {
+    for (int c = 0; c < C; c++)
+      if (std::fabs(v[c]) > 0.0f) return false;
+    return true;
+  }
+  /* OpenVDB's isApproxEqual at tolerance 0, per channel */
+  static bool same(const float *a, const float *b) {
+    for (int c = 0; c < C; c++)
+      if (std::fabs(a[c] - b[c]) > 0.0f) return false;
+    return true;
+  }
+};
+
+/* What one 8^3 block becomes: nothing, an active tile of `tile`, or `leaf`. */
+template <typename LeafT> struct vdbio_block_out {
+  LeafT *leaf = nullptr;
+  bool tile_on = false;
+  typename LeafT::ValueType tile;
+};
+
+template <typename LeafT>
+static void vdbio_build_block(const grid_dims_t *d, const float *data, const vdb::Coord &lo,
+                              vdbio_block_out<LeafT> &out) {
+  using ValueT = typename LeafT::ValueType;
+  using B = vdbio_block<ValueT>;
+  const int C = B::C, D = (int)LeafT::DIM;
+  const int ex = std::min(D, d->nx - lo[0]), ey = std::min(D, d->ny - lo[1]),
+            ez = std::min(D, d->nz - lo[2]);
+  auto row = [&](int y, int z) {
+    return data + (size_t)C * ((size_t)lo[0] + (size_t)d->nx * ((size_t)(lo[1] + y) +
+                                                                (size_t)d->ny * (lo[2] + z)));
+  };
+  const float *first = row(0, 0);
+  const bool first_bg = B::is_background(first);
+  bool mixed = ex < D || ey < D || ez < D, equal = true, any_on = false;
+  for (int z = 0; z < ez; z++)
+    for (int y = 0; y < ey; y++) {
+      const float *r = row(y, z);
+      for (int x = 0; x < ex; x++) {
+        const bool bg = B::is_background(r + C * x);
+        any_on |= !bg;
+        mixed |= bg != first_bg;
+        equal = equal && (bg || B::same(r + C * x, first));
+      }
+    }
+  if (!any_on) return; /* all inactive: the background */
+  if (!mixed && equal) { /* all active, one value */
+    out.tile_on = true;
+    out.tile = *reinterpret_cast<const ValueT *>(first);
+    return;
+  }
+  LeafT *leaf = new LeafT(lo, vdb::zeroVal<ValueT>(), false);
+  ValueT *buf = leaf->buffer().data();
+  for (int z = 0; z < ez; z++)
+    for (int y = 0; y < ey; y++) {
+      const float *r = row(y, z);
+      for (int x = 0; x < ex; x++) {
+        if (B::is_background(r + C * x)) continue;
+        const vdb::Index n = (vdb::Index)((x << (2 * LeafT::LOG2DIM)) + (y << LeafT::LOG2DIM) + z);
+        buf[n] = *reinterpret_cast<const ValueT *>(r + C * x);
+        leaf->getValueMask().setOn(n);
+      }
+    }
+  out.leaf = leaf;
+}
+
 template <typename GridT>
 static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *data, float bg) {
   using ValueT = typename GridT::ValueType;
+  using TreeT = typename GridT::TreeType;
+  using LeafT = typename TreeT::LeafNodeType;
   static_assert(sizeof(ValueT) % sizeof(float) == 0, "float or Vec3s");
-  const vdb::CoordBBox box(vdb::Coord(0, 0, 0), vdb::Coord(d->nx - 1, d->ny - 1, d->nz - 1));
-  vdb::tools::Dense<ValueT, vdb::tools::LayoutXYZ> dense(
-      box, reinterpret_cast<ValueT *>(const_cast<float *>(data)));
+  const int D = (int)LeafT::DIM;
+  const int lx = (d->nx + D - 1) / D, ly = (d->ny + D - 1) / D, lz = (d->nz + D - 1) / D;
+  const size_t blocks = (size_t)lx * (size_t)ly * (size_t)lz;
+  std::vector<vdbio_block_out<LeafT>> out(blocks);
+  auto origin = [&](size_t b) {
+    return vdb::Coord(D * (int)(b % lx), D * (int)((b / lx) % ly), D * (int)(b / ((size_t)lx * ly)));
+  };
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks), [&](const tbb::blocked_range<size_t> &r) {
+    for (size_t b = r.begin(); b != r.end(); b++) vdbio_build_block(d, data, origin(b), out[b]);
+  });
   typename GridT::Ptr grid = GridT::create(vdb::zeroVal<ValueT>());
-  vdb::tools::copyFromDense(dense, *grid, vdb::zeroVal<ValueT>());
+  vdb::tree::ValueAccessor<TreeT> acc(grid->tree());
+  for (size_t b = 0; b < blocks; b++) {
+    if (out[b].leaf)
+      acc.addLeaf(out[b].leaf);
+    else if (out[b].tile_on)
+      acc.addTile(1, origin(b), out[b].tile, true);
+  }
+  vdb::tools::pruneTiles(grid->tree(), vdb::zeroVal<ValueT>());
   if (bg != 0.0f)
     vdb::tools::changeBackground(grid->tree(), ValueT(bg));
   return grid;
@@ -190,21 +284,31 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
   bk_temp_path(path, tmp, sizeof tmp);
   vdbio_init();
   try {
-    vdb::GridPtrVec out = vdbio_make_grids(dims, grids, grid_count, opts && opts->half_float);
     vdb::MetaMap file_meta;
     rc = vdbio_file_meta(path, dims, meta, meta_count, file_meta, err);
     if (rc)
       return rc;
-    if (vdbio_is_nano_path(path)) {
-      nvdbio_write(tmp, out); /* NanoVDB files carry no file metadata, so no checksums */
+    /* the sparse grids and the checksums both only read the arrays: at once */
+    const bool nano = vdbio_is_nano_path(path), half = opts && opts->half_float;
+    double t_make = bk_now_ms();
+    vdb::GridPtrVec out;
+    tbb::parallel_invoke([&] { out = vdbio_make_grids(dims, grids, grid_count, half); },
+                         [&] {
+                           /* NanoVDB files carry no file metadata, so no checksums */
+                           if (!nano) vdbio_add_checksums(dims, grids, grid_count, half, file_meta);
+                         });
+    bk_log(2, "write: sparse grids and checksums %.0f ms", bk_now_ms() - t_make);
+    if (nano) {
+      nvdbio_write(tmp, out);
     } else {
-      vdbio_add_checksums(dims, grids, grid_count, opts && opts->half_float, file_meta);
+      double t_file = bk_now_ms();
       vdbio_checked_archive archive;
       archive.setCompression(vdbio_compression(path, opts));
       if (int e = archive.write_file(tmp, out, file_meta)) {
         remove(tmp);
         return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write %s: %s", path, tmp, strerror(e));
       }
+      bk_log(2, "write: file %.0f ms", bk_now_ms() - t_file);
     }
   } catch (const std::bad_alloc &) {
     remove(tmp);

@@ -10,6 +10,11 @@ add_executable(bench_error_run ${BAKER_SCRIPTS_DIR}/bench_error_run.c)    # scri
 foreach(t bench_tool bench_voxelize bench_march_run bench_adaptive_run bench_error_run)
   target_link_libraries(${t} PRIVATE bakercore)
 endforeach()
+# the plain OpenMP march, the yardstick of scripts/bench_march (issue 15)
+find_package(OpenMP COMPONENTS C)
+if(OpenMP_C_FOUND)
+  target_link_libraries(bench_march_run PRIVATE OpenMP::OpenMP_C)
+endif()
 
 # The metric code on closed forms: trilinear resampling of a linear field,
 # relative L2, Pareto front, power-law fit, cone/box chord energy integral.

@@ -10,17 +10,29 @@
  * crossings of constant blocks); "Euler-equivalent steps/s" is the path
  * length over Δs per second, the rate a march stepping Δs everywhere would
  * need to match, and the figure to hold against a plain Euler march.
- * Usage: bench_march_run [RES] [PHOTONS] [euler|rk4] [RUNS] [host,cl,noct] */
+ *
+ * "omp" adds the yardstick of issue 15: the same physics (pm_march_photon of
+ * kernels/photon_march.h, compiled here) in a plain OpenMP loop over the
+ * photons on every core, stepping Δs everywhere (no octree), each thread
+ * depositing into its own copy of the grid and the copies summed at the end
+ * (integer sums: the grid equals the one-thread march's bit for bit, which is
+ * checked). The ratio printed is its march time over the OpenCL march's.
+ * Usage: bench_march_run [RES] [PHOTONS] [euler|rk4] [RUNS] [host,cl,noct,omp] */
 #include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "tests/test_march_util.h"
 
 typedef struct best {
   double octree, generate, build, march, readout;
   pm_stats_t st;
+  size_t cells; /* accumulator entries: voxels x channels */
 } best_t;
 
-static best_t run(clh_context_t *cl, const scene_t *s, const volume_t *v, int octree, int runs) {
+static best_t run(clh_context_t *cl, const scene_t *s, const volume_t *v, int octree, int runs,
+                  uint64_t **acc_keep) {
   best_t b;
   memset(&b, 0, sizeof b);
   b.march = 1e300;
@@ -49,6 +61,12 @@ static best_t run(clh_context_t *cl, const scene_t *s, const volume_t *v, int oc
       b.march = march;
       b.readout = t3 - t2;
       b.st = st;
+      b.cells = su.voxels * su.channels;
+      if (acc_keep) {
+        free(*acc_keep);
+        *acc_keep = acc;
+        acc = NULL;
+      }
     }
     free(acc);
     free(rad);
@@ -56,6 +74,76 @@ static best_t run(clh_context_t *cl, const scene_t *s, const volume_t *v, int oc
   }
   return b;
 }
+
+static void stats_merge(pm_stats_t *a, const pm_stats_t *b) {
+  a->photons += b->photons;
+  a->missed_grid += b->missed_grid;
+  a->left_grid += b->left_grid;
+  a->absorbed += b->absorbed;
+  a->step_limit += b->step_limit;
+  a->steps += b->steps;
+  a->voxels += b->voxels;
+  a->path_voxels += b->path_voxels;
+}
+
+#ifdef _OPENMP
+/* The yardstick: pm_march_photon in `#pragma omp parallel for`, no octree,
+ * private grids summed after the loop; the sum is inside the timed part. */
+static best_t run_omp(const scene_t *s, const volume_t *v, int runs, uint64_t **acc_out) {
+  best_t b;
+  memset(&b, 0, sizeof b);
+  b.march = 1e300;
+  for (int r = 0; r < runs; r++) {
+    bk_error_t err;
+    memset(&err, 0, sizeof err);
+    pm_setup_t su;
+    pm_stats_t st;
+    memset(&st, 0, sizeof st);
+    REQUIRE(pm_prepare(s, v, &su, NULL, &st, &err) == BK_OK, "pm_prepare: %s", err.msg);
+    pm_disable_octree(&su);
+    const size_t cells = su.voxels * su.channels;
+    const int T = omp_get_max_threads();
+    uint64_t *priv = calloc((size_t)T * cells, sizeof(uint64_t));
+    uint64_t *acc = calloc(cells, sizeof(uint64_t));
+    REQUIRE(priv && acc, "out of memory");
+    const long long n = (long long)su.lights.photons;
+    double t1 = bk_now_ms();
+#pragma omp parallel
+    {
+      uint64_t *mine = priv + (size_t)omp_get_thread_num() * cells;
+      pm_stats_t local;
+      memset(&local, 0, sizeof local);
+#pragma omp for schedule(dynamic, 1024)
+      for (long long i = 0; i < n; i++) {
+        pm_result res;
+        pm_march_photon(&su.params, su.lights.lights, su.ng, su.pyramid.level, su.sigma, mine,
+                        su.masks, su.tables, (bk_uint)i, &res, NULL);
+        pm_stats_add(&local, &res);
+      }
+#pragma omp critical
+      stats_merge(&st, &local);
+#pragma omp for
+      for (long long c = 0; c < (long long)cells; c++)
+        for (int t = 0; t < T; t++) acc[c] += priv[(size_t)t * cells + (size_t)c];
+    }
+    double march = bk_now_ms() - t1;
+    if (march < b.march) {
+      b.march = march;
+      b.octree = st.ms_octree;
+      b.generate = st.ms_generate;
+      b.st = st;
+      b.cells = cells;
+      free(*acc_out);
+      *acc_out = acc;
+      acc = NULL;
+    }
+    free(acc);
+    free(priv);
+    pm_setup_free(&su);
+  }
+  return b;
+}
+#endif
 
 static void report(const char *label, const best_t *b, float step) {
   double sec = b->march / 1000.0;
@@ -102,25 +190,49 @@ int main(int argc, char **argv) {
   printf("%-36s %8s %8s %8s %9s %8s | %7s %8s %8s\n", "", "ms", "ms", "ms", "ms", "ms", "", "",
          "equiv.");
   int noct = strstr(which, "noct") != NULL;
+  double t_cl = 0.0;
+  uint64_t *acc_noct = NULL, *acc_omp = NULL;
   if (strstr(which, "cl")) {
     /* the first launch in a process also pays PoCL's work-group compile */
-    best_t first = run(&cl, &s, &v, 1, 1);
+    best_t first = run(&cl, &s, &v, 1, 1, NULL);
     report("OpenCL, octree, first launch", &first, s.step);
-    best_t b = run(&cl, &s, &v, 1, runs);
+    best_t b = run(&cl, &s, &v, 1, runs, NULL);
     report("OpenCL, octree", &b, s.step);
+    t_cl = b.march;
     if (noct) {
-      b = run(&cl, &s, &v, 0, runs);
+      b = run(&cl, &s, &v, 0, runs, NULL);
       report("OpenCL, no octree", &b, s.step);
     }
   }
   if (strstr(which, "host")) {
-    best_t b = run(NULL, &s, &v, 1, runs);
+    best_t b = run(NULL, &s, &v, 1, runs, NULL);
     report("host C (1 thread), octree", &b, s.step);
     if (noct) {
-      b = run(NULL, &s, &v, 0, runs);
+      b = run(NULL, &s, &v, 0, runs, &acc_noct);
       report("host C (1 thread), no octree", &b, s.step);
     }
   }
+  if (strstr(which, "omp")) {
+#ifdef _OPENMP
+    best_t b = run_omp(&s, &v, runs, &acc_omp);
+    char label[64];
+    snprintf(label, sizeof label, "plain OpenMP loop (%d threads), no oct.", omp_get_max_threads());
+    report(label, &b, s.step);
+    if (t_cl > 0.0)
+      printf("yardstick: the OpenCL march (octree) takes 1/%.2f of the plain OpenMP loop's time\n",
+             b.march / t_cl);
+    if (acc_noct) {
+      int same = 1;
+      for (size_t c = 0; c < b.cells && same; c++) same = acc_noct[c] == acc_omp[c];
+      printf("yardstick grid %s the one-thread host march's (no octree)\n",
+             same ? "equals" : "DIFFERS FROM");
+    }
+#else
+    printf("plain OpenMP loop: this build has no OpenMP\n");
+#endif
+  }
+  free(acc_noct);
+  free(acc_omp);
   clh_release(&cl);
   tv_free(&v);
   return 0;

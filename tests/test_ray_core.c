@@ -334,7 +334,10 @@ static void check_pyramid(int n[3], const oct_source_t *src, int nsrc, int halo)
 }
 
 static void test_pyramid(void) {
-  enum { NX = 37, NY = 20, NZ = 26 };
+  /* tall enough (35 block rows) for the build to split it between two
+   * threads; the second ball and slab straddle the split (row 17, z = 34), a box
+   * ends in its halo */
+  enum { NX = 37, NY = 20, NZ = 70 };
   static float a[NX * NY * NZ], b[4 * NX * NY * NZ];
   int n[3] = {NX, NY, NZ};
   for (int k = 0; k < NZ; k++)
@@ -343,8 +346,11 @@ static void test_pyramid(void) {
         size_t v = i + (size_t)NX * (j + (size_t)NY * k);
         /* a ball of another value, and in b a slab where only channel 2 varies */
         a[v] = (i - 20) * (i - 20) + (j - 6) * (j - 6) + (k - 9) * (k - 9) < 16 ? 1.5f : 1.0f;
+        if ((i - 9) * (i - 9) + (j - 12) * (j - 12) + (k - 34) * (k - 34) < 9) a[v] = 1.25f;
+        /* seen by row 17 only through its halo */
+        if (i >= 25 && i < 29 && j >= 3 && j < 7 && k >= 30 && k <= 32) a[v] = 1.125f;
         for (int c = 0; c < 4; c++) b[4 * v + c] = 0.25f;
-        if (k >= 18 && k < 20) b[4 * v + 2] = 0.25f + 1e-3f * (float)i;
+        if ((k >= 18 && k < 20) || k == 35) b[4 * v + 2] = 0.25f + 1e-3f * (float)i;
       }
   const oct_source_t one = {a, 1, 1}, two[2] = {{a, 1, 1}, {b, 4, 3}};
   for (int halo = 1; halo <= OCT_MAX_HALO; halo++) {

@@ -49,3 +49,8 @@ if(EXISTS ${VDBIO_PYTHON})
 else()
   message(STATUS "${VDBIO_PYTHON} not found: test vdbio_python skipped")
 endif()
+
+# The leaf-by-leaf writer builds the tree tools::copyFromDense builds (issue 15).
+add_executable(test_vdbio_tree ${BAKER_TEST_DIR}/test_vdbio_tree.cpp)
+target_link_libraries(test_vdbio_tree PRIVATE bakercore)
+add_test(NAME vdbio_tree COMMAND test_vdbio_tree ${VDBIO_TEST_DIR})

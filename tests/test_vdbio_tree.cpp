@@ -1,0 +1,126 @@
+/* test_vdbio_tree.cpp: vdbio_write builds its sparse grids leaf by leaf from
+ * the dense rows (formats/vdbio_write.cpp); the tree it writes must be the
+ * one tools::copyFromDense at tolerance 0 (+ changeBackground) builds from
+ * the same array: same topology, same values and active states everywhere,
+ * same leaf and tile counts. The array has what the two could disagree on:
+ * a box that is not a whole number of 8^3 leaves, exact zeros and -0 and NaN
+ * (inactive by OpenVDB's !(|v| > 0)), constant active blocks (tiles) next to
+ * varying ones, a zero channel in a Vec3, a background other than 0.
+ * Usage: test_vdbio_tree DIR */
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/ChangeBackground.h>
+#include <openvdb/tools/Dense.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+extern "C" {
+#include "vdbio.h"
+}
+
+namespace vdb = openvdb;
+
+static int failures = 0;
+#define CHECK(c, ...)                                                                    \
+  do {                                                                                   \
+    if (!(c)) {                                                                          \
+      std::fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);                          \
+      std::fprintf(stderr, __VA_ARGS__);                                                 \
+      std::fprintf(stderr, "\n");                                                        \
+      failures++;                                                                        \
+    }                                                                                    \
+  } while (0)
+
+enum { NX = 37, NY = 20, NZ = 26 };
+
+/* Channel c of voxel (i,j,k): fog blocks of one value, a varying ball, holes. */
+static float value_at(int i, int j, int k, int c) {
+  if (i < 8 && j < 8 && k < 8) return c == 1 ? 0.0f : 0.5f; /* constant block, zero channel */
+  if (i >= 16 && i < 24 && j >= 8 && j < 16) return 0.0f; /* all background: no leaf */
+  if (i == 30 && j == 3) return k % 3 == 0 ? -0.0f : NAN; /* inactive: -0, NaN */
+  float d = std::sqrt(float((i - 25) * (i - 25) + (j - 12) * (j - 12) + (k - 13) * (k - 13)));
+  if (d < 6.0f) return 1.0f + 0.01f * d + 0.001f * (float)c;
+  return 0.25f; /* active and constant where whole leaves fit */
+}
+
+template <typename GridT>
+static typename GridT::Ptr reference(std::vector<float> &data, float bg) {
+  using ValueT = typename GridT::ValueType;
+  const vdb::CoordBBox box(vdb::Coord(0), vdb::Coord(NX - 1, NY - 1, NZ - 1));
+  vdb::tools::Dense<ValueT, vdb::tools::LayoutXYZ> dense(box,
+                                                         reinterpret_cast<ValueT *>(data.data()));
+  typename GridT::Ptr g = GridT::create(vdb::zeroVal<ValueT>());
+  vdb::tools::copyFromDense(dense, *g, vdb::zeroVal<ValueT>());
+  if (bg != 0.0f) vdb::tools::changeBackground(g->tree(), ValueT(bg));
+  return g;
+}
+
+static bool same_value(float a, float b) { return a == b || (std::isnan(a) && std::isnan(b)); }
+static bool same_value(const vdb::Vec3s &a, const vdb::Vec3s &b) {
+  return same_value(a[0], b[0]) && same_value(a[1], b[1]) && same_value(a[2], b[2]);
+}
+
+template <typename GridT>
+static void compare(const char *label, const GridT &got, const GridT &want) {
+  CHECK(got.tree().hasSameTopology(want.tree()), "%s: topology differs", label);
+  CHECK(got.tree().leafCount() == want.tree().leafCount(), "%s: %u leaves, want %u", label,
+        (unsigned)got.tree().leafCount(), (unsigned)want.tree().leafCount());
+  CHECK(got.tree().activeTileCount() == want.tree().activeTileCount(), "%s: %u tiles, want %u",
+        label, (unsigned)got.tree().activeTileCount(), (unsigned)want.tree().activeTileCount());
+  CHECK(got.background() == want.background(), "%s: background differs", label);
+  auto ga = got.getConstAccessor();
+  auto wa = want.getConstAccessor();
+  int bad = 0;
+  for (int k = -2; k < NZ + 2; k++)
+    for (int j = -2; j < NY + 2; j++)
+      for (int i = -2; i < NX + 2; i++) {
+        const vdb::Coord c(i, j, k);
+        if (ga.isValueOn(c) != wa.isValueOn(c) || !same_value(ga.getValue(c), wa.getValue(c)))
+          bad++;
+      }
+  CHECK(bad == 0, "%s: %d voxels differ in value or state", label, bad);
+}
+
+int main(int argc, char **argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: test_vdbio_tree DIR\n");
+    return 2;
+  }
+  vdb::initialize();
+  const std::string path = std::string(argv[1]) + "/tree.vdb";
+  std::vector<float> f((size_t)NX * NY * NZ), v((size_t)3 * NX * NY * NZ);
+  for (int k = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      for (int i = 0; i < NX; i++) {
+        size_t at = (size_t)i + (size_t)NX * ((size_t)j + (size_t)NY * k);
+        f[at] = value_at(i, j, k, 0);
+        for (int c = 0; c < 3; c++) v[3 * at + c] = value_at(i, j, k, c);
+      }
+  grid_dims_t d = {};
+  d.nx = NX, d.ny = NY, d.nz = NZ;
+  d.voxel_size = 0.1f;
+  const vdbio_grid_t grids[] = {{"f0", VDBIO_FLOAT, f.data(), 0, 0.0f},
+                                {"f1", VDBIO_FLOAT, f.data(), 0, 1.0f},
+                                {"v0", VDBIO_VEC3, v.data(), 1, 0.0f}};
+  vdbio_write_opts_t opts = {};
+  opts.compression = VDBIO_COMPRESS_NONE;
+  bk_error_t err = {};
+  if (vdbio_write(path.c_str(), &d, grids, 3, NULL, 0, &opts, &err) != BK_OK) {
+    std::fprintf(stderr, "vdbio_write: %s\n", err.msg);
+    return 1;
+  }
+  vdb::io::File file(path);
+  file.open();
+  compare("f0", *vdb::gridPtrCast<vdb::FloatGrid>(file.readGrid("f0")),
+          *reference<vdb::FloatGrid>(f, 0.0f));
+  compare("f1 (background 1)", *vdb::gridPtrCast<vdb::FloatGrid>(file.readGrid("f1")),
+          *reference<vdb::FloatGrid>(f, 1.0f));
+  compare("v0", *vdb::gridPtrCast<vdb::Vec3SGrid>(file.readGrid("v0")),
+          *reference<vdb::Vec3SGrid>(v, 0.0f));
+  file.close();
+  if (failures) std::fprintf(stderr, "test_vdbio_tree: %d check(s) failed\n", failures);
+  else std::printf("test_vdbio_tree: ok\n");
+  return failures ? 1 : 0;
+}
