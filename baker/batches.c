@@ -30,6 +30,7 @@ typedef struct bt_run {
   int stop_reason;        /* 0 done, 1 target met, 2 budget, 3 cap */
   int done;               /* main batches traced (those in the result) */
   int pilot;              /* target mode: pilot batches traced, then dropped */
+  int pilot_split;        /* target mode without a budget: a pilot, then a plan */
   int planned;            /* target mode: the batch size was planned */
   uint64_t traced;        /* main photons traced, pilot included */
   uint64_t photon_cap;    /* open modes: photons traced at most */
@@ -195,9 +196,10 @@ static int plan_batches(bt_run_t *x, uint64_t *acc) {
   const double E = x->target, room = E * E - x->terms.step * x->terms.step;
   if (!(room > 0.0) || !(x->terms.noise > 0.0)) return 0;
   double g = x->terms.noise / sqrt(room); /* noise over what the target leaves */
-  /* More batches of the pilot's size cost (g² − 1) B photons-per-batch;
-   * a restart costs B g^(2/rate) (the rate's prediction): restart when
-   * that is cheaper. */
+  /* Finishing with pilot-sized batches costs (g² − 1) B more of them (exact:
+   * equal independent batches average as 1/B); a restart, B of `grow`
+   * times their size (the rate's prediction; the pilot is spent either
+   * way): restart when that is cheaper. */
   double grow = pow(g * BT_PLAN_MARGIN, 2.0 / BT_QMC_RATE);
   if (g * g - 1.0 <= grow) return 0;
   double n = ceil((double)x->photons * grow), left = (double)(x->photon_cap - x->traced);
@@ -224,8 +226,8 @@ static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_erro
     ee_after_batch(x->tr, x->s, acc);
     if (x->grid) ee_after_batch(x->grid, x->s, acc);
     if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
-    if (x->target > 0.0 && !x->planned && done >= BT_MIN_BATCHES && x->terms.estimate > x->target &&
-        plan_batches(x, acc))
+    if (!x->planned && x->pilot_split && done >= BT_MIN_BATCHES &&
+        x->terms.estimate > x->target && plan_batches(x, acc))
       done = 0;
     x->ms_track += bk_now_ms() - t;
     show_progress(x, done);
@@ -314,8 +316,10 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
     rc = run_twin(cl, x, acc, err);
     x->photons = keep;
   }
-  if (x->target > 0.0 && x->photons >= BT_PILOT_SPLIT) /* the pilot: one batch's photons in 4 */
-    x->photons /= BT_PILOT_SPLIT;
+  /* The pilot: one batch's photons in 4. Not with a time budget, which
+   * could end the bake between dropping the pilot and the next batch. */
+  x->pilot_split = x->target > 0.0 && !(x->budget_ms > 0.0) && x->photons >= BT_PILOT_SPLIT;
+  if (x->pilot_split) x->photons /= BT_PILOT_SPLIT;
   res->ms_twin = bk_now_ms() - x->t0;
   if (rc) return rc;
   x->t_main = bk_now_ms();
@@ -363,9 +367,7 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
     rc = BK_ERR_RUNTIME;
     acc = bk_calloc(s.voxels, s.channels * sizeof(uint64_t), "march: radiance accumulator", err);
   }
-  if (acc && cl) cl->keep_programs++; /* the twins switch integrators: load each kernel once */
   if (acc) rc = run_all(cl, &x, res, acc, stats, &ms_march, err);
-  if (acc && cl) cl->keep_programs--;
   if (rc) goto done;
   res->batches = x.done;
   res->integrator = scene->integrator;

@@ -295,8 +295,6 @@ error:
 
 void clh_release(clh_context_t *cl) {
   if (!cl) return;
-  for (int i = 0; i < CLH_MEMO; i++)
-    if (cl->memo[i].prog) clReleaseProgram(cl->memo[i].prog), cl->memo[i].prog = NULL;
   if (cl->queue) clReleaseCommandQueue(cl->queue);
   if (cl->context) clReleaseContext(cl->context);
   cl->queue = NULL;
@@ -502,22 +500,6 @@ error:
   return rc;
 }
 
-/* The context's kept program for key (retained for the caller), or NULL. */
-static cl_program memo_find(clh_context_t *cl, uint64_t key) {
-  for (int i = 0; i < CLH_MEMO; i++)
-    if (cl->memo[i].prog && cl->memo[i].key == key && clRetainProgram(cl->memo[i].prog) == CL_SUCCESS)
-      return cl->memo[i].prog;
-  return NULL;
-}
-
-static void memo_keep(clh_context_t *cl, uint64_t key, cl_program prog) {
-  int i = cl->memo_next;
-  if (!cl->keep_programs || clRetainProgram(prog) != CL_SUCCESS) return;
-  if (cl->memo[i].prog) clReleaseProgram(cl->memo[i].prog);
-  cl->memo[i].key = key, cl->memo[i].prog = prog;
-  cl->memo_next = (i + 1) % CLH_MEMO;
-}
-
 int clh_build_source(clh_context_t *cl, const char *name, const char *text, const char *options,
                      cl_program *out, bk_error_t *err) {
   char *src = NULL, *opts = NULL;
@@ -543,21 +525,12 @@ int clh_build_source(clh_context_t *cl, const char *name, const char *text, cons
   if (use_cache) snprintf(path, sizeof path, "%s/%016llx.clbin", dir, (unsigned long long)key);
   double t0 = bk_now_ms();
 
-  if (use_cache && cl->keep_programs && (*out = memo_find(cl, key)) != NULL) { /* loaded before: no reload */
-    cl->stats.cache_hits++;
-    cl->stats.last_hit = 1;
-    cl->stats.last_ms = bk_now_ms() - t0;
-    rc = BK_OK;
-    goto error; /* the cleanup block */
-  }
   if (use_cache && (*out = clh_load_cached(cl, name, path, key, opts, t0)) != NULL) {
-    memo_keep(cl, key, *out);
     rc = BK_OK;
     goto error; /* the cleanup block */
   }
   rc = clh_compile(cl, name, src, opts, t0, out, err);
   if (rc == BK_OK && use_cache) {
-    memo_keep(cl, key, *out);
     cache_store(dir, path, key, *out);
     clc_prune(dir, clc_max_bytes(), path); /* the cap, least recently used first */
   }

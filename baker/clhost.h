@@ -31,8 +31,6 @@ typedef struct clh_build_stats {
   uint64_t last_key;      /* its cache key */
 } clh_build_stats_t;
 
-#define CLH_MEMO 4
-
 typedef struct clh_context {
   cl_platform_id platform;
   cl_device_id device;
@@ -47,12 +45,6 @@ typedef struct clh_context {
   int has_int64_atomics;   /* cl_khr_int64_base_atomics */
   int is_cpu;
   clh_build_stats_t stats;
-  /* Programs this context loaded from the binary cache, kept so that a bake
-   * switching integrators and back (the error twin) loads each once; only
-   * while keep_programs is set (baker/batches.c sets it around a bake). */
-  int keep_programs;
-  struct { uint64_t key; cl_program prog; } memo[CLH_MEMO];
-  int memo_next;
 } clh_context_t;
 
 const char *clh_error_name(cl_int code);
