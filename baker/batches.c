@@ -28,7 +28,12 @@ typedef struct bt_run {
   bk_progress_t prog;
   char label[96];
   int stop_reason;        /* 0 done, 1 target met, 2 budget, 3 cap */
-  int done;               /* main batches traced */
+  int done;               /* main batches traced (those in the result) */
+  int pilot;              /* target mode: pilot batches traced, then dropped */
+  int pilot_split;        /* target mode without a budget: a pilot, then a plan */
+  int planned;            /* target mode: the batch size was planned */
+  uint64_t traced;        /* main photons traced, pilot included */
+  uint64_t photon_cap;    /* open modes: photons traced at most */
   double cost;            /* twin_cost of the last twin run */
 } bt_run_t;
 
@@ -155,10 +160,11 @@ static int keep_going(bt_run_t *x, int done) {
       x->terms.estimate <= x->target)
     return x->stop_reason = 1, 0;
   if (x->budget_ms > 0.0 && done >= 1) {
-    double now = bk_now_ms(), per = (now - x->t_main) / done;
+    double now = bk_now_ms();
+    double per = (now - x->t_main) / (double)x->traced * (double)x->photons;
     if (now - x->t0 + per > x->budget_ms) return x->stop_reason = 2, 0;
   }
-  if (done >= x->cap) return x->stop_reason = 3, 0;
+  if (done >= x->cap || x->traced + x->photons > x->photon_cap) return x->stop_reason = 3, 0;
   return 1;
 }
 
@@ -178,20 +184,58 @@ static void show_progress(bt_run_t *x, int done) {
   bk_progress_update(&x->prog, (uint64_t)(1e6 * (frac < 1.0 ? frac : 1.0)));
 }
 
-static int main_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_error_t *err) {
+/* Target mode, after the pilot: the batch size whose BT_MIN_BATCHES batches
+ * are predicted to meet the target. Rotated Hammersley sets gain from size:
+ * the noise of B batches of n falls about as n^(-BT_QMC_RATE / 2) at fixed
+ * B, faster than B^(-1/2) at fixed n, so a few large batches need fewer
+ * photons than many small ones (docs/error.md). The prediction uses only
+ * the measured noise and counted photons; a prediction short of the target
+ * is finished by more batches of the new size. Returns 1 when it restarts. */
+static int plan_batches(bt_run_t *x, uint64_t *acc) {
+  x->planned = 1;
+  const double E = x->target, room = E * E - x->terms.step * x->terms.step;
+  if (!(room > 0.0) || !(x->terms.noise > 0.0)) return 0;
+  double g = x->terms.noise / sqrt(room); /* noise over what the target leaves */
+  /* Finishing with pilot-sized batches costs (g² − 1) B more of them (exact:
+   * equal independent batches average as 1/B); a restart, B of `grow`
+   * times their size (the rate's prediction; the pilot is spent either
+   * way): restart when that is cheaper. */
+  double grow = pow(g * BT_PLAN_MARGIN, 2.0 / BT_QMC_RATE);
+  if (g * g - 1.0 <= grow) return 0;
+  double n = ceil((double)x->photons * grow), left = (double)(x->photon_cap - x->traced);
+  n = n < left / BT_MIN_BATCHES ? n : floor(left / BT_MIN_BATCHES);
+  if (n <= (double)x->photons) return 0;
+  bk_log(2, "target error %g: pilot noise %.4f in %d batches of %llu; restarting with batches "
+            "of %.0f", E, x->terms.noise, x->done, (unsigned long long)x->photons, n);
+  memset(acc, 0, pm_acc_count(x->s) * sizeof *acc);
+  ee_batches_reset(x->tr);
+  if (x->grid) ee_batches_reset(x->grid);
+  x->pilot = x->done;
+  x->done = 0;
+  x->photons = (uint64_t)n;
+  x->terms.noise = x->terms.estimate = EE_UNKNOWN;
+  return 1;
+}
+
+/* pm_run_batches' callback; `all` counts the pilot batches too. */
+static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_error_t *err) {
   bt_run_t *x = ctx;
-  x->done = done;
+  int done = x->done = all - x->pilot;
   if (done > 0) {
     double t = bk_now_ms();
     ee_after_batch(x->tr, x->s, acc);
     if (x->grid) ee_after_batch(x->grid, x->s, acc);
     if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
+    if (!x->planned && x->pilot_split && done >= BT_MIN_BATCHES &&
+        x->terms.estimate > x->target && plan_batches(x, acc))
+      done = 0;
     x->ms_track += bk_now_ms() - t;
     show_progress(x, done);
   }
   if (!keep_going(x, done)) return 0;
   uint64_t n = x->batches ? ph_batch_photons(x->photons, x->batches, done) : x->photons;
-  return load_batch(x, x->first_id + done, n, run, err);
+  x->traced += n;
+  return load_batch(x, x->first_id + all, n, run, err);
 }
 
 /* The integrator needs no twin: no refraction (straight DDA, exact), or it
@@ -210,6 +254,7 @@ static void set_mode(bt_run_t *x, const scene_t *scene) {
     x->photons = n / (uint64_t)b > 0 ? n / (uint64_t)b : 1;
     double cap = floor((double)PH_MAX_PHOTONS / (double)x->photons);
     x->cap = cap > BT_MAX_OPEN_BATCHES ? BT_MAX_OPEN_BATCHES : (int)cap;
+    x->photon_cap = (uint64_t)x->cap * x->photons;
   } else {
     x->photons = n;
     x->batches = (uint64_t)b > n && n > 0 ? (int)n : b;
@@ -271,6 +316,10 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
     rc = run_twin(cl, x, acc, err);
     x->photons = keep;
   }
+  /* The pilot: one batch's photons in 4. Not with a time budget, which
+   * could end the bake between dropping the pilot and the next batch. */
+  x->pilot_split = x->target > 0.0 && !(x->budget_ms > 0.0) && x->photons >= BT_PILOT_SPLIT;
+  if (x->pilot_split) x->photons /= BT_PILOT_SPLIT;
   res->ms_twin = bk_now_ms() - x->t0;
   if (rc) return rc;
   x->t_main = bk_now_ms();

@@ -13,9 +13,11 @@
  * (pm_scale_batches with the same cap).
  *
  * Modes: fixed (photons.count split into photons.batches batches);
- * target (photons.target_error E: batches of count/batches photons added
- * until ε̂ <= E, at least BT_MIN_BATCHES); budget (photons.time_budget_s S:
- * batches added while the next one, at the mean batch time so far, ends
+ * target (photons.target_error E: a pilot of BT_MIN_BATCHES small batches,
+ * then, from its noise, batches of a planned size added until ε̂ <= E, at
+ * least BT_MIN_BATCHES; the pilot is dropped when the size changes, so the
+ * batches in the result are equal; plan_batches in batches.c); budget (photons.time_budget_s S:
+ * batches added while the next one, at the mean time per photon so far, ends
  * within S seconds of the march's start). Target and budget combine: the
  * first to stop wins. Target mode also chooses the integrator and step
  * (choose_integrator in batches.c) from the twins' bias estimates. */
@@ -37,6 +39,14 @@ extern "C" {
  * this many batches (a deposit of one photon across one voxel is then still
  * about 2^62 / (4096 n_b path bound) quanta, thousands at 128^3). */
 #define BT_MAX_OPEN_BATCHES 4096
+/* Target mode's pilot: photons.count / photons.batches photons in
+ * BT_MIN_BATCHES batches, this many times smaller than a batch. */
+#define BT_PILOT_SPLIT 4
+/* Target mode's plan: the noise of B rotated Hammersley batches of n photons
+ * falls as n^(-rate/2) at fixed B (1: plain Monte Carlo; measured about 1.8
+ * on the sphere scene at 128^3), aimed this factor below the target. */
+#define BT_QMC_RATE 1.8
+#define BT_PLAN_MARGIN 1.05
 #define BT_TWIN_BATCHES 4 /* twin batches behind the step term */
 /* Twin photons: this fraction of the bake's photon count over all twin
  * batches (at least BT_TWIN_MIN per batch). */

@@ -224,6 +224,11 @@ void ee_twin_reset(ee_tracker_t *t) {
   t->twins = 0;
 }
 
+void ee_batches_reset(ee_tracker_t *t) {
+  memset(t->prev, 0, t->count * sizeof(float));
+  memset(t->sumsq, 0, t->count * sizeof(float));
+}
+
 double ee_twin_step(const ee_tracker_t *t, const float *fine) {
   const double T = t->twins;
   float *mean = calloc(t->count ? t->count : 1, sizeof *mean);

@@ -79,6 +79,9 @@ int ee_twin_add(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, const
                 bk_error_t *err);
 /* Forget the twins recorded (another integrator is measured next). */
 void ee_twin_reset(ee_tracker_t *t);
+/* Forget the batches recorded (target mode drops its pilot batches and
+ * starts over with larger ones); the twins are kept. */
+void ee_batches_reset(ee_tracker_t *t);
 /* The step term of the twins recorded, on the lit set and mean of the truth
  * integrator's luminance `fine` (one array of count per twin): for choosing
  * an integrator before the bake's own batches exist. */
