@@ -117,7 +117,8 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
   }
   if (s->params.mode == PM_MODE_TABLES) {
     if (!s->tables) return bk_fail(err, BK_ERR_RUNTIME, "march: sampling tables missing");
-    size_t bytes = nlights * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) * sizeof(float);
+    /* one table per light of this march (batches are reference-only) */
+    size_t bytes = (size_t)L->count * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) * sizeof(float);
     if (!(r->tables = make_buffer(cl, copy, bytes, s->tables, err))) return BK_ERR_RUNTIME;
   }
   return BK_OK;

@@ -139,6 +139,7 @@ static int test_cli(void) {
   size_t n = (size_t)g.nx * g.ny * g.nz, positive = 0;
   for (size_t v = 0; v < n; v++) positive += g.data[v] > 0.0f;
   EXPECT(positive > n / 100, "radiance_error: %zu of %zu voxels positive", positive, n);
+  vdbio_dense_free(&g);
   char *json = NULL;
   size_t len = 0;
   REQUIRE(bk_read_file(stats, &json, &len, &err) == BK_OK, "%s", err.msg);
