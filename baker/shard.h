@@ -2,8 +2,11 @@
  * (merge_cmd.c) reads back.
  *
  * A shard traces the I-th of N contiguous, disjoint slices [first, last) of
- * the photon indices 0..photons.count (shard_range; the march keeps every
- * index's place among all photons, pm_set_range), and writes its raw 64-bit
+ * the photon indices of every batch (reference mode, baker/batches.h: share
+ * I of each batch's photons, pm_share_range; the march keeps every index's
+ * place among the batch's photons, pm_set_range; adaptive mode: of the
+ * weighted march's photons; the metadata's range is shard_range of
+ * photons.count), and writes its raw 64-bit
  * fixed-point sums instead of radiance. The sums of all N shards added as
  * integers are the single bake's sums bit for bit (integer addition does not
  * care about order), so the merge's radiance equals the single bake's.
