@@ -50,16 +50,6 @@ void ph_share(const double *weights, int n, uint64_t total, uint64_t *counts) {
   }
 }
 
-/* 32-bit integer hash (Wellons' lowbias32). */
-static uint32_t mix32(uint32_t x) {
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return x;
-}
-
 uint64_t ph_batch_photons(uint64_t photons, int batches, int batch) {
   uint64_t b = batches > 0 ? (uint64_t)batches : 1;
   return photons / b + ((uint64_t)batch % b < photons % b ? 1 : 0);
@@ -69,10 +59,10 @@ uint64_t ph_batch_photons(uint64_t photons, int batches, int batch) {
  * rotation of an unbatched bake (so one batch reproduces it bit for bit);
  * every other batch hashes its index in as well, independently. */
 static void batch_rotation(unsigned seed, int l, int batch, float *ru, float *rv) {
-  uint32_t hsh = mix32((uint32_t)seed * 0x9e3779b9u ^ mix32((uint32_t)l + 0x632be5abu));
-  if (batch) hsh = mix32(hsh ^ mix32((uint32_t)batch * 0x85ebca6bu + 0x27d4eb2fu));
+  uint32_t hsh = bk_mix32((uint32_t)seed * 0x9e3779b9u ^ bk_mix32((uint32_t)l + 0x632be5abu));
+  if (batch) hsh = bk_mix32(hsh ^ bk_mix32((uint32_t)batch * 0x85ebca6bu + 0x27d4eb2fu));
   *ru = (float)(hsh >> 8) * (1.0f / 16777216.0f);
-  *rv = (float)(mix32(hsh) >> 8) * (1.0f / 16777216.0f);
+  *rv = (float)(bk_mix32(hsh) >> 8) * (1.0f / 16777216.0f);
 }
 
 int ph_prepare(const scene_t *scene, const grid_dims_t *g, uint64_t photons, unsigned seed,

@@ -78,19 +78,9 @@ typedef struct ms_flight {
   float deposit;  /* the leg's deposits, W·voxel summed over channels */
 } ms_flight;
 
-/* Chris Wellons' lowbias32: a full-avalanche 32-bit mix. */
-BK_INLINE bk_uint ms_mix(bk_uint x) {
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return x;
-}
-
 /* A uniform number in [0, 1) from (seed, photon, counter). */
 BK_INLINE float ms_uniform(bk_uint seed, bk_uint photon, bk_uint counter) {
-  bk_uint h = ms_mix(counter ^ ms_mix(photon ^ ms_mix(seed + 0x9e3779b9u)));
+  bk_uint h = bk_mix32(counter ^ bk_mix32(photon ^ bk_mix32(seed + 0x9e3779b9u)));
   return (float)(h >> 8) * (1.0f / 16777216.0f);
 }
 

@@ -34,6 +34,17 @@ typedef struct bk_v3 {
   float x, y, z;
 } bk_v3;
 
+/* Chris Wellons' lowbias32: a full-avalanche 32-bit mix, for the counter-based
+ * random numbers of the device (kernels/scatter.h) and the host (baker/photons.c). */
+BK_INLINE bk_uint bk_mix32(bk_uint x) {
+  x ^= x >> 16;
+  x *= 0x7feb352du;
+  x ^= x >> 15;
+  x *= 0x846ca68bu;
+  x ^= x >> 16;
+  return x;
+}
+
 BK_INLINE bk_v3 v3(float x, float y, float z) { bk_v3 r; r.x = x; r.y = y; r.z = z; return r; }
 BK_INLINE bk_v3 v3_add(bk_v3 a, bk_v3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
 BK_INLINE bk_v3 v3_sub(bk_v3 a, bk_v3 b) { return v3(a.x - b.x, a.y - b.y, a.z - b.z); }
