@@ -176,7 +176,7 @@ int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t 
   double t0 = bk_now_ms();
   pm_fields_scan(vol, kept, scene->frame, s);
   int grey_scatter;
-  ms_decide(scene, vol, &s->ms, &grey_scatter);
+  pm_fields_decide(scene, vol, kept, &s->ms, &grey_scatter);
   /* one channel carries every colour only when the albedo is grey too */
   if (s->ms.params.max_bounces && !grey_scatter) s->grey = 0;
   warn_coarse_step(scene, s->has_refraction);

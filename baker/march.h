@@ -105,6 +105,10 @@ typedef struct pm_field_cache {
   uint64_t key;          /* the volume's key; 0: empty */
   int frame;             /* the frame that built them */
   int has_refraction, homogeneous, grey; /* the volume scan */
+  /* ms_decide's outcome (before ms_build), for photons.bounces `bounces`
+   * (its other inputs are the volume's); decided 0: none yet */
+  int decided, bounces, grey_scatter;
+  ms_setup_t ms;
   int channels;          /* of the fields below; 0: none built yet */
   float *ng;
   oct_pyramid_t pyramid;
@@ -118,6 +122,10 @@ void pm_field_cache_free(pm_field_cache_t *c);
 void pm_fields_scan(const volume_t *vol, pm_field_cache_t *kept, int frame, pm_setup_t *s);
 int pm_fields_build(const volume_t *vol, pm_field_cache_t *kept, pm_setup_t *s,
                     bk_error_t *err);
+/* ms_decide (bounces.h), its outcome taken from the cache when it holds
+ * this volume decided for the same photons.bounces. */
+void pm_fields_decide(const scene_t *scene, const volume_t *vol, pm_field_cache_t *kept,
+                      ms_setup_t *ms, int *grey_scatter);
 
 /* The grid as the kernels see it (kernels/shared.h). */
 bk_grid pm_kernel_grid(const grid_dims_t *d);

@@ -67,6 +67,22 @@ void pm_field_cache_free(pm_field_cache_t *c) {
   memset(c, 0, sizeof *c);
 }
 
+void pm_fields_decide(const scene_t *scene, const volume_t *vol, pm_field_cache_t *kept,
+                      ms_setup_t *ms, int *grey_scatter) {
+  const int holds = holds_volume(kept, vol);
+  if (holds && kept->decided && kept->bounces == scene->bounces) {
+    *ms = kept->ms;
+    *grey_scatter = kept->grey_scatter;
+    return;
+  }
+  ms_decide(scene, vol, ms, grey_scatter);
+  if (!holds) return;
+  kept->decided = 1;
+  kept->bounces = scene->bounces;
+  kept->ms = *ms; /* no scatter grid yet: ms_build makes it per march */
+  kept->grey_scatter = *grey_scatter;
+}
+
 /* The pyramid and the {∇n, n} field, only where n varies, and the
  * extinction grid unless the medium is homogeneous (σt per voxel length). */
 static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
