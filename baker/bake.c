@@ -162,6 +162,7 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   ad_bake_opts_t ao;
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
+  ao.fields = &j->reuse->fields;
   if (opt->error_grid)
     return bk_fail(err, BK_ERR_INPUT, "%s: --error-grid: adaptive mode does not measure "
                    "per-voxel errors yet (use photons.mode \"reference\")", j->scene.path);

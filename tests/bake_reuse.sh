@@ -22,12 +22,16 @@ base "$LIGHT" '[0, 0.2, 0]' > light.json
 base '[0, 3, 0]' '{"keys": {"1": [0, 0.2, 0], "3": [0.2, 0.1, 0]}}' > object.json
 sums() { vdb_print -m "$1" | grep "checksum_" | sort; }
 
-# $1 scene, $2 stem: the batch, then each frame alone; grids must agree
+# $1 scene, $2 stem, then bake options: the batch, then each frame alone;
+# grids must agree
 batch_and_alone() {
-  "$BAKER" bake "$1" -o "$2.batch.####.vdb" --frames 1-3 --stats "$2.####.json" -q ||
-    fail "$2: batch exited $?"
+  local scene=$1 stem=$2; shift 2
+  "$BAKER" bake "$scene" -o "$stem.batch.####.vdb" --frames 1-3 --stats "$stem.####.json" -q "$@" ||
+    fail "$stem: batch exited $?"
+  set -- "$scene" "$stem" "$@"
   for f in 1 2 3; do
-    "$BAKER" bake "$1" -o "$2.alone.####.vdb" --frames $f -q || fail "$2: frame $f alone exited $?"
+    "$BAKER" bake "$1" -o "$2.alone.####.vdb" --frames $f -q "${@:3}" ||
+      fail "$2: frame $f alone exited $?"
     b="$2.batch.000$f.vdb" a="$2.alone.000$f.vdb"
     [ -n "$(sums "$b")" ] || fail "$b: no checksum metadata"
     [ "$(sums "$b")" = "$(sums "$a")" ] || { diff <(sums "$b") <(sums "$a"); fail "$b differs from $a"; }
@@ -51,6 +55,12 @@ for stage in voxelize octree "OpenCL init"; do
   done
 done
 grep -q '"reused_from_frame": 1' light.0003.json || fail "frame 3 does not name frame 1"
+
+# adaptive mode keeps the volume, the octree and the context as well
+batch_and_alone light.json adaptive --mode adaptive
+for stage in voxelize octree "OpenCL init"; do
+  [ "$(reused adaptive.0003.json "$stage")" = true ] || fail "adaptive frame 3: $stage not reused"
+done
 
 batch_and_alone object.json object
 for f in 2 3; do
