@@ -162,7 +162,7 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   ad_bake_opts_t ao;
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
-  ao.fields = &j->reuse->fields;
+  ao.fields = j->reuse->keep_fields ? &j->reuse->fields : NULL;
   if (opt->error_grid)
     return bk_fail(err, BK_ERR_INPUT, "%s: --error-grid: adaptive mode does not measure "
                    "per-voxel errors yet (use photons.mode \"reference\")", j->scene.path);
@@ -199,7 +199,8 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
     return shard_march(opt->host_only ? NULL : j->cl, &j->scene, j->vol, opt, &j->shard,
                        &j->stats, &j->astats, &j->timings, err);
   if (j->scene.mode == MODE_ADAPTIVE) return bake_adaptive(j, opt, err);
-  bt_options_t bo = {opt->error_grid, 0, 0, NULL, &j->reuse->fields};
+  bt_options_t bo = {opt->error_grid, 0, 0, NULL,
+                     j->reuse->keep_fields ? &j->reuse->fields : NULL};
   return bt_bake(opt->host_only ? NULL : j->cl, &j->scene, j->vol, &bo, j->radiance, &j->error,
                  &j->stats, &j->timings, err);
 }

@@ -79,7 +79,7 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings
   r->has_volume = 0;
   /* the whole bake's peak, before anything the size of the grid exists (a
    * kept volume passed it with the same grid) */
-  int rc = budget_check(s, max_memory, err);
+  int rc = budget_check_kept(s, max_memory, r->keep_fields ? FR_KEPT_FIELDS_BYTES : 0.0, err);
   if (!rc) rc = vox_build(s, &r->volume, t, err);
   if (rc) return rc;
   r->volume.key = key;

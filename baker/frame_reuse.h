@@ -15,7 +15,9 @@
  *                        expanded source, -D options and device (clhost.h),
  *                        so a light of another type builds its own kernel.
  * One frame's state at a time: a changed input frees the kept state before
- * the new one is built, so the peak memory stays a single frame's. Frames
+ * the new one is built. The volume lived through the write before too; the
+ * fields now do (FR_KEPT_FIELDS_BYTES more per voxel, counted in the memory
+ * budget), and only when the run bakes more than one frame. Frames
  * are baked exactly as alone (the grids are bit-identical); only the work
  * is skipped. */
 #ifndef BAKER_FRAME_REUSE_H
@@ -26,7 +28,13 @@
 #include "scene.h"
 #include "voxelize.h"
 
+/* Bytes per voxel the kept fields add to a frame's peak (they outlive the
+ * march into the write): the {∇n, n} field (16), the pyramid (1/8) and σt
+ * (4 per march channel, at most 12). */
+#define FR_KEPT_FIELDS_BYTES 28.125
+
 typedef struct bake_reuse {
+  int keep_fields;              /* a batch of several frames: keep the march's fields */
   int has_volume, volume_frame; /* the kept volume, its key volume.key */
   volume_t volume;
   pm_field_cache_t fields;      /* the octree stage's (march.h) */
@@ -41,7 +49,8 @@ typedef struct bake_reuse {
 uint64_t fr_volume_key(const scene_t *s);
 /* The frame's volume in r->volume: the kept one when the key matches (a
  * "voxelize" row saying so), else the kept one freed, the memory budget
- * checked (max_memory: --max-memory) and the volume built. */
+ * checked (max_memory: --max-memory; the kept fields counted when
+ * keep_fields) and the volume built. */
 int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings_t *t,
               bk_error_t *err);
 /* The OpenCL context in r->cl: the kept one for the same device spec (an
