@@ -518,7 +518,7 @@ static cl_program kept_program(clh_context_t *cl, uint64_t key) {
 
 /* Keeps a reference to a built program (the oldest one out when full). */
 static void keep_program(clh_context_t *cl, uint64_t key, cl_program program) {
-  if (clRetainProgram(program) != CL_SUCCESS) return;
+  if (!cl->keep_programs || clRetainProgram(program) != CL_SUCCESS) return;
   int slot = cl->kept_count;
   if (cl->kept_count < CLH_KEPT_PROGRAMS) {
     cl->kept_count++;

@@ -105,6 +105,7 @@ int fr_opencl(bake_reuse_t *r, const char *device, int frame, bk_timings_t *t, b
     memset(&r->cl, 0, sizeof r->cl);
     return rc;
   }
+  r->cl.keep_programs = 1; /* the next frames build the same kernels */
   r->has_cl = 1;
   r->cl_key = key;
   r->cl_frame = frame;
