@@ -163,6 +163,10 @@ static int sc_object_ior(const sc_ctx_t *c, const json_value_t *v, const char *p
     o->ior = o->ior_rgb[1];
     return BK_OK;
   }
+  if (n && n->type != JSON_NUMBER)
+    return sc_fail(c, n, sc_key(p, path, "ior"),
+                   "expected a number or an array [nR, nG, nB] of 3 numbers, found %s",
+                   json_type_phrase(n));
   if ((rc = sc_opt_float(c, v, path, "ior", &R_IOR, &o->ior))) return rc;
   if (!abbe) return BK_OK;
   float V = 0.0f;

@@ -98,6 +98,7 @@ static int test_parse(const char *dir) {
   expect_bad(dir, "abbe_text.json", "\"abbe\": \"flint\"", "objects[0].abbe", "a number");
   expect_bad(dir, "abbe_small.json", "\"ior\": 1.5, \"abbe\": 0.1", "objects[0].abbe",
              "larger Abbe number");
+  expect_bad(dir, "ior_text.json", "\"ior\": \"glass\"", "objects[0].ior", "a number or an array");
   expect_bad(dir, "rgb_two.json", "\"ior\": [1.5, 1.6]", "objects[0].ior", "array of 3");
   expect_bad(dir, "rgb_low.json", "\"ior\": [1.5, 0.9, 1.6]", "objects[0].ior[1]", "[1, 10]");
   expect_bad(dir, "rgb_and_abbe.json", "\"ior\": [1.5, 1.5, 1.6], \"abbe\": 40",
