@@ -199,11 +199,17 @@ def harness_tests(scripts, baker, tool, out):
     if "skipped" in pv:
         print(f"povray section skipped: {pv['skipped']}")
     else:
-        check(pv.get("pov", {}).get("status") == "ok", f"povray run: {pv.get('pov', {}).get('error')}")
-        for k in ("scene", "single"):
-            r = pv.get("baker", {}).get(k) or {}
-            check(r.get("status") == "ok" and (r.get("ratio") or 0) > 0, f"povray baker {k}: {r.get('status')}")
-            check((r.get("image") or {}).get("mean_ratio") is not None, f"povray baker {k}: no image comparison")
+        povs = pv.get("pov") or []
+        check(len(povs) >= 1, "povray section: no POV-Ray run")
+        for pov in povs:
+            check(pov.get("status") == "ok" and (pov.get("wall_s") or 0) > 0,
+                  f"povray run, {pov.get('samples')} samples: {pov.get('status')} {pov.get('error')}")
+            for k in ("scene", "single"):
+                r = pv.get("baker", {}).get(k) or {}
+                check(r.get("status") == "ok" and (r.get("wall_s") or 0) > 0, f"povray baker {k}: {r.get('status')}")
+                c = (pov.get("vs_baker") or {}).get(k) or {}
+                check((c.get("time_ratio") or 0) > 0 and c.get("mean_ratio") is not None,
+                      f"povray baker {k} against {pov.get('samples')} samples: no time ratio or image comparison")
         check(os.path.exists(os.path.join(out, "povray.png")), "povray.png not written")
 
 

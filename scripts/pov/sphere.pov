@@ -44,7 +44,7 @@ difference {
     media {
       method 3
       intervals 1
-      samples 30
+      samples 20
       absorption rgb <0.02, 0.02, 0.02>
       scattering { 1, rgb <0.0397887358, 0.0397887358, 0.0397887358>  // sigma_s / (4 pi)
         extinction 12.5663706 }  // extinction sigma_a + sigma_s
