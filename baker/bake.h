@@ -76,8 +76,9 @@ typedef struct bake_arrays {
   const float *photon_count, *photon_weight, *filter_radius;
   int sca_channels;
   float medium_ior;  /* the ior grid's background: n outside the box */
+  const float *ior_rgb; /* dispersion: n per channel (R, G, B), 3 per voxel; else NULL */
 } bake_arrays_t;
-#define BAKE_MAX_GRIDS 12
+#define BAKE_MAX_GRIDS 13
 /* The grids of a frame in file order, as `baker bake` and `baker merge`
  * write them; returns their count. */
 int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]);

@@ -53,6 +53,7 @@ uint64_t fr_volume_key(const scene_t *s) {
     const scene_object_t *o = &s->objects[i];
     mix_file(&h, o->mesh);
     mix(&h, &o->ior, sizeof o->ior);
+    mix(&h, o->ior_rgb, sizeof o->ior_rgb);
     mix(&h, o->sigma_a, sizeof o->sigma_a);
     mix(&h, o->sigma_s, sizeof o->sigma_s);
     mix(&h, &o->g, sizeof o->g);
@@ -79,7 +80,9 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings
   r->has_volume = 0;
   /* the whole bake's peak, before anything the size of the grid exists (a
    * kept volume passed it with the same grid) */
-  int rc = budget_check_kept(s, max_memory, r->keep_fields ? FR_KEPT_FIELDS_BYTES : 0.0, err);
+  /* dispersion keeps a {∇n, n} field per channel: 32 B more */
+  double kept = FR_KEPT_FIELDS_BYTES + (scene_has_dispersion(s) ? 32.0 : 0.0);
+  int rc = budget_check_kept(s, max_memory, r->keep_fields ? kept : 0.0, err);
   if (!rc) rc = vox_build(s, &r->volume, t, err);
   if (rc) return rc;
   r->volume.key = key;

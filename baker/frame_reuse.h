@@ -8,7 +8,8 @@
  *   voxelize  (volume)   the grid (bounds, resolution, ior_smoothing); the
  *                        medium (σs, σa, n, g, density_vdb and ior_vdb: path,
  *                        grid name, file contents); every object (mesh path
- *                        and file contents, n, σs, σa, g, transform);
+ *                        and file contents, n and its per-channel n, σs, σa,
+ *                        g, transform);
  *   octree    (fields)   the volume's key and the march's channel count
  *                        (march.h: pm_field_cache_t);
  *   OpenCL init          the device spec; the context keeps its programs by
@@ -29,8 +30,8 @@
 #include "voxelize.h"
 
 /* Bytes per voxel the kept fields add to a frame's peak (they outlive the
- * march into the write): the {∇n, n} field (16), the pyramid (1/8) and σt
- * (4 per march channel, at most 12). */
+ * march into the write): the {∇n, n} field (16; 48 with dispersion, counted
+ * apart), the pyramid (1/8) and σt (4 per march channel, at most 12). */
 #define FR_KEPT_FIELDS_BYTES 28.125
 
 typedef struct bake_reuse {

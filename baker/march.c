@@ -63,6 +63,7 @@ static void set_scale(pm_setup_t *s, double w_max) {
   const double h = d->voxel_size;
   double diag = sqrt((double)d->nx * d->nx + (double)d->ny * d->ny + (double)d->nz * d->nz);
   double pmax = 0.0;
+  if (P->dispersion) w_max *= 3.0; /* a photon carries 3x its channel's power (pm_disperse) */
   if (s->channels == 1) pmax = s->lights.power[0] + s->lights.power[1] + s->lights.power[2];
   else
     for (int c = 0; c < 3; c++) pmax = s->lights.power[c] > pmax ? s->lights.power[c] : pmax;
@@ -115,6 +116,7 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
   P->has_refraction = (bk_uint)s->has_refraction;
   P->homogeneous = (bk_uint)s->homogeneous;
   P->integrator = integrator_kind(scene->integrator)->device;
+  P->dispersion = vol->ior_rb != NULL;
   P->mode = PM_MODE_REFERENCE;
   set_scale(s, 1.0);
   return BK_OK;
@@ -184,12 +186,12 @@ int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t 
   t0 = bk_now_ms();
   rc = ph_prepare(scene, d, (uint64_t)scene->photon_count, scene->seed, &s->lights, err);
   if (rc != BK_OK) return rc;
-  s->channels = (s->grey && s->lights.one_colour) ? 1 : 3;
+  s->channels = (s->grey && s->lights.one_colour && !vol->ior_rb) ? 1 : 3;
   if (s->channels == 1) ph_make_grey(&s->lights);
   s->seed = scene->seed;
   pm_set_range(s, 0, s->lights.photons);
   /* what the march holds per voxel: n/∇n, the pyramid, σt, the counters */
-  size_t per_voxel = (s->has_refraction ? 4 * sizeof(float) + 1 : 0) +
+  size_t per_voxel = (s->has_refraction ? (vol->ior_rb ? 12 : 4) * sizeof(float) + 1 : 0) +
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
                      s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
                      (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0);

@@ -11,8 +11,8 @@
 /* n, then σt: which specialisations the volume allows. */
 static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, int *homogeneous,
                         int *grey) {
-  *has_refraction = 0;
-  for (size_t i = 1; i < count; i++)
+  *has_refraction = vol->ior_rb != NULL; /* dispersion: n differs between channels */
+  for (size_t i = 1; i < count && !*has_refraction; i++)
     if (vol->ior[i] != vol->ior[0]) {
       *has_refraction = 1;
       break;
@@ -90,10 +90,16 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
   const double h = d->voxel_size;
   if (s->has_refraction) {
     double t0 = bk_now_ms();
-    int rc = oct_build(d, vol->ior, &s->pyramid, err);
+    /* dispersion: constant where every channel's n is, a field per channel */
+    const size_t count = s->voxels;
+    const oct_source_t rgb[3] = {{vol->ior_rb, 1, 1}, {vol->ior, 1, 1},
+                                 {vol->ior_rb ? vol->ior_rb + count : NULL, 1, 1}};
+    int rc = vol->ior_rb ? oct_build_fields(d->nx, d->ny, d->nz, rgb, 3, OCT_HALO, &s->pyramid, err)
+                         : oct_build(d, vol->ior, &s->pyramid, err);
     if (rc != BK_OK) return rc;
     double t1 = bk_now_ms();
-    s->ng = fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
+    s->ng = vol->ior_rb ? fld_build_rgb(d->nx, d->ny, d->nz, h, vol->ior, vol->ior_rb, err)
+                        : fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
     if (!s->ng) return BK_ERR_RUNTIME;
     bk_log(2, "octree: pyramid %.0f ms, {grad n, n} field %.0f ms", t1 - t0, bk_now_ms() - t1);
   }
