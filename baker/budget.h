@@ -29,6 +29,9 @@ extern "C" {
 /* per voxel, the scatter grid of multiple scattering at most (σs RGB and g,
  * baker/bounces.h); counted unless photons.bounces is 0 */
 #define BUDGET_SCATTER_BYTES 16.0
+/* per voxel, the flux of an anisotropic medium (some g != 0, reference mode):
+ * 3 counters, the radiance_flux grid and phase_g (baker/march.h) */
+#define BUDGET_FLUX_BYTES 40.0
 
 typedef struct budget {
   grid_dims_t dims;

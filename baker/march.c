@@ -161,6 +161,7 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
   P->homogeneous = (bk_uint)s->homogeneous;
   P->integrator = integrator_kind(scene->integrator)->device;
   P->mode = PM_MODE_REFERENCE;
+  P->flux = (bk_uint)s->ms.hg; /* the view's anisotropic phase needs the flux */
   set_scale(s, 1.0);
   return BK_OK;
 }
@@ -228,7 +229,8 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   size_t per_voxel = (s->has_refraction ? 4 * sizeof(float) + 1 : 0) +
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
                      s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
-                     (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0);
+                     (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0) +
+                     (s->ms.hg ? 3 * (sizeof(uint64_t) + sizeof(float)) : 0);
   rc = grid_check_memory(d, per_voxel, scene->path, err);
   if (rc != BK_OK) return rc;
   double ms_generate = bk_now_ms() - t0;
@@ -326,6 +328,7 @@ int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_
                    "\"reference\"",
                    (unsigned long long)s->lights.photons, count_bits);
   P->mode = PM_MODE_TABLES;
+  P->flux = 0; /* the adaptive pipeline makes no radiance_flux (yet) */
   P->count_shift = (bk_uint)shift;
   P->weight_scale = (float)ldexp(1.0, (int)floor(log2(room)) > 24 ? 24 : (int)floor(log2(room)));
   s->tables = tables;
@@ -336,7 +339,7 @@ int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_
 size_t pm_acc_count(const pm_setup_t *s) {
   const pm_params *P = &s->params;
   if (P->mode == PM_MODE_ORIGINS) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
-  return s->voxels * (size_t)pm_acc_stride((int)P->mode, s->channels);
+  return s->voxels * ((size_t)pm_acc_stride((int)P->mode, s->channels) + (P->flux ? 3 : 0));
 }
 
 size_t pm_mask_count(const pm_setup_t *s) {
@@ -419,6 +422,27 @@ static void unpack_weights_range(void *arg, size_t lo, size_t hi) {
   }
 }
 
+/* quanta of the flux counters -> W m^-2 sr^-1 of luminance: one channel is
+ * coloured by to_radiance, three are weighted in the kernel (all three
+ * to_radiance equal then), so either way Σ lum_c to_radiance[c] */
+double pm_flux_scale(const pm_setup_t *s) {
+  static const double lum[3] = {0.2126, 0.7152, 0.0722}; /* pm_flux_weight's */
+  return lum[0] * s->to_radiance[0] + lum[1] * s->to_radiance[1] + lum[2] * s->to_radiance[2];
+}
+
+static void to_flux_range(void *arg, size_t lo, size_t hi) {
+  const pm_unpack_ctx_t *u = arg;
+  const int stride = pm_acc_stride((int)u->s->params.mode, u->s->channels);
+  const uint64_t *f = u->acc + u->s->voxels * (size_t)stride;
+  const double k = pm_flux_scale(u->s);
+  for (size_t i = 3 * lo; i < 3 * hi; i++) u->radiance[i] = (float)((double)(int64_t)f[i] * k);
+}
+
+void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux) {
+  pm_unpack_ctx_t u = {s, acc, flux, NULL, NULL};
+  bk_parallel(s->voxels, BK_GRAIN, to_flux_range, &u);
+}
+
 void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
                        float *mean_weight) {
   pm_unpack_ctx_t u = {s, acc, NULL, count, mean_weight};
@@ -432,6 +456,7 @@ void pm_sums_keep(const pm_setup_t *s, uint64_t *acc, pm_sums_t *out) {
   out->channels = s->channels;
   out->mode = (int)s->params.mode;
   out->stride = pm_acc_stride(out->mode, s->channels);
+  out->flux = (int)s->params.flux;
   memcpy(out->to_radiance, s->to_radiance, sizeof out->to_radiance);
   out->count_shift = s->params.count_shift;
   out->weight_scale = s->params.weight_scale;
@@ -445,6 +470,7 @@ void pm_sums_setup(const pm_sums_t *k, pm_setup_t *out) {
   out->params.channels = (bk_uint)k->channels;
   out->params.count_shift = k->count_shift;
   out->params.weight_scale = k->weight_scale;
+  out->params.flux = (bk_uint)k->flux;
   memcpy(out->to_radiance, k->to_radiance, sizeof out->to_radiance);
 }
 
@@ -494,7 +520,7 @@ int pm_bake_range(clh_context_t *cl, const scene_t *scene, const volume_t *vol, 
   if (rc != BK_OK) return rc;
   pm_set_range(&s, first, last);
   rc = BK_ERR_RUNTIME;
-  acc = bk_calloc(s.voxels, s.channels * sizeof(uint64_t), "march: radiance accumulator", err);
+  acc = bk_calloc(pm_acc_count(&s), sizeof(uint64_t), "march: radiance accumulator", err);
   if (!acc) goto error;
   double t0 = bk_now_ms();
   rc = cl ? pm_run_cl(cl, &s, acc, stats, err) : pm_run_host(&s, acc, stats, err);
@@ -536,7 +562,7 @@ error:
 /* Marches one photon with a path recorder, on a scratch accumulator. */
 static int trace(const pm_setup_t *s, const pm_params *P, const ph_light *lights, uint32_t index,
                  float *points, int max_points, int *count, pm_result *res, bk_error_t *err) {
-  uint64_t *scratch = bk_calloc(s->voxels, s->channels * sizeof(uint64_t), "march: trace scratch", err);
+  uint64_t *scratch = bk_calloc(pm_acc_count(s), sizeof(uint64_t), "march: trace scratch", err);
   if (!scratch) return BK_ERR_RUNTIME;
   pm_path_rec rec = {points, max_points, 0};
   pm_result r;

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "base/grid.h"
+#include "kernels/view_march.h"
 #include "vdbio.h"
 #include "view_camera.h"
 #include "view_fields.h"
@@ -27,6 +28,7 @@ void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err) {
 void view_volume_free(view_volume_t *v) {
   free(v->medium);
   free(v->sigma_t4);
+  free(v->aniso);
   free(v->ior);
   free(v->ng);
   oct_free(&v->npyr);
@@ -165,7 +167,7 @@ static int is_constant(const float *a, size_t n, int ch, float c[3]) {
   return 1;
 }
 
-enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_COUNT };
+enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_FLUX, G_PHG, G_COUNT };
 
 /* One file's grids while they are read and moved onto one box. */
 typedef struct view_load {
@@ -200,15 +202,16 @@ static int load_select(view_load_t *L, bk_error_t *err) {
   for (int g = 0; g < G_COUNT; g++) {
     if (idx[g] < 0) continue;
     const char *t = types[idx[g]];
-    int ok = g == G_RAD ? is_vec3_type(t)
-             : g == G_IOR ? is_scalar_type(t)
-                          : (is_scalar_type(t) || is_vec3_type(t));
+    int ok = g == G_RAD || g == G_FLUX ? is_vec3_type(t)
+             : g == G_IOR || g == G_PHG ? is_scalar_type(t)
+                                        : (is_scalar_type(t) || is_vec3_type(t));
     if (!ok)
       return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected %s", path,
                      L->gname[g], t,
-                     g == G_RAD   ? "Vec3f (vec3s) radiance"
-                     : g == G_IOR ? "float"
-                                  : "float or Vec3f");
+                     g == G_RAD                  ? "Vec3f (vec3s) radiance"
+                     : g == G_FLUX               ? "Vec3f (vec3s)"
+                     : g == G_IOR || g == G_PHG ? "float"
+                                                 : "float or Vec3f");
     L->present[g] = 1;
   }
   return BK_OK;
@@ -345,6 +348,42 @@ static int load_ior(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *e
   return BK_OK;
 }
 
+/* The anisotropy vector per voxel, A = g F / Y(L̄) in index space, |A| at
+ * most VIEW_ANISO_MAX (view_march.h): the asymmetry g·m of the phase lobe
+ * about F̂ (m = |F| / Y(L̄) the radiance's mean cosine) and its axis. Only
+ * with both radiance_flux and phase_g; the flux without g is ignored. */
+static int load_aniso(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
+  const float *F = L->arr[G_FLUX], *g = L->arr[G_PHG], *rad = L->arr[G_RAD];
+  if (!F || !g) {
+    if (F) bk_warn("%s: grid \"radiance_flux\" without \"phase_g\": in-scattering is shown "
+                   "isotropic", L->path);
+    return BK_OK;
+  }
+  double m[3][3]; /* world -> index, scaled back to unit length (a similarity) */
+  for (int r = 0; r < 3; r++)
+    for (int c = 0; c < 3; c++) m[r][c] = L->like.world_to_index[r][c] * L->scale;
+  if (!(v->aniso = view_alloc(nvox, 4 * sizeof(float), "view: anisotropy", err)))
+    return BK_ERR_RUNTIME;
+  for (size_t i = 0; i < nvox; i++) {
+    if (!(g[i] > -1.0f && g[i] < 1.0f))
+      return bk_fail(err, BK_ERR_INPUT, "%s: grid \"phase_g\" holds %g; expected -1 < g < 1",
+                     L->path, (double)g[i]);
+    const float *f = F + 3 * i, *l = rad + 3 * i;
+    double y = 0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2];
+    double a[3], len = 0.0;
+    for (int r = 0; r < 3; r++) {
+      a[r] = y > 0.0 ? g[i] * (m[r][0] * f[0] + m[r][1] * f[1] + m[r][2] * f[2]) / y : 0.0;
+      len += a[r] * a[r];
+    }
+    len = sqrt(len);
+    double k = len > VIEW_ANISO_MAX ? VIEW_ANISO_MAX / len : 1.0;
+    for (int r = 0; r < 3; r++) v->aniso[4 * i + r] = (float)(a[r] * k);
+    if (len > 0.0) v->anisotropic = 1;
+  }
+  if (!v->anisotropic) free(v->aniso), v->aniso = NULL;
+  return BK_OK;
+}
+
 /* Coefficients: σs absent -> σt; σt absent -> σs; both absent -> 0. */
 static int load_coefficients(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
   float **arr = L->arr;
@@ -401,7 +440,8 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
   memset(v, 0, sizeof *v);
   L.path = path;
   L.scale = 1.0;
-  const char *gname[G_COUNT] = {"radiance", "ior", "extinction", "scattering"};
+  const char *gname[G_COUNT] = {"radiance", "ior", "extinction", "scattering", "radiance_flux",
+                                "phase_g"};
   memcpy(L.gname, gname, sizeof gname);
 
   int rc = vdbio_list_grids(path, &L.names, &L.types, &L.count, err);
@@ -417,7 +457,9 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
     if (L.arr[g] && (rc = check_values(path, L.gname[g], L.arr[g], nvox * (size_t)L.ch[g],
                                        g == G_EXT || g == G_SCA, err)))
       goto error;
-  if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_medium(&L, v, nvox, err))) goto error;
+  if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_aniso(&L, v, nvox, err)) ||
+      (rc = load_medium(&L, v, nvox, err)))
+    goto error;
   /* the grids as read are packed now: free them before padding (peak memory) */
   for (int g = 0; g < G_COUNT; g++) free(L.arr[g]), L.arr[g] = NULL;
   if ((rc = view_fields_build(v, err))) goto error;

@@ -47,7 +47,16 @@
  *                     (consecutive deposits in the same voxel, the small
  *                     steps of a refractive region, count once). One packed
  *                     atomic per passage and none per extra deposit: the
- *                     slides lost time to atomics for exactly these data. */
+ *                     slides lost time to atomics for exactly these data.
+ *
+ * PM_FLUX (g != 0 somewhere, baker/bounces.c ms_decide): the accumulator
+ * also holds, after the voxels' counters, 3 signed counters per voxel (two's
+ * complement in the ulong atomics, order-independent like the others): the
+ * luminance-weighted deposit times the chord's unit direction, Σ Y·ℓ·ω with
+ * Y = Σ_c lum_c Φ_c (Rec. 709; the one channel itself when PM_CHANNELS is 1),
+ * the first moment of radiance next to radiance's zeroth (baker/march.h
+ * pm_to_flux). Not in PM_MODE_ORIGINS. Without the flag nothing of it is
+ * compiled. */
 #ifndef BAKER_MARCH_KERNEL_H
 #define BAKER_MARCH_KERNEL_H
 
@@ -100,6 +109,11 @@
 #ifndef PM_MODE
 #define PM_MODE PM_MODE_REFERENCE
 #endif
+#ifndef PM_FLUX
+#define PM_FLUX 0
+#endif
+#define PM_FLUX_COMPILED (PM_FLUX && PM_MODE != PM_MODE_ORIGINS)
+#define PM_FLUX_OF(P) (PM_FLUX_COMPILED)
 #define PM_HAS_REFRACTION(P) (HAS_REFRACTION)
 #define PM_HOMOGENEOUS(P) (HOMOGENEOUS)
 #define PM_INTEGRATOR(P) (INTEGRATOR)
@@ -115,6 +129,8 @@
 #define PM_INTEGRATOR(P) ((P)->integrator)
 #define PM_NCH(P) ((int)(P)->channels)
 #define PM_MODE_OF(P) ((int)(P)->mode)
+#define PM_FLUX_COMPILED 1
+#define PM_FLUX_OF(P) ((P)->flux && (P)->mode != PM_MODE_ORIGINS)
 /* The host path marches one photon at a time on one thread. */
 #define PM_ATOMIC_ADD(p, q) (*(p) += (q))
 /* Host-only path recording for tests (pm_trace_* in baker/march.h). */
@@ -150,7 +166,8 @@ typedef struct pm_params {
   bk_uint has_refraction; /* host path only: the device uses the -D flags */
   bk_uint homogeneous;
   bk_uint integrator;
-  int pad1, pad2, pad3;
+  bk_uint flux;          /* host path: PM_FLUX (the device uses the -D flag) */
+  int pad2, pad3;
   bk_uint mode;               /* PM_MODE_*: host path only (the device uses -D PM_MODE) */
   int coarse_shift;           /* pilot: deposits and marks at voxel >> coarse_shift */
   int cnx, cny, cnz;          /* pilot: the coarse grid */
@@ -183,6 +200,9 @@ typedef struct pm_photon {
 #if PM_MS_COMPILED
   ms_flight fl;     /* multiple scattering: this leg's free flight */
 #endif
+#if PM_FLUX_COMPILED
+  bk_v3 fdir;       /* PM_FLUX: the unit direction of the chord being deposited */
+#endif
 } pm_photon;
 
 /* Adds value (already multiplied by the fixed-point scale) to one counter,
@@ -191,6 +211,24 @@ BK_INLINE void pm_deposit(BK_GLOBAL bk_ulong *acc, float value) {
   bk_ulong q = (bk_ulong)(value + 0.5f);
   if (q) PM_ATOMIC_ADD(acc, q);
 }
+
+#if PM_FLUX_COMPILED
+/* PM_FLUX: a channel's weight in the flux's luminance (Rec. 709; one
+ * channel carries the sum of RGB, coloured by the host). */
+BK_INLINE float pm_flux_weight(int nch, int ch) {
+  return nch == 1 ? 1.0f : ch == 0 ? 0.2126f : ch == 1 ? 0.7152f : 0.0722f;
+}
+
+/* Adds y·d to the flux counters of a voxel: signed quanta, rounded to the
+ * nearest, in the ulongs' two's complement. */
+BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d) {
+  const float v[3] = {y * d.x, y * d.y, y * d.z};
+  for (int a = 0; a < 3; a++) {
+    bk_long q = (bk_long)(v[a] >= 0.0f ? v[a] + 0.5f : v[a] - 0.5f);
+    if (q) PM_ATOMIC_ADD(f + a, (bk_ulong)q);
+  }
+}
+#endif
 
 BK_INLINE bk_long pm_index(const bk_grid g, int i, int j, int k) {
   return (bk_long)i + (bk_long)g.nx * ((bk_long)j + (bk_long)g.ny * (bk_long)k);
@@ -240,18 +278,31 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
   }
 #endif
   float pmax = 0.0f;
+#if PM_FLUX_COMPILED
+  float lum = 0.0f; /* the luminance deposited, for the flux */
+#endif
   for (int ch = 0; ch < nch; ch++) {
     float sg, trans;
     if (PM_HOMOGENEOUS(P)) sg = P->sigma_t[ch];
     else sg = sigma[nch * idx + ch];
     float r = rc_atten(sg * seg, &trans);
     pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
+#if PM_FLUX_COMPILED
+    lum += pm_flux_weight(nch, ch) * ph->power[ch] * seg * r;
+#endif
 #if PM_MS_COMPILED
     ph->fl.deposit += ph->power[ch] * seg * r;
 #endif
     ph->power[ch] *= trans;
     pmax = ph->power[ch] > pmax ? ph->power[ch] : pmax;
   }
+#if PM_FLUX_COMPILED
+  if (PM_FLUX_OF(P)) {
+    const bk_grid g = P->grid;
+    const bk_long base = (bk_long)g.nx * (bk_long)g.ny * (bk_long)g.nz * (bk_long)stride;
+    pm_deposit_flux(acc + base + 3 * idx, lum * P->fixed_scale, ph->fdir);
+  }
+#endif
   ph->path += seg;
   ph->voxels++;
   return pmax < ph->threshold;
@@ -278,6 +329,9 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
   const bk_long stride[3] = {1, (bk_long)n[0], (bk_long)n[0] * (bk_long)n[1]};
   bk_long idx = pm_index(P->grid, c[0], c[1], c[2]), didx[3];
   if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) return PM_DDA_REACHED; /* v = 0: stays */
+#if PM_FLUX_COMPILED
+  ph->fdir = d;
+#endif
   for (int a = 0; a < 3; a++) {
     if (dv[a] > 0.0f) {
       stp[a] = 1;
@@ -411,6 +465,9 @@ BK_INLINE int pm_curved_step(const pm_params *P, BK_GLOBAL const float *ng,
   int r = PM_DDA_REACHED;
   if (rc_floori(x1.x) == ph->c[0] && rc_floori(x1.y) == ph->c[1] && rc_floori(x1.z) == ph->c[2]) {
     /* most steps of half a voxel stay in their voxel: no DDA set-up */
+#if PM_FLUX_COMPILED
+    if (len > 0.0f) ph->fdir = v3_scale(seg, 1.0f / len);
+#endif
     if (len > 0.0f &&
         pm_cross_voxel(P, sigma, acc, masks, ph, pm_index(g, ph->c[0], ph->c[1], ph->c[2]), ph->c, len))
       r = PM_DDA_ABSORBED;
