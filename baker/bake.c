@@ -242,6 +242,9 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   if (a->emission) grids[g++] = (vdbio_grid_t){"emission", VDBIO_VEC3, a->emission, 1, 0.0f};
   if (a->radiance_flux)
     grids[g++] = (vdbio_grid_t){"radiance_flux", VDBIO_VEC3, a->radiance_flux, 0, 0.0f};
+  if (a->radiance_uncollided)
+    grids[g++] =
+        (vdbio_grid_t){"radiance_uncollided", VDBIO_FLOAT, a->radiance_uncollided, 0, 0.0f};
   if (a->phase_g) grids[g++] = (vdbio_grid_t){"phase_g", VDBIO_FLOAT, a->phase_g, 0, 0.0f};
   if (a->photon_count)
     grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, a->photon_count, 0, 0.0f};
@@ -282,7 +285,7 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   }
   bake_arrays_t a = {vol->ior, j->extinction, vol->sigma_s, j->density, j->radiance, j->emission,
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
-                     j->scene.medium_ior, j->error.flux, NULL};
+                     j->scene.medium_ior, j->error.flux, j->error.uncollided, NULL};
   if (j->error.flux || j->shard.sums.flux) { /* a shard's flux is in its sums */
     if (!(j->phase_g = bake_phase_g(vol, j->scene.medium_g, err))) return err->code;
     a.phase_g = j->phase_g;
@@ -422,6 +425,7 @@ static void bake_job_free(bake_job_t *j) {
   shard_free(&j->shard);
   free(j->error.error_grid);
   free(j->error.flux);
+  free(j->error.uncollided);
   free(j->phase_g);
   clh_release(&j->cl);
   vox_free(&j->vol);

@@ -75,9 +75,10 @@ typedef struct bake_arrays {
   const float *photon_count, *photon_weight, *filter_radius;
   int sca_channels;
   float medium_ior;  /* the ior grid's background: n outside the box */
-  /* some g != 0: F = ∫ L_Y ω dω / (4π) (3 per voxel, baker/march.h
-   * pm_to_flux) and the Henyey–Greenstein g where σs > 0 (1 per voxel) */
-  const float *radiance_flux, *phase_g;
+  /* some g != 0: F = ∫ L_Y ω dω / (4π) (3 per voxel) and the uncollided
+   * Y(L̄) (1, baker/march.h pm_to_flux), the Henyey–Greenstein g where
+   * σs > 0 (1 per voxel) */
+  const float *radiance_flux, *radiance_uncollided, *phase_g;
 } bake_arrays_t;
 #define BAKE_MAX_GRIDS 14
 /* The grids of a frame in file order, as `baker bake` and `baker merge`

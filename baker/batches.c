@@ -334,8 +334,9 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
 static int make_flux(const pm_setup_t *s, const uint64_t *acc, bt_result_t *res, bk_error_t *err) {
   if (!s->params.flux) return BK_OK;
   res->flux = bk_calloc(s->voxels, 3 * sizeof(float), "radiance_flux grid", err);
-  if (!res->flux) return err->code;
-  pm_to_flux(s, acc, res->flux);
+  res->uncollided = bk_calloc(s->voxels, sizeof(float), "radiance_uncollided grid", err);
+  if (!res->flux || !res->uncollided) return err->code;
+  pm_to_flux(s, acc, res->flux, res->uncollided);
   return BK_OK;
 }
 

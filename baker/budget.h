@@ -30,8 +30,8 @@ extern "C" {
  * baker/bounces.h); counted unless photons.bounces is 0 */
 #define BUDGET_SCATTER_BYTES 16.0
 /* per voxel, the flux of an anisotropic medium (some g != 0, reference mode):
- * 3 counters, the radiance_flux grid and phase_g (baker/march.h) */
-#define BUDGET_FLUX_BYTES 40.0
+ * 4 counters, radiance_flux, radiance_uncollided and phase_g (baker/march.h) */
+#define BUDGET_FLUX_BYTES 52.0
 
 typedef struct budget {
   grid_dims_t dims;

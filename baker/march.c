@@ -230,7 +230,7 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
                      s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
                      (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0) +
-                     (s->ms.hg ? 3 * (sizeof(uint64_t) + sizeof(float)) : 0);
+                     (s->ms.hg ? PM_FLUX_SLOTS * (sizeof(uint64_t) + sizeof(float)) + 4 : 0);
   rc = grid_check_memory(d, per_voxel, scene->path, err);
   if (rc != BK_OK) return rc;
   double ms_generate = bk_now_ms() - t0;
@@ -339,7 +339,8 @@ int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_
 size_t pm_acc_count(const pm_setup_t *s) {
   const pm_params *P = &s->params;
   if (P->mode == PM_MODE_ORIGINS) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
-  return s->voxels * ((size_t)pm_acc_stride((int)P->mode, s->channels) + (P->flux ? 3 : 0));
+  return s->voxels *
+         ((size_t)pm_acc_stride((int)P->mode, s->channels) + (P->flux ? PM_FLUX_SLOTS : 0));
 }
 
 size_t pm_mask_count(const pm_setup_t *s) {
@@ -435,11 +436,15 @@ static void to_flux_range(void *arg, size_t lo, size_t hi) {
   const int stride = pm_acc_stride((int)u->s->params.mode, u->s->channels);
   const uint64_t *f = u->acc + u->s->voxels * (size_t)stride;
   const double k = pm_flux_scale(u->s);
-  for (size_t i = 3 * lo; i < 3 * hi; i++) u->radiance[i] = (float)((double)(int64_t)f[i] * k);
+  for (size_t i = lo; i < hi; i++) {
+    const uint64_t *q = f + PM_FLUX_SLOTS * i;
+    for (int a = 0; a < 3; a++) u->radiance[3 * i + a] = (float)((double)(int64_t)q[a] * k);
+    u->count[i] = (float)((double)q[3] * k);
+  }
 }
 
-void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux) {
-  pm_unpack_ctx_t u = {s, acc, flux, NULL, NULL};
+void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux, float *uncollided) {
+  pm_unpack_ctx_t u = {s, acc, flux, uncollided, NULL};
   bk_parallel(s->voxels, BK_GRAIN, to_flux_range, &u);
 }
 

@@ -171,7 +171,7 @@ static int add_sums(const merge_shard_t *sh, int n, const grid_dims_t *d, pm_sum
     return bk_fail(err, BK_ERR_INPUT, "%s: shard_sum_scales is not readable", sh[0].path);
   k->weight_scale = (float)ws;
   k->flux = meta_get(&sh[0], "shard_sum_flux") != NULL;
-  const int slots = k->stride + (k->flux ? 3 : 0);
+  const int slots = k->stride + (k->flux ? PM_FLUX_SLOTS : 0);
   int rc = grid_check_memory(d, (size_t)slots * (sizeof(uint64_t) + 3 * sizeof(float)),
                              sh[0].path, err);
   if (rc) return rc;
@@ -188,7 +188,8 @@ static int add_sums(const merge_shard_t *sh, int n, const grid_dims_t *d, pm_sum
       snprintf(name, sizeof name, f < 0 ? "shard_sum_%d" : "shard_flux_%d", f < 0 ? s : f);
       if (!(rc = vdbio_read_box(sh[i].path, name, d, 3, enc, err)) &&
           !(f < 0 ? shard_decode_add(enc, k->voxels, k->stride, s, k->acc)
-                  : shard_decode_add(enc, k->voxels, 3, f, k->acc + k->voxels * k->stride)))
+                  : shard_decode_add(enc, k->voxels, PM_FLUX_SLOTS, f,
+                                     k->acc + k->voxels * k->stride)))
         rc = bk_fail(err, BK_ERR_INPUT, "%s: grid %s holds values that are not sums of this "
                      "baker (a corrupt shard)", sh[i].path, name);
     }
@@ -202,13 +203,14 @@ typedef struct merge_out {
   int sca_channels;
   float medium_ior;
   float *ior, *extinction, *scattering, *density, *radiance, *emission, *count, *weight, *radius;
-  float *flux, *phase_g; /* the shards kept the flux (some g != 0) */
+  float *flux, *uncollided, *phase_g; /* the shards kept the flux (some g != 0) */
   ad_stats_t astats;
 } merge_out_t;
 
 static void merge_out_free(merge_out_t *o) {
   float *all[] = {o->ior,   o->extinction, o->scattering, o->density, o->radiance, o->emission,
-                  o->count, o->weight,     o->radius,     o->flux,    o->phase_g};
+                  o->count, o->weight,     o->radius,     o->flux,    o->uncollided,
+                  o->phase_g};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) free(all[i]);
 }
 
@@ -250,8 +252,10 @@ static int finish(const merge_shard_t *s, const pm_sums_t *k, merge_out_t *o, bk
     pm_sums_setup(k, &setup);
     pm_to_radiance(&setup, k->acc, o->radiance);
     if (!k->flux) return BK_OK;
-    if (!(o->flux = bk_calloc(n, 3 * sizeof(float), "radiance_flux grid", err))) return err->code;
-    pm_to_flux(&setup, k->acc, o->flux);
+    o->flux = bk_calloc(n, 3 * sizeof(float), "radiance_flux grid", err);
+    o->uncollided = bk_calloc(n, sizeof(float), "radiance_uncollided grid", err);
+    if (!o->flux || !o->uncollided) return err->code;
+    pm_to_flux(&setup, k->acc, o->flux, o->uncollided);
     if (!(o->phase_g = bk_calloc(n, sizeof(float), "phase_g grid", err))) return err->code;
     return vdbio_read_box(s->path, "phase_g", &o->dims, 1, o->phase_g, err);
   }
@@ -371,7 +375,7 @@ static int merge_run(merge_shard_t *sh, int n, const char *out_path, bk_error_t 
     bake_emission(o.scattering, o.sca_channels, o.radiance, sums.voxels, o.emission);
     bake_arrays_t a = {o.ior, o.extinction, o.scattering, o.density, o.radiance, o.emission,
                        o.count, o.weight, o.radius, o.sca_channels, o.medium_ior,
-                       o.flux, o.phase_g};
+                       o.flux, o.uncollided, o.phase_g};
     int count = bake_grid_list(&a, grids);
     int mc = merged_meta(sh, n, &o, &text, meta);
     vdbio_write_opts_t w = write_opts(text.settings);

@@ -99,7 +99,7 @@ int shard_decode_add(const float *in, size_t voxels, int stride, int slot, uint6
 int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids, int *count,
                 int max, bk_error_t *err) {
   const pm_sums_t *k = &sh->sums;
-  const int slots = k->stride + (k->flux ? 3 : 0);
+  const int slots = k->stride + (k->flux ? PM_FLUX_SLOTS : 0);
   if (k->stride < 1 || k->stride > SHARD_MAX_STRIDE || *count + slots > max)
     return bk_fail(err, BK_ERR_RUNTIME, "shard: %d counters per voxel do not fit the file",
                    slots);
@@ -109,7 +109,7 @@ int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids,
     sh->encoded[s] = bk_calloc(n, 3 * sizeof(float), "shard sum grid", err);
     if (!sh->encoded[s]) return err->code;
     if (f < 0) shard_encode(k->acc, n, k->stride, s, sh->encoded[s]);
-    else shard_encode(k->acc + n * (size_t)k->stride, n, 3, f, sh->encoded[s]);
+    else shard_encode(k->acc + n * (size_t)k->stride, n, PM_FLUX_SLOTS, f, sh->encoded[s]);
     snprintf(sh->names[s], sizeof sh->names[s], f < 0 ? "shard_sum_%d" : "shard_flux_%d",
              f < 0 ? s : f);
     grids[(*count)++] = (vdbio_grid_t){sh->names[s], VDBIO_VEC3, sh->encoded[s], 0, 0.0f};

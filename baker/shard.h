@@ -35,7 +35,7 @@
 
 #define SHARD_META_MAX 20 /* entries shard_meta adds, at most */
 #define SHARD_MAX_STRIDE 4 /* counters per voxel: 3 channels + packed count/weight */
-#define SHARD_MAX_SLOTS (SHARD_MAX_STRIDE + 3) /* and the flux's 3 (shard_flux_A) */
+#define SHARD_MAX_SLOTS (SHARD_MAX_STRIDE + PM_FLUX_SLOTS) /* and the flux's (shard_flux_A) */
 #define SHARD_MAX_COUNT 100000
 
 /* One shard's state between the march and the write. */

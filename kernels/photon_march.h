@@ -50,13 +50,15 @@
  *                     slides lost time to atomics for exactly these data.
  *
  * PM_FLUX (g != 0 somewhere, baker/bounces.c ms_decide): the accumulator
- * also holds, after the voxels' counters, 3 signed counters per voxel (two's
- * complement in the ulong atomics, order-independent like the others): the
- * luminance-weighted deposit times the chord's unit direction, Σ Y·ℓ·ω with
- * Y = Σ_c lum_c Φ_c (Rec. 709; the one channel itself when PM_CHANNELS is 1),
- * the first moment of radiance next to radiance's zeroth (baker/march.h
- * pm_to_flux). Not in PM_MODE_ORIGINS. Without the flag nothing of it is
- * compiled. */
+ * also holds, after the voxels' counters, PM_FLUX_SLOTS counters per voxel:
+ * 3 signed ones (two's complement in the ulong atomics, order-independent
+ * like the others), the luminance-weighted deposit times the chord's unit
+ * direction, Σ Y·ℓ·ω with Y = Σ_c lum_c Φ_c (Rec. 709; the one channel
+ * itself when PM_CHANNELS is 1), the first moment of radiance next to
+ * radiance's zeroth; and Σ Y·ℓ of the photons not scattered yet (a
+ * multiple-scattering chain's first leg; every deposit with bounces 0), the
+ * uncollided light (baker/march.h pm_to_flux). Not in PM_MODE_ORIGINS.
+ * Without the flag nothing of it is compiled. */
 #ifndef BAKER_MARCH_KERNEL_H
 #define BAKER_MARCH_KERNEL_H
 
@@ -88,6 +90,8 @@
 #define PM_FATE_LEFT 1       /* left the grid */
 #define PM_FATE_ABSORBED 2   /* power below PM_ABSORB_FRACTION */
 #define PM_FATE_STEP_LIMIT 3 /* PM_MAX_STEPS or PM_MAX_PATH_DIAGONALS */
+
+#define PM_FLUX_SLOTS 4 /* PM_FLUX: counters per voxel after the voxels' */
 
 #define PM_MODE_REFERENCE 0
 #define PM_MODE_ORIGINS 1
@@ -202,6 +206,7 @@ typedef struct pm_photon {
 #endif
 #if PM_FLUX_COMPILED
   bk_v3 fdir;       /* PM_FLUX: the unit direction of the chord being deposited */
+  bk_uint scattered; /* PM_FLUX: 0 on the light's own leg, 1 after a scattering event */
 #endif
 } pm_photon;
 
@@ -219,14 +224,16 @@ BK_INLINE float pm_flux_weight(int nch, int ch) {
   return nch == 1 ? 1.0f : ch == 0 ? 0.2126f : ch == 1 ? 0.7152f : 0.0722f;
 }
 
-/* Adds y·d to the flux counters of a voxel: signed quanta, rounded to the
- * nearest, in the ulongs' two's complement. */
-BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d) {
+/* Adds y·d to the flux counters of a voxel (signed quanta, rounded to the
+ * nearest, in the ulongs' two's complement), and y to the uncollided one
+ * while the photon has not scattered. */
+BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d, bk_uint scattered) {
   const float v[3] = {y * d.x, y * d.y, y * d.z};
   for (int a = 0; a < 3; a++) {
     bk_long q = (bk_long)(v[a] >= 0.0f ? v[a] + 0.5f : v[a] - 0.5f);
     if (q) PM_ATOMIC_ADD(f + a, (bk_ulong)q);
   }
+  if (!scattered) pm_deposit(f + 3, y);
 }
 #endif
 
@@ -300,7 +307,8 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
   if (PM_FLUX_OF(P)) {
     const bk_grid g = P->grid;
     const bk_long base = (bk_long)g.nx * (bk_long)g.ny * (bk_long)g.nz * (bk_long)stride;
-    pm_deposit_flux(acc + base + 3 * idx, lum * P->fixed_scale, ph->fdir);
+    pm_deposit_flux(acc + base + PM_FLUX_SLOTS * idx, lum * P->fixed_scale, ph->fdir,
+                    ph->scattered);
   }
 #endif
   ph->path += seg;
@@ -437,6 +445,9 @@ BK_INLINE int pm_start(const pm_params *P, BK_CONSTANT const ph_light *lights,
   ph->voxels = 0;
 #if PM_MS_COMPILED
   ph->fl.state = MS_IDLE;
+#endif
+#if PM_FLUX_COMPILED
+  ph->scattered = 0;
 #endif
   PM_RECORD(ph->x);
 #if !PH_DEVICE || HAS_REFRACTION

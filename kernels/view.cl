@@ -4,7 +4,7 @@
  * is computed: HAS_REFRACTION (n varies: curved rays, else straight),
  * INTEGRATOR (0 Euler, 1 RK4), GREY (grey σt, packed with S = σs L̄ in one
  * float4), HOMOGENEOUS (RGB σt constant, passed in the parameters), ANISO
- * (an anisotropic phase: the `aniso` field, absent otherwise). The
+ * (an anisotropic phase: the `aniso` and `aniso_s` fields, absent otherwise). The
  * defaults below only serve the device-less compile check. */
 #include "kernels/view_march.h"
 
@@ -28,7 +28,7 @@ __kernel void view_render(const view_params_t p, __global const float *medium,
                           __global const float *sigma_t, __global const float *ng,
                           __global const uchar *npyr, __global const uchar *mpyr,
                           __global float *rgba, __global uint *steps,
-                          __global const float *aniso) {
+                          __global const float *aniso, __global const float *aniso_s) {
   int px = (int)get_global_id(0), py = (int)get_global_id(1);
   if (px >= p.width || py >= p.height) return;
   view_fields f;
@@ -38,6 +38,7 @@ __kernel void view_render(const view_params_t p, __global const float *medium,
   f.npyr = npyr;
   f.mpyr = mpyr;
   f.aniso = aniso;
+  f.aniso_s = aniso_s;
   view_flags fl;
   fl.refraction = HAS_REFRACTION;
   fl.grey = GREY;

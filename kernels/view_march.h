@@ -31,14 +31,18 @@
  * A ray stops when it leaves the box or max(T) < VIEW_T_CUTOFF. Outside the
  * box the medium is empty.
  *
- * Anisotropic phase (flags.aniso, from `radiance_flux` and `phase_g`): the
- * radiance at a point is taken as a lobe of mean cosine m = |F| / Y(L̄)
- * about F̂, and the Henyey–Greenstein phase g convolved with it as an HG
- * lobe of asymmetry g·m about F̂ (exact in the first moment, for isotropic
- * radiance, m = 0, and for a parallel beam, m = 1). The field `aniso` holds
- * A = g F / Y(L̄) per voxel (index space, |A| = g·m <= VIEW_ANISO_MAX), so
+ * Anisotropic phase (flags.aniso, from `radiance_flux`, `phase_g` and
+ * `radiance_uncollided`): the radiance at a point is taken as the share
+ * u = Y0 / Y(L̄) of uncollided light, a beam along F̂, and the rest, a lobe
+ * of mean cosine m_s = (|F| / Y(L̄) − u) / (1 − u) about F̂. The Henyey–
+ * Greenstein phase g scatters the beam into an HG lobe g about F̂ and the
+ * rest, convolved, into an HG lobe of asymmetry g·m_s (exact in the first
+ * moment, and for single scattering of one light: u = 1; exact for every
+ * moment when the scattered light's lobe is HG-shaped). The fields hold per
+ * voxel (index space) aniso = {g F̂, u} and aniso_s = {g m_s F̂, 0}, so
  * toward the camera, i.e. along −d for a ray of direction d,
- *   S → S · 4π p_HG(|A|, Â·(−d)) = S (1 − |A|²) / (1 + |A|² + 2 A·d)^(3/2). */
+ *   S → S · (u P(g F̂) + (1 − u) P(g m_s F̂)),
+ *   P(A) = 4π p_HG(|A|, Â·(−d)) = (1 − |A|²) / (1 + |A|² + 2 A·d)^(3/2). */
 #ifndef BAKER_VIEW_MARCH_H
 #define BAKER_VIEW_MARCH_H
 
@@ -90,10 +94,11 @@ typedef struct view_fields {
   BK_GLOBAL const float *ng;              /* 4 per voxel: ∇n (per voxel length), n >= 1 */
   BK_GLOBAL const bk_uchar *npyr;         /* refraction: constant-block pyramid of n */
   BK_GLOBAL const bk_uchar *mpyr;         /* constant-block pyramid of S, σt (and A) */
-  BK_GLOBAL const float *aniso;           /* 4 per voxel: A = g F / Y(L̄), when fl.aniso */
+  BK_GLOBAL const float *aniso;           /* 4 per voxel: {g F̂, u}, when fl.aniso */
+  BK_GLOBAL const float *aniso_s;         /* 4 per voxel: {g m_s F̂, 0}, when fl.aniso */
 } view_fields;
 
-/* 4π p_HG(|A|, Â·(−d)): the source's factor toward a camera looking along d. */
+/* P(A) = 4π p_HG(|A|, Â·(−d)): a lobe's factor toward a camera looking along d. */
 BK_INLINE float view_phase_factor(bk_v3 a, bk_v3 d) {
   float k2 = v3_dot(a, a), den = 1.0f + k2 + 2.0f * v3_dot(a, d);
   return (1.0f - k2) / (den * RC_SQRT(den));
@@ -181,8 +186,9 @@ BK_INLINE void view_segment(const view_params_t *p, view_fields f, view_flags fl
   rc_f4 m = rc_gather4(n, f.medium, &t);
   bk_v3 src = v3(m.x, m.y, m.z);
   if (fl.aniso) {
-    rc_f4 a = rc_gather4(n, f.aniso, &t);
-    src = v3_scale(src, view_phase_factor(v3(a.x, a.y, a.z), d));
+    rc_f4 a = rc_gather4(n, f.aniso, &t), b = rc_gather4(n, f.aniso_s, &t);
+    src = v3_scale(src, a.w * view_phase_factor(v3(a.x, a.y, a.z), d) +
+                            (1.0f - a.w) * view_phase_factor(v3(b.x, b.y, b.z), d));
   }
   if (fl.grey) {
     float trans, wg = rc_atten(m.w * len, &trans);

@@ -288,9 +288,10 @@ static int test_object_g(void) {
 /* A 16³ cube of 1 m with g = 0.5 (so the march keeps radiance_flux) under a
  * directional light along dir; RGB absorption when rgb (three channels,
  * the flux weighted in the kernel), else grey (one). The raw sums, with
- * radiance and flux (3 floats per voxel each) filled from them. */
+ * radiance and flux (3 floats per voxel each) and the uncollided luminance
+ * (1) filled from them. */
 static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3], float *rad,
-                           float *flux) {
+                           float *flux, float *unc) {
   volume_t v;
   tv_alloc(&v, 16, 16, 16, 1.0f / 16, 0, 0, 0);
   const float ss[3] = {3.0f, 3.0f, 3.0f}, sa[3] = {0.1f, rgb ? 0.3f : 0.1f, rgb ? 0.9f : 0.1f};
@@ -312,7 +313,7 @@ static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float 
   int rc = cl ? pm_run_cl(cl, &setup, acc, NULL, &err) : pm_run_host(&setup, acc, NULL, &err);
   REQUIRE(rc == BK_OK, "march: %s", err.msg);
   pm_to_radiance(&setup, acc, rad);
-  pm_to_flux(&setup, acc, flux);
+  pm_to_flux(&setup, acc, flux, unc);
   pm_setup_free(&setup);
   tv_free(&v);
   return acc;
@@ -348,34 +349,39 @@ static int check_phase_factor(void) {
   return 0;
 }
 
-/* radiance_flux (march.h pm_to_flux). Single scattering of a parallel beam:
- * in every lit voxel F = Y(L̄) ω0 (mean cosine 1, the direction exact), RGB
- * and grey. Multiple scattering: |F| <= Y(L̄) everywhere, the net flux down
- * the beam. On OpenCL the signed fixed-point sums of two bakes are
+/* radiance_flux and radiance_uncollided (march.h pm_to_flux). Single
+ * scattering of a parallel beam: in every lit voxel F = Y(L̄) ω0 (mean
+ * cosine 1, the direction exact) and all of Y(L̄) uncollided, RGB and grey.
+ * Multiple scattering: |F| <= Y(L̄) everywhere, the net flux down the beam,
+ * the uncollided part of Y(L̄) between 0 and all of it, less deep down. On OpenCL the signed fixed-point sums of two bakes are
  * bit-identical whatever order the work-items' atomics came in. */
 static int test_flux(clh_context_t *cl) {
   const size_t n = 16 * 16 * 16;
   const float dir[3] = {0.3f, 0.2f, 1.0f};
   const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
   float *rad = calloc(3 * n, sizeof(float)), *flux = calloc(3 * n, sizeof(float));
-  REQUIRE(rad && flux, "out of memory");
+  float *unc = calloc(n, sizeof(float));
+  REQUIRE(rad && flux && unc, "out of memory");
   for (int rgb = 0; rgb < 2; rgb++) {
-    uint64_t *acc = flux_bake(cl, 0, rgb, dir, rad, flux);
-    double worst = 0.0;
+    uint64_t *acc = flux_bake(cl, 0, rgb, dir, rad, flux, unc);
+    double worst = 0.0, worst_u = 0.0;
     size_t lit = 0;
     for (size_t i = 0; i < n; i++) {
       double y = lum3(rad + 3 * i);
       if (!(y > 0.0)) continue;
       lit++;
       for (int a = 0; a < 3; a++) worst = fmax(worst, fabs(flux[3 * i + a] / y - w0[a]));
+      worst_u = fmax(worst_u, fabs(unc[i] / y - 1.0));
     }
-    printf("flux, single scattering (%s): %zu lit voxels, |F/Y(L) - w0| at most %.2e (limit "
-           "1e-4)\n", rgb ? "RGB" : "grey", lit, worst);
+    printf("flux, single scattering (%s): %zu lit voxels, |F/Y(L) - w0| at most %.2e, "
+           "|uncollided/Y(L) - 1| at most %.2e (limits 1e-4)\n", rgb ? "RGB" : "grey", lit,
+           worst, worst_u);
     REQUIRE(lit > n / 2 && worst < 1e-4, "beam flux off by %.3e", worst);
+    REQUIRE(worst_u < 1e-4, "uncollided share off by %.3e", worst_u);
     free(acc);
   }
-  uint64_t *acc = flux_bake(cl, 8, 0, dir, rad, flux);
-  double along = 0.0, ysum = 0.0, over = -1.0, ymax = 0.0;
+  uint64_t *acc = flux_bake(cl, 8, 0, dir, rad, flux, unc);
+  double along = 0.0, ysum = 0.0, over = -1.0, ymax = 0.0, usum = 0.0, umin = 1.0, uover = -1.0;
   for (size_t i = 0; i < n; i++) ymax = fmax(ymax, lum3(rad + 3 * i));
   for (size_t i = 0; i < n; i++) {
     const float *F = flux + 3 * i;
@@ -383,7 +389,14 @@ static int test_flux(clh_context_t *cl) {
     over = fmax(over, (f - y) / ymax); /* rounding: a few quanta, ~1e-12 of ymax */
     along += flux[3 * i] * w0[0] + flux[3 * i + 1] * w0[1] + flux[3 * i + 2] * w0[2];
     ysum += y;
+    usum += unc[i];
+    uover = fmax(uover, (unc[i] - y) / ymax);
+    if (y > 1e-3 * ymax) umin = fmin(umin, unc[i] / y);
   }
+  printf("uncollided, multiple scattering: %.3f of Y(L) in all, at least %.3f in a voxel, "
+         "max (uncollided - Y(L)) / max Y(L) = %.2e\n", usum / ysum, umin, uover);
+  REQUIRE(uover < 1e-6 && umin >= 0.0 && umin < 0.5 && usum / ysum > 0.2 && usum / ysum < 0.9,
+          "uncollided share %.3f (voxel minimum %.3f, above Y by %.2e)", usum / ysum, umin, uover);
   printf("flux, multiple scattering (g 0.5, 3 mean free paths): mean cosine along the beam "
          "%.3f, max (|F| - Y(L)) / max Y(L) = %.2e (limit 1e-6)\n", along / ysum, over);
   REQUIRE(over < 1e-6, "|F| exceeds Y(L) by %.3e of the largest Y(L)", over);
@@ -391,12 +404,13 @@ static int test_flux(clh_context_t *cl) {
   if (cl) {
     float *r2 = calloc(3 * n, sizeof(float)), *f2 = calloc(3 * n, sizeof(float));
     REQUIRE(r2 && f2, "out of memory");
-    uint64_t *again = flux_bake(cl, 8, 0, dir, r2, f2);
-    REQUIRE(memcmp(again, acc, n * 4 * sizeof *acc) == 0, "two OpenCL bakes' sums differ");
+    uint64_t *again = flux_bake(cl, 8, 0, dir, r2, f2, unc);
+    REQUIRE(memcmp(again, acc, n * (1 + PM_FLUX_SLOTS) * sizeof *acc) == 0,
+            "two OpenCL bakes' sums differ");
     printf("flux: two OpenCL bakes' sums bit-identical (the atomics' order does not matter)\n");
     free(again), free(r2), free(f2);
   }
-  free(acc), free(rad), free(flux);
+  free(acc), free(rad), free(flux), free(unc);
   return check_phase_factor();
 }
 
