@@ -33,7 +33,7 @@ typedef struct bake_job {
   pm_stats_t stats;
   ad_stats_t astats;
   bt_result_t error;
-  float *extinction, *density, *ext_grey, *sca_grey;
+  float *extinction, *density, *ext_grey, *sca_grey, *ior_rgb;
   float *radiance, *photon_count, *photon_weight, *filter_radius, *emission;
   float *phase_g; /* with error.flux: g where σs > 0 */
   shard_state_t shard;  /* --shard: the raw sums written instead of radiance */
@@ -238,6 +238,7 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   grids[g++] = (vdbio_grid_t){"extinction", medium, a->extinction, inv, 0.0f};
   grids[g++] = (vdbio_grid_t){"scattering", medium, a->scattering, inv, 0.0f};
   grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, a->density, 0, 0.0f};
+  if (a->ior_rgb) grids[g++] = (vdbio_grid_t){"ior_rgb", VDBIO_VEC3, a->ior_rgb, 0, a->medium_ior};
   if (a->radiance) grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, a->radiance, 1, 0.0f};
   if (a->emission) grids[g++] = (vdbio_grid_t){"emission", VDBIO_VEC3, a->emission, 1, 0.0f};
   if (a->radiance_flux)
@@ -253,6 +254,18 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   if (a->filter_radius)
     grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, a->filter_radius, 0, 0.0f};
   return g;
+}
+
+/* Dispersion: the `ior_rgb` grid, n per channel interleaved (R, G, B). */
+static float *ior_interleaved(const volume_t *vol, size_t n, bk_error_t *err) {
+  float *rgb = bk_calloc(n, 3 * sizeof(float), "ior_rgb grid", err);
+  if (!rgb) return NULL;
+  for (size_t i = 0; i < n; i++) {
+    rgb[3 * i] = vol->ior_rb[i];
+    rgb[3 * i + 1] = vol->ior[i];
+    rgb[3 * i + 2] = vol->ior_rb[n + i];
+  }
+  return rgb;
 }
 
 /* Stage 3: the grids of DESIGN.md §5 in file order (bake_grid_list), for a
@@ -285,7 +298,8 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   }
   bake_arrays_t a = {vol->ior, j->extinction, vol->sigma_s, j->density, j->radiance, j->emission,
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
-                     j->scene.medium_ior, j->error.flux, j->error.uncollided, NULL};
+                     j->scene.medium_ior, NULL, j->error.flux, j->error.uncollided, NULL};
+  if (vol->ior_rb && !(a.ior_rgb = j->ior_rgb = ior_interleaved(vol, n, err))) return err->code;
   if (j->error.flux || j->shard.sums.flux) { /* a shard's flux is in its sums */
     if (!(j->phase_g = bake_phase_g(vol, j->scene.medium_g, err))) return err->code;
     a.phase_g = j->phase_g;
@@ -416,6 +430,7 @@ static void bake_job_free(bake_job_t *j) {
   free(j->extinction);
   free(j->density);
   free(j->ext_grey);
+  free(j->ior_rgb);
   free(j->sca_grey);
   free(j->radiance);
   free(j->photon_count);

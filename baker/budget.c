@@ -22,6 +22,7 @@ int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *e
   b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
   b->per_voxel = (s->mode == MODE_ADAPTIVE ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES) +
                  (s->bounces != 0 ? BUDGET_SCATTER_BYTES : 0.0) +
+                 (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0) +
                  (s->mode != MODE_ADAPTIVE && budget_anisotropic(s) ? BUDGET_FLUX_BYTES : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
   return BK_OK;

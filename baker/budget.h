@@ -29,6 +29,9 @@ extern "C" {
 /* per voxel, the scatter grid of multiple scattering at most (σs RGB and g,
  * baker/bounces.h); counted unless photons.bounces is 0 */
 #define BUDGET_SCATTER_BYTES 16.0
+/* dispersion: two more fields {∇n, n} (32 bytes), the R and B planes of n
+ * and the interleaved ior_rgb grid written (20): counted, not measured */
+#define BUDGET_DISPERSION_BYTES 52.0
 /* per voxel, the flux of an anisotropic medium (some g != 0, reference mode):
  * 4 counters, radiance_flux, radiance_uncollided and phase_g (baker/march.h) */
 #define BUDGET_FLUX_BYTES 52.0

@@ -64,6 +64,20 @@ float *fld_build(int nx, int ny, int nz, double h, const float *ior, bk_error_t 
   return f;
 }
 
+float *fld_build_rgb(int nx, int ny, int nz, double h, const float *ior, const float *ior_rb,
+                     bk_error_t *err) {
+  const size_t pad = fld_padded_count(nx, ny, nz), count = (size_t)nx * ny * nz;
+  float *f = bk_calloc(3 * pad, 4 * sizeof(float), "field: n and grad n per channel", err);
+  if (!f) return NULL;
+  const float *n[3] = {ior_rb, ior, ior_rb + count};
+  for (int c = 0; c < 3; c++) {
+    fld_job_t job = {{nx, ny, nz}, h, n[c], f + 4 * pad * c};
+    bk_parallel((size_t)nz, 4, fld_slices, &job);
+    pad_faces(nx, ny, nz, job.f);
+  }
+  return f;
+}
+
 void fld_pad4(int nx, int ny, int nz, const float *src, float *dst) {
   const rc_dims d = {nx, ny, nz};
   for (int k = 0; k < nz; k++)

@@ -24,6 +24,12 @@ size_t fld_padded_count(int nx, int ny, int nz);
  * when out of memory. */
 float *fld_build(int nx, int ny, int nz, double h, const float *ior, bk_error_t *err);
 
+/* Dispersion: the fields of n_R, n_G, n_B one after the other (3
+ * fld_padded_count float4; kernels/photon_march.h pm_channel_field): G's n is
+ * ior, R's and B's the planes ior_rb and ior_rb + nx*ny*nz. */
+float *fld_build_rgb(int nx, int ny, int nz, double h, const float *ior, const float *ior_rb,
+                     bk_error_t *err);
+
 /* Copies an unpadded float4 field src (nx*ny*nz float4) into the padded
  * layout dst (fld_padded_count float4). */
 void fld_pad4(int nx, int ny, int nz, const float *src, float *dst);

@@ -56,8 +56,8 @@ double pm_scattered_share(const pm_stats_t *st) {
 /* n, then σt: which specialisations the volume allows. */
 static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, int *homogeneous,
                         int *grey) {
-  *has_refraction = 0;
-  for (size_t i = 1; i < count; i++)
+  *has_refraction = vol->ior_rb != NULL; /* dispersion: n differs between channels */
+  for (size_t i = 1; i < count && !*has_refraction; i++)
     if (vol->ior[i] != vol->ior[0]) {
       *has_refraction = 1;
       break;
@@ -84,6 +84,7 @@ static void set_scale(pm_setup_t *s, double w_max) {
   const double h = d->voxel_size;
   double diag = sqrt((double)d->nx * d->nx + (double)d->ny * d->ny + (double)d->nz * d->nz);
   double pmax = 0.0;
+  if (P->dispersion) w_max *= 3.0; /* a photon carries 3x its channel's power (pm_disperse) */
   if (s->channels == 1) pmax = s->lights.power[0] + s->lights.power[1] + s->lights.power[2];
   else
     for (int c = 0; c < 3; c++) pmax = s->lights.power[c] > pmax ? s->lights.power[c] : pmax;
@@ -122,10 +123,15 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
   const double h = d->voxel_size;
   if (s->has_refraction) {
     double t0 = bk_now_ms();
-    int rc = oct_build(d, vol->ior, &s->pyramid, err);
+    /* dispersion: constant where every channel's n is, a field per channel */
+    const size_t count = s->voxels;
+    const oct_source_t rgb[3] = {{vol->ior_rb, 1, 1}, {vol->ior, 1, 1}, {vol->ior_rb ? vol->ior_rb + count : NULL, 1, 1}};
+    int rc = vol->ior_rb ? oct_build_fields(d->nx, d->ny, d->nz, rgb, 3, OCT_HALO, &s->pyramid, err)
+                         : oct_build(d, vol->ior, &s->pyramid, err);
     if (rc != BK_OK) return rc;
     double t1 = bk_now_ms();
-    s->ng = fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
+    s->ng = vol->ior_rb ? fld_build_rgb(d->nx, d->ny, d->nz, h, vol->ior, vol->ior_rb, err)
+                        : fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
     if (!s->ng) return BK_ERR_RUNTIME;
     bk_log(2, "octree: pyramid %.0f ms, {grad n, n} field %.0f ms", t1 - t0, bk_now_ms() - t1);
     s->octree_enabled = 1;
@@ -160,6 +166,7 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
   P->has_refraction = (bk_uint)s->has_refraction;
   P->homogeneous = (bk_uint)s->homogeneous;
   P->integrator = integrator_kind(scene->integrator)->device;
+  P->dispersion = vol->ior_rb != NULL;
   P->mode = PM_MODE_REFERENCE;
   P->flux = (bk_uint)s->ms.hg; /* the view's anisotropic phase needs the flux */
   set_scale(s, 1.0);
@@ -221,12 +228,12 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   t0 = bk_now_ms();
   rc = ph_prepare(scene, d, (uint64_t)scene->photon_count, scene->seed, &s->lights, err);
   if (rc != BK_OK) return rc;
-  s->channels = (s->grey && s->lights.one_colour) ? 1 : 3;
+  s->channels = (s->grey && s->lights.one_colour && !vol->ior_rb) ? 1 : 3;
   if (s->channels == 1) ph_make_grey(&s->lights);
   s->seed = scene->seed;
   pm_set_range(s, 0, s->lights.photons);
   /* what the march holds per voxel: n/∇n, the pyramid, σt, the counters */
-  size_t per_voxel = (s->has_refraction ? 4 * sizeof(float) + 1 : 0) +
+  size_t per_voxel = (s->has_refraction ? (vol->ior_rb ? 12 : 4) * sizeof(float) + 1 : 0) +
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
                      s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
                      (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0) +

@@ -203,14 +203,15 @@ typedef struct merge_out {
   int sca_channels;
   float medium_ior;
   float *ior, *extinction, *scattering, *density, *radiance, *emission, *count, *weight, *radius;
+  float *ior_rgb; /* dispersion: the shards' n per channel */
   float *flux, *uncollided, *phase_g; /* the shards kept the flux (some g != 0) */
   ad_stats_t astats;
 } merge_out_t;
 
 static void merge_out_free(merge_out_t *o) {
-  float *all[] = {o->ior,   o->extinction, o->scattering, o->density, o->radiance, o->emission,
-                  o->count, o->weight,     o->radius,     o->flux,    o->uncollided,
-                  o->phase_g};
+  float *all[] = {o->ior,    o->extinction, o->scattering, o->density, o->radiance,
+                  o->emission, o->count,    o->weight,     o->radius,  o->ior_rgb,
+                  o->flux,   o->uncollided, o->phase_g};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) free(all[i]);
 }
 
@@ -221,8 +222,11 @@ static int read_medium(const merge_shard_t *s, merge_out_t *o, bk_error_t *err) 
   int count = 0, rc = vdbio_list_grids(s->path, &names, &types, &count, err);
   if (rc) return rc;
   o->sca_channels = 0;
-  for (int i = 0; i < count; i++)
+  int dispersion = 0;
+  for (int i = 0; i < count; i++) {
     if (!strcmp(names[i], "scattering")) o->sca_channels = strcmp(types[i], "float") ? 3 : 1;
+    dispersion |= !strcmp(names[i], "ior_rgb");
+  }
   vdbio_free_names(names, types, count);
   if (!o->sca_channels)
     return bk_fail(err, BK_ERR_INPUT, "%s: the shard has no scattering grid", s->path);
@@ -233,8 +237,8 @@ static int read_medium(const merge_shard_t *s, merge_out_t *o, bk_error_t *err) 
   const size_t n = grid_count(&o->dims), mc = (size_t)o->sca_channels;
   struct { const char *name; float **out; size_t ch; } g[] = {
       {"ior", &o->ior, 1}, {"extinction", &o->extinction, mc},
-      {"scattering", &o->scattering, mc}, {"density", &o->density, 1}};
-  for (size_t i = 0; i < sizeof g / sizeof g[0] && !rc; i++) {
+      {"scattering", &o->scattering, mc}, {"density", &o->density, 1}, {"ior_rgb", &o->ior_rgb, 3}};
+  for (size_t i = 0; i < sizeof g / sizeof g[0] - !dispersion && !rc; i++) {
     *g[i].out = bk_calloc(n, g[i].ch * sizeof(float), g[i].name, err);
     rc = *g[i].out ? vdbio_read_box(s->path, g[i].name, &o->dims, (int)g[i].ch, *g[i].out, err)
                    : BK_ERR_RUNTIME;
@@ -374,7 +378,7 @@ static int merge_run(merge_shard_t *sh, int n, const char *out_path, bk_error_t 
   if (!rc) {
     bake_emission(o.scattering, o.sca_channels, o.radiance, sums.voxels, o.emission);
     bake_arrays_t a = {o.ior, o.extinction, o.scattering, o.density, o.radiance, o.emission,
-                       o.count, o.weight, o.radius, o.sca_channels, o.medium_ior,
+                       o.count, o.weight, o.radius, o.sca_channels, o.medium_ior, o.ior_rgb,
                        o.flux, o.uncollided, o.phase_g};
     int count = bake_grid_list(&a, grids);
     int mc = merged_meta(sh, n, &o, &text, meta);

@@ -128,9 +128,62 @@ static int sc_array(const sc_ctx_t *c, const json_value_t *v, const char *path, 
   return BK_OK;
 }
 
+void scene_dispersion_rgb(float n_d, float abbe, float out[3]) {
+  const double C = 1.0 / (0.6563 * 0.6563), d = 1.0 / (0.5876 * 0.5876), F = 1.0 / (0.4861 * 0.4861);
+  const double B = ((double)n_d - 1.0) / ((double)abbe * (F - C)); /* Cauchy B, um^2 */
+  out[0] = (float)(n_d + B * (C - d));
+  out[1] = n_d;
+  out[2] = (float)(n_d + B * (F - d));
+}
+
+int scene_has_dispersion(const scene_t *s) {
+  for (int i = 0; i < s->object_count; i++) {
+    const scene_object_t *o = &s->objects[i];
+    if (scene_object_n(o, 0) != o->ior || scene_object_n(o, 2) != o->ior) return 1;
+  }
+  return 0;
+}
+
+float scene_object_n(const scene_object_t *o, int ch) {
+  return ch != 1 && o->ior_rgb[1] > 0.0f ? o->ior_rgb[ch] : o->ior;
+}
+
+/* "ior": a number, or [nR, nG, nB] (dispersion given per channel); "abbe":
+ * V_d > 0 with a number ior = n_d. */
+static int sc_object_ior(const sc_ctx_t *c, const json_value_t *v, const char *path,
+                         scene_object_t *o) {
+  char p[SC_KEY_MAX];
+  const json_value_t *n = json_object_get(v, "ior"), *abbe = json_object_get(v, "abbe");
+  int rc;
+  if (n && n->type == JSON_ARRAY) {
+    if (abbe)
+      return sc_fail(c, abbe, sc_key(p, path, "abbe"),
+                     "give either \"abbe\" or an array \"ior\" [nR, nG, nB], not both");
+    if ((rc = sc_floats(c, n, sc_key(p, path, "ior"), &R_IOR, 3, 0, o->ior_rgb))) return rc;
+    o->ior = o->ior_rgb[1];
+    return BK_OK;
+  }
+  if (n && n->type != JSON_NUMBER)
+    return sc_fail(c, n, sc_key(p, path, "ior"),
+                   "expected a number or an array [nR, nG, nB] of 3 numbers, found %s",
+                   json_type_phrase(n));
+  if ((rc = sc_opt_float(c, v, path, "ior", &R_IOR, &o->ior))) return rc;
+  if (!abbe) return BK_OK;
+  float V = 0.0f;
+  if ((rc = sc_float(c, abbe, sc_key(p, path, "abbe"), &R_POSITIVE, &V))) return rc;
+  scene_dispersion_rgb(o->ior, V, o->ior_rgb);
+  if (!(o->ior_rgb[0] >= 1.0f) || !(o->ior_rgb[2] <= 10.0f))
+    return sc_fail(c, abbe, p,
+                   "Abbe number %g with ior %g gives n = %g (red, 656.3 nm) to %g (blue, 486.1 nm), "
+                   "outside [1, 10]; expected a larger Abbe number",
+                   (double)V, (double)o->ior, (double)o->ior_rgb[0], (double)o->ior_rgb[2]);
+  return BK_OK;
+}
+
 static int sc_object_entry(const sc_ctx_t *c, const json_value_t *v, const char *path,
                            scene_object_t *o) {
-  static const char *const keys[] = {"mesh", "ior", "sigma_a", "sigma_s", "g", "transform", NULL};
+  static const char *const keys[] = {"mesh", "ior", "abbe", "sigma_a", "sigma_s", "g", "transform",
+                                     NULL};
   static const char *const tkeys[] = {"scale", "rotate_deg", "translate", NULL};
   char p[SC_KEY_MAX];
   const json_value_t *mesh, *t;
@@ -140,7 +193,7 @@ static int sc_object_entry(const sc_ctx_t *c, const json_value_t *v, const char 
   sc_check_keys(c, v, path, keys);
   if ((rc = sc_required(c, v, path, "mesh", &mesh)) ||
       (rc = sc_file(c, mesh, sc_key(p, path, "mesh"), o->mesh, o->where)) ||
-      (rc = sc_opt_float(c, v, path, "ior", &R_IOR, &o->ior)) ||
+      (rc = sc_object_ior(c, v, path, o)) ||
       (rc = sc_opt_floats(c, v, path, "sigma_a", &R_NONNEG, 3, 1, o->sigma_a)) ||
       (rc = sc_opt_floats(c, v, path, "sigma_s", &R_NONNEG, 3, 1, o->sigma_s)) ||
       (rc = sc_opt_float(c, v, path, "g", &R_HG, &o->g)))

@@ -35,7 +35,11 @@ typedef struct scene_vdb_ref {
 typedef struct scene_object {
   char mesh[SCENE_PATH_MAX]; /* resolved path */
   char where[SCENE_WHERE_MAX]; /* "scene.json:L:C: objects[i].mesh" */
-  float ior;                 /* >= 1 */
+  float ior;                 /* >= 1; n_d, the reference (green) channel */
+  /* n per channel R, G, B (G = ior): "ior": [nR, nG, nB], or from "abbe"
+   * (scene_dispersion_rgb); all 0 (the default) when not given: n = ior in
+   * every channel (scene_object_n) */
+  float ior_rgb[3];
   float sigma_a[3], sigma_s[3];
   float g;                   /* Henyey–Greenstein asymmetry of its medium, (-1, 1); default 0 */
   float scale[3];            /* "scale": number or [x,y,z]; default 1 */
@@ -113,6 +117,18 @@ typedef struct scene {
 void scene_defaults(scene_t *s);
 /* An object's defaults: ior 1.5, scale 1, nothing else. */
 void scene_object_defaults(scene_object_t *o);
+
+/* Dispersion (DESIGN §4 extension, README "Dispersion"): the channels are
+ * the Fraunhofer lines that define the Abbe number, R = C (656.3 nm),
+ * G = d (587.6 nm), B = F (486.1 nm), so n_G = n_d and n_B - n_R =
+ * (n_d - 1)/V_d exactly; n(λ) = A + B/λ² (Cauchy) splits that difference
+ * around n_d. */
+void scene_dispersion_rgb(float n_d, float abbe, float out[3]);
+/* 1 when an object's n differs between channels: the bake then carries n
+ * per channel (volume_t.ior_rb) and specialises its kernels (-DDISPERSION). */
+int scene_has_dispersion(const scene_t *s);
+/* n of object o in channel ch (0 R, 1 G, 2 B). */
+float scene_object_n(const scene_object_t *o, int ch);
 
 /* Loads and validates. On failure returns BK_ERR_INPUT (a missing or
  * unreadable scene file included: the user named it) or BK_ERR_RUNTIME (out of

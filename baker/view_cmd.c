@@ -70,7 +70,8 @@ void view_usage(FILE *out) {
           "Without --camera-pos/--look-at (or a scene camera) the camera frames the grid's\n"
           "bounding box from the -z side, slightly above. Grids: radiance (Vec3f, required),\n"
           "ior (float, default 1), extinction (float or Vec3f, else density, else equal\n"
-          "to scattering, else 0), scattering (float or Vec3f, default equal to extinction).\n"
+          "to scattering, else 0), scattering (float or Vec3f, default equal to extinction),\n"
+          "ior_rgb (Vec3f, n per channel: each channel's rays bend by their own n).\n"
           "Exit status: 0 success, 2 bad input or usage, 1 runtime failure.\n",
           VIEW_DEFAULT_FOV, VIEW_DEFAULT_WIDTH, VIEW_DEFAULT_HEIGHT, VIEW_DEFAULT_STEP);
 }

@@ -20,10 +20,12 @@ static int pad_field(const view_volume_t *v, float **a, bk_error_t *err) {
 
 /* n and its constant blocks, exactly as the photon march sees them. */
 static int build_refraction(view_volume_t *v, bk_error_t *err) {
-  const oct_source_t n = {v->ior, 1, 1};
-  v->ng = fld_build(v->nx, v->ny, v->nz, v->voxel_size, v->ior, err);
+  const size_t count = (size_t)v->nx * v->ny * v->nz;
+  const oct_source_t n[3] = {{v->ior, 1, 1}, {v->ior_rb, 1, 1}, {v->ior_rb ? v->ior_rb + count : NULL, 1, 1}};
+  v->ng = v->ior_rb ? fld_build_rgb(v->nx, v->ny, v->nz, v->voxel_size, v->ior, v->ior_rb, err)
+                    : fld_build(v->nx, v->ny, v->nz, v->voxel_size, v->ior, err);
   if (!v->ng) return BK_ERR_RUNTIME;
-  return oct_build_fields(v->nx, v->ny, v->nz, &n, 1, OCT_HALO, &v->npyr, err);
+  return oct_build_fields(v->nx, v->ny, v->nz, n, v->ior_rb ? 3 : 1, OCT_HALO, &v->npyr, err);
 }
 
 int view_fields_build(view_volume_t *v, bk_error_t *err) {

@@ -117,7 +117,7 @@ static int render_host(const view_volume_t *v, const view_params_t *p, int integ
   const view_fields f = {v->medium,     v->sigma_t4, v->ng,     v->npyr.level,
                          v->mpyr.level, v->aniso,    v->aniso_s};
   const view_flags fl = {v->refraction, v->sigma_ch == 1, integrator, v->homogeneous,
-                         v->aniso != NULL};
+                         v->ior_rb != NULL, v->aniso != NULL};
   double t0 = bk_now_ms(), c0 = cpu_ms();
   bk_progress_t prog;
   bk_progress_begin(&prog, "view: marching (host)", (uint64_t)p->height);
@@ -145,8 +145,9 @@ static int build_kernel(view_gpu_t *g, const view_volume_t *v, int integrator,
   int rc;
   char opts[256];
   snprintf(opts, sizeof opts,
-           "-DHAS_REFRACTION=%d -DINTEGRATOR=%d -DGREY=%d -DHOMOGENEOUS=%d%s", v->refraction,
-           integrator, v->sigma_ch == 1, v->homogeneous, v->aniso ? " -DANISO=1" : "");
+           "-DHAS_REFRACTION=%d -DINTEGRATOR=%d -DGREY=%d -DHOMOGENEOUS=%d%s%s", v->refraction,
+           integrator, v->sigma_ch == 1, v->homogeneous, v->ior_rb ? " -DDISPERSION=1" : "",
+           v->aniso ? " -DANISO=1" : "");
   if (!g->kernel || strcmp(opts, g->options) != 0) {
     if (g->kernel) clReleaseKernel(g->kernel), g->kernel = NULL;
     if (g->program) clReleaseProgram(g->program), g->program = NULL;
@@ -174,7 +175,8 @@ static int upload(view_gpu_t *g, const view_volume_t *v, const view_params_t *p,
   if (!(b[0] = make_buffer(g, v->medium, npad * 4 * sizeof(float), ro, "medium", err)) ||
       !(b[1] = make_buffer(g, v->sigma_t4, v->sigma_t4 ? npad * 4 * sizeof(float) : 16, ro,
                            "extinction", err)) ||
-      !(b[2] = make_buffer(g, v->ng, v->ng ? npad * 4 * sizeof(float) : 16, ro, "ior", err)) ||
+      !(b[2] = make_buffer(g, v->ng, v->ng ? npad * 4 * sizeof(float) * (v->ior_rb ? 3 : 1) : 16,
+                           ro, "ior", err)) ||
       !(b[3] = make_buffer(g, v->npyr.level, pyr_bytes(&v->npyr), ro, "constant blocks of n", err)) ||
       !(b[4] = make_buffer(g, v->mpyr.level, pyr_bytes(&v->mpyr), ro, "constant blocks", err)) ||
       !(b[5] = make_buffer(g, NULL, npix * 4 * sizeof(float), CL_MEM_WRITE_ONLY, "image", err)) ||

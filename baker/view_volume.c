@@ -31,6 +31,7 @@ void view_volume_free(view_volume_t *v) {
   free(v->aniso);
   free(v->aniso_s);
   free(v->ior);
+  free(v->ior_rb);
   free(v->ng);
   oct_free(&v->npyr);
   oct_free(&v->mpyr);
@@ -168,7 +169,7 @@ static int is_constant(const float *a, size_t n, int ch, float c[3]) {
   return 1;
 }
 
-enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_FLUX, G_PHG, G_UNC, G_COUNT };
+enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_IOR_RGB, G_FLUX, G_PHG, G_UNC, G_COUNT };
 
 /* One file's grids while they are read and moved onto one box. */
 typedef struct view_load {
@@ -203,16 +204,17 @@ static int load_select(view_load_t *L, bk_error_t *err) {
   for (int g = 0; g < G_COUNT; g++) {
     if (idx[g] < 0) continue;
     const char *t = types[idx[g]];
-    int ok = g == G_RAD || g == G_FLUX ? is_vec3_type(t)
+    int ok = g == G_RAD || g == G_IOR_RGB || g == G_FLUX ? is_vec3_type(t)
              : g == G_IOR || g == G_PHG || g == G_UNC ? is_scalar_type(t)
-                                        : (is_scalar_type(t) || is_vec3_type(t));
+                                                        : (is_scalar_type(t) || is_vec3_type(t));
     if (!ok)
       return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected %s", path,
                      L->gname[g], t,
-                     g == G_RAD                  ? "Vec3f (vec3s) radiance"
-                     : g == G_FLUX               ? "Vec3f (vec3s)"
+                     g == G_RAD                               ? "Vec3f (vec3s) radiance"
+                     : g == G_IOR_RGB                         ? "Vec3f (vec3s) n per channel"
+                     : g == G_FLUX                            ? "Vec3f (vec3s)"
                      : g == G_IOR || g == G_PHG || g == G_UNC ? "float"
-                                                 : "float or Vec3f");
+                                                              : "float or Vec3f");
     L->present[g] = 1;
   }
   return BK_OK;
@@ -289,8 +291,9 @@ static int load_box(view_load_t *L, view_volume_t *v, bk_error_t *err) {
     like->nz = n[2];
   }
   grid_dims_t gd = {like->nx, like->ny, like->nz, (float)L->scale, {0, 0, 0}};
-  /* peak: the grids as read (up to 10 floats), ng, medium, σt and a padded copy */
-  return grid_check_memory(&gd, 24 * sizeof(float), L->path, err);
+  /* peak: the grids as read (up to 10 floats), ng, medium, σt and a padded copy;
+   * dispersion: ior_rgb as read, two planes of n and two more fields */
+  return grid_check_memory(&gd, (L->present[G_IOR_RGB] ? 37 : 24) * sizeof(float), L->path, err);
 }
 
 /* Every grid onto the like box: copied when aligned, else resampled. */
@@ -346,6 +349,27 @@ static int load_ior(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *e
     v->n_max = n > v->n_max ? n : v->n_max;
   }
   v->refraction = v->n_max - v->n_min > VIEW_N_EPS;
+  return BK_OK;
+}
+
+/* Dispersion: n per channel from `ior_rgb` (below 1 raised to 1, as n), G
+ * replacing `ior`; a grid whose channels agree everywhere changes nothing. */
+static int load_ior_rgb(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
+  const float *rgb = L->arr[G_IOR_RGB];
+  size_t i = 0;
+  while (rgb && i < nvox && rgb[3 * i] == rgb[3 * i + 1] && rgb[3 * i + 2] == rgb[3 * i + 1]) i++;
+  if (!rgb || i == nvox) return BK_OK;
+  if ((!v->ior && !(v->ior = view_alloc(nvox, sizeof(float), "view: ior", err))) ||
+      !(v->ior_rb = view_alloc(nvox, 2 * sizeof(float), "view: ior per channel", err)))
+    return BK_ERR_RUNTIME;
+  for (i = 0; i < nvox; i++)
+    for (int c = 0; c < 3; c++) {
+      float n = rgb[3 * i + c] < 1.0f ? 1.0f : rgb[3 * i + c];
+      *(c == 1 ? v->ior + i : v->ior_rb + (c / 2) * nvox + i) = n;
+      v->n_min = n < v->n_min ? n : v->n_min;
+      v->n_max = n > v->n_max ? n : v->n_max;
+    }
+  v->refraction = 1;
   return BK_OK;
 }
 
@@ -459,8 +483,9 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
   memset(v, 0, sizeof *v);
   L.path = path;
   L.scale = 1.0;
-  const char *gname[G_COUNT] = {"radiance", "ior", "extinction", "scattering", "radiance_flux",
-                                "phase_g", "radiance_uncollided"};
+  const char *gname[G_COUNT] = {"radiance",      "ior",     "extinction",         "scattering",
+                                "ior_rgb",       "radiance_flux", "phase_g",
+                                "radiance_uncollided"};
   memcpy(L.gname, gname, sizeof gname);
 
   int rc = vdbio_list_grids(path, &L.names, &L.types, &L.count, err);
@@ -476,7 +501,8 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
     if (L.arr[g] && (rc = check_values(path, L.gname[g], L.arr[g], nvox * (size_t)L.ch[g],
                                        g == G_EXT || g == G_SCA, err)))
       goto error;
-  if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_aniso(&L, v, nvox, err)) ||
+  if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_ior_rgb(&L, v, nvox, err)) ||
+      (rc = load_aniso(&L, v, nvox, err)) ||
       (rc = load_medium(&L, v, nvox, err)))
     goto error;
   /* the grids as read are packed now: free them before padding (peak memory) */

@@ -34,6 +34,8 @@ typedef struct view_volume {
   int homogeneous;             /* RGB σt constant: st_const */
   float st_const[3];
   float *ior;                  /* NULL: n = 1 */
+  float *ior_rb;               /* dispersion (an `ior_rgb` grid whose channels differ): n of R,
+                                * then of B, a plane each (ior is G's); ng then holds 3 fields */
   float *ng;                   /* refraction only: the padded {∇n, n} field (baker/field.h) */
   int refraction;
   float n_min, n_max;

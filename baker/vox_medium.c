@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "base/parallel.h"
 #include "vdbio.h"
@@ -96,7 +97,20 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
     bk_parallel(count, BK_GRAIN, fill_sigma_range, &f);
   }
 
+  if (rc == BK_OK && scene_has_dispersion(scene)) { /* the medium's n in every channel */
+    if (!(out->ior_rb = bk_calloc(count, 2 * sizeof(float), "voxelize: ior per channel", err)))
+      return BK_ERR_RUNTIME;
+    memcpy(out->ior_rb, out->ior, count * sizeof(float));
+    memcpy(out->ior_rb + count, out->ior, count * sizeof(float));
+  }
 error:
   free(density);
   return rc;
+}
+
+void vox_blend_dispersion(const scene_object_t *obj, float w, size_t gv, size_t plane, float *rb) {
+  for (int p = 0; p < 2; p++) {
+    float n = scene_object_n(obj, 2 * p), *x = rb + p * plane + gv;
+    *x = w >= 1.0f ? n : *x + w * (n - *x);
+  }
 }

@@ -6,12 +6,17 @@
  * 1 raised to 1 (a warning says how many); sigma_s and sigma_a are the
  * constants, scaled voxel by voxel by density_vdb where one is given
  * (negative densities set to 0). Non-finite values in either grid are input
- * errors naming the grid and the voxel. */
+ * errors naming the grid and the voxel. A dispersive scene also gets the R
+ * and B planes of n (volume_t.ior_rb), the medium's n in both. */
 #ifndef BAKER_VOX_MEDIUM_H
 #define BAKER_VOX_MEDIUM_H
 
 #include "voxelize.h"
 
 int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err);
+
+/* Dispersion: composites object obj's R and B n with weight w at voxel gv
+ * over the planes rb (plane floats apart), as voxelize composites n. */
+void vox_blend_dispersion(const scene_object_t *obj, float w, size_t gv, size_t plane, float *rb);
 
 #endif

@@ -71,7 +71,6 @@ static int cell_to(float v, int lo, int hi) {
 }
 
 /* --- distance ---------------------------------------------------------------- */
-
 static float dot3(const float a[3], const float b[3]) {
   return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
@@ -163,7 +162,6 @@ static void vox_distance(const mesh_tris_t *m, const vox_region_t *r, float band
 }
 
 /* --- inside test --------------------------------------------------------------- */
-
 /* Edge function of edge a->b at p: twice the signed area of (a, b, p),
  * evaluated with the endpoints in a canonical order so that the two triangles
  * sharing an edge get exactly opposite values (watertight ray tests). Not
@@ -356,7 +354,6 @@ error:
 }
 
 /* --- compositing --------------------------------------------------------------- */
-
 /* Composites one object over the volume: x += w (x_object - x). */
 static void vox_blend(const scene_object_t *obj, const vox_region_t *r, float band, float smoothing,
                       const float *dist2, const signed char *vote, volume_t *out) {
@@ -378,6 +375,7 @@ static void vox_blend(const scene_object_t *obj, const vox_region_t *r, float ba
         if (w <= 0.0f) continue;
         float *s = out->sigma_s + 3 * gv, *a = out->sigma_a + 3 * gv;
         if (out->g) out->g[gv] = w >= 1.0f ? obj->g : out->g[gv] + w * (obj->g - out->g[gv]);
+        if (out->ior_rb) vox_blend_dispersion(obj, w, gv, grid_count(d), out->ior_rb);
         if (w >= 1.0f) { /* exactly the object's values, so interiors stay homogeneous */
           out->ior[gv] = obj->ior;
           for (int ch = 0; ch < 3; ch++) {
@@ -487,7 +485,8 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
     if (scene->objects[i].g != scene->medium_g) g_grid = 1;
   size_t per_voxel = VOX_BYTES_PER_VOXEL + (g_grid ? sizeof(float) : 0) +
                      (scene->object_count > 0 ? VOX_SCRATCH_BYTES : 0) +
-                     (scene->density_vdb.present ? sizeof(float) : 0);
+                     (scene->density_vdb.present ? sizeof(float) : 0) +
+                     (scene_has_dispersion(scene) ? 2 * sizeof(float) : 0);
   rc = grid_check_memory(d, per_voxel, grid_where, err);
   if (rc) return rc;
 
@@ -695,5 +694,6 @@ void vox_free(volume_t *v) {
   free(v->sigma_s);
   free(v->sigma_a);
   free(v->g);
-  v->ior = v->sigma_s = v->sigma_a = v->g = NULL;
+  free(v->ior_rb);
+  v->ior = v->sigma_s = v->sigma_a = v->g = v->ior_rb = NULL;
 }

@@ -23,7 +23,9 @@
  * inside and blends smoothly at its surface (list a bubble after the glass
  * around it). The medium is constant; ior_vdb replaces its n (values below 1,
  * e.g. a zero background, are raised to 1 with a warning) and density_vdb
- * scales its sigma_s and sigma_a voxel by voxel. */
+ * scales its sigma_s and sigma_a voxel by voxel. A dispersive scene's
+ * objects composite their n per channel the same way (ior_rb); the medium's
+ * n is the same in every channel. */
 #ifndef BAKER_VOXELIZE_H
 #define BAKER_VOXELIZE_H
 
@@ -40,6 +42,10 @@ typedef struct volume {
   float *sigma_s;  /* 3 per voxel (RGB, interleaved), 1/m */
   float *sigma_a;  /* 3 per voxel */
   float *g;        /* Henyey–Greenstein g per voxel; NULL: the medium's everywhere */
+  /* dispersion (scene_has_dispersion): n of the R channel, then of B, one
+   * plane of grid_count floats each, composited like ior (which is G's);
+   * NULL otherwise */
+  float *ior_rb;
   /* What the scene contains, for kernel specialisation (DESIGN §3). */
   int has_refraction;  /* n varies somewhere */
   int homogeneous;     /* sigma_s and sigma_a the same in every voxel */

@@ -91,6 +91,7 @@ int nvdbio_load_grid(const char *path, const char *where, const char *grid_name,
                    grid_name, list.empty() ? "none" : list.c_str());
   }
   try {
+    vdbio_trees_next();
     nanovdb::GridHandle<nanovdb::HostBuffer> h = nanovdb::io::readGrid(path, grid_name);
     grid = nanovdb::nanoToOpenVDB(h);
   } catch (const std::exception &e) {

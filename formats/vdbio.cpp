@@ -152,6 +152,8 @@ static int vdbio_read_grid(vdb::io::File &file, const char *path, const char *wh
                    vdbio_prefix(path, where).c_str(), grid_name, vdbio_grid_list(file).c_str());
   }
   try {
+    file.readGridMetadata(grid_name); /* under the parse limit: vdbio_trees_next */
+    vdbio_trees_next();
     grid = file.readGrid(grid_name);
   } catch (const std::bad_alloc &) {
     throw;

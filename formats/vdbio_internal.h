@@ -25,6 +25,13 @@ int nvdbio_list(const char *path, std::vector<std::string> &names,
 int nvdbio_load_grid(const char *path, const char *where, const char *grid_name,
                      openvdb::GridBase::Ptr &grid, int *found, bk_error_t *err);
 
+/* Called by every reader between the metadata it parses and the trees it
+ * reads. In an isolated reader's child (vdbio_isolate.cpp) it raises the
+ * memory limit from the parse limit to the read limit; elsewhere it does
+ * nothing. Metadata is small in every good file, so a corrupt length field
+ * there fails at once instead of filling all the memory there is. */
+void vdbio_trees_next(void);
+
 /* Opens `path` fully (no delayed loading) after checking its layout;
  * BK_ERR_INPUT when it is missing, not a VDB file or truncated. */
 int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_error_t *err);

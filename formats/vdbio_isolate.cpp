@@ -16,7 +16,11 @@
  * Limits. Memory: what this process can still hold (MemAvailable, at least
  * ISO_MIN_MEMORY) plus ISO_AS_SLACK for address space that is reserved but
  * not used (the libraries' mappings, thread stacks, malloc arenas); never
- * above the limit the parent already runs under. Not set under
+ * above the limit the parent already runs under. Until the reader has parsed
+ * the metadata (vdbio_trees_next), a tighter parse limit holds: the address
+ * space at the fork plus ISO_AS_SLACK, ISO_PARSE_MEMORY and the file's size.
+ * A corrupt metadata string length (2 GB in an 165 KB file) once made OpenVDB
+ * fill 13.5 GB before failing; under the parse limit it fails at once. Not set under
  * AddressSanitizer, whose shadow memory needs terabytes of address space.
  * Time: ISO_BASE_SECONDS plus one second per ISO_BYTES_PER_SECOND of file
  * (zip decodes faster than 10 MB/s of input on any machine we know).
@@ -51,6 +55,7 @@
 #define ISO_AS_SLACK (1ull << 30)      /* reserved, unused address space (see above) */
 #define ISO_BASE_SECONDS 60u           /* process start, OpenVDB's initialize, TBB */
 #define ISO_BYTES_PER_SECOND (10u << 20)
+#define ISO_PARSE_MEMORY (256ull << 20) /* metadata, descriptors, transforms */
 
 /* --- the pipe ------------------------------------------------------------------ */
 
@@ -117,22 +122,35 @@ static uint64_t iso_mem_available(void) {
   return (uint64_t)kb * 1024u;
 }
 
-static unsigned iso_seconds(const char *path) {
+static uint64_t iso_file_size(const char *path) {
   struct stat st;
-  const uint64_t size = stat(path, &st) == 0 ? (uint64_t)st.st_size : 0;
-  return ISO_BASE_SECONDS + (unsigned)(size / ISO_BYTES_PER_SECOND);
+  return stat(path, &st) == 0 ? (uint64_t)st.st_size : 0;
+}
+
+/* This process's address space now (VmSize), which the child starts with. */
+static uint64_t iso_address_space(void) {
+  FILE *f = fopen("/proc/self/statm", "r");
+  unsigned long long pages = 0;
+  if (f) {
+    if (fscanf(f, "%llu", &pages) != 1)
+      pages = 0;
+    fclose(f);
+  }
+  return (uint64_t)pages * (uint64_t)sysconf(_SC_PAGESIZE);
 }
 
 /* The child's limits; computed in the parent (no allocation after fork). */
 struct iso_limits {
   uint64_t memory; /* 0: none */
+  uint64_t parse_memory; /* until vdbio_trees_next; 0: none */
   unsigned seconds;
 };
 
 static iso_limits iso_limits_for(const char *path) {
   iso_limits l;
-  l.seconds = iso_seconds(path);
-  l.memory = 0;
+  const uint64_t size = iso_file_size(path);
+  l.seconds = ISO_BASE_SECONDS + (unsigned)(size / ISO_BYTES_PER_SECOND);
+  l.memory = l.parse_memory = 0;
 #ifndef ISO_ASAN
   uint64_t avail = iso_mem_available();
   if (avail) {
@@ -141,9 +159,24 @@ static iso_limits iso_limits_for(const char *path) {
     if (getrlimit(RLIMIT_AS, &cur) == 0 && cur.rlim_cur != RLIM_INFINITY &&
         (uint64_t)cur.rlim_cur < l.memory)
       l.memory = (uint64_t)cur.rlim_cur;
+    l.parse_memory = iso_address_space() + ISO_AS_SLACK + ISO_PARSE_MEMORY + size;
+    if (l.parse_memory > l.memory)
+      l.parse_memory = l.memory;
   }
 #endif
   return l;
+}
+
+/* Set in the child only: the limit vdbio_trees_next raises RLIMIT_AS to. */
+static uint64_t iso_trees_memory = 0;
+
+void vdbio_trees_next(void) {
+  struct rlimit r;
+  if (iso_trees_memory && getrlimit(RLIMIT_AS, &r) == 0) {
+    r.rlim_cur = (rlim_t)iso_trees_memory;
+    setrlimit(RLIMIT_AS, &r);
+    iso_trees_memory = 0;
+  }
 }
 
 static void iso_apply(const iso_limits &l) {
@@ -151,8 +184,9 @@ static void iso_apply(const iso_limits &l) {
   r.rlim_cur = r.rlim_max = 0;
   setrlimit(RLIMIT_CORE, &r); /* a crash is expected; no core file */
   if (l.memory && getrlimit(RLIMIT_AS, &r) == 0) {
-    r.rlim_cur = (rlim_t)l.memory;
+    r.rlim_cur = (rlim_t)l.parse_memory;
     setrlimit(RLIMIT_AS, &r);
+    iso_trees_memory = l.memory;
   }
   signal(SIGPIPE, SIG_DFL);
   signal(SIGALRM, SIG_DFL);
@@ -216,8 +250,10 @@ static int iso_parent(iso_job &job, int fd, pid_t pid, const char *path, const i
   if (rc >= 0 && (rc != BK_OK || (WIFEXITED(status) && WEXITSTATUS(status) == 0)))
     return rc;
   return bk_fail(err, BK_ERR_INPUT,
-                 "%s: the VDB file is corrupt: reading it %s (limits: %.0f MiB of memory, %u s)",
-                 path, iso_why(status, l).c_str(), (double)l.memory / 1048576.0, l.seconds);
+                 "%s: the VDB file is corrupt: reading it %s (limits: %.0f MiB of memory while "
+                 "parsing its metadata, %.0f MiB for its grids, %u s)",
+                 path, iso_why(status, l).c_str(), (double)l.parse_memory / 1048576.0,
+                 (double)l.memory / 1048576.0, l.seconds);
 }
 
 static int iso_run(iso_job &job, const char *path, bk_error_t *err) {

@@ -27,7 +27,11 @@
  * HAS_REFRACTION, HOMOGENEOUS (σt as parameters, no grid lookups),
  * INTEGRATOR (0 Euler, 1 RK4), PM_CHANNELS (1 when every light has the same
  * colour and the medium is grey: one atomic per voxel instead of three),
- * LIGHT_DIRECTIONAL / LIGHT_SPOT / LIGHT_POINT (light_sample.h), and PM_MODE:
+ * LIGHT_DIRECTIONAL / LIGHT_SPOT / LIGHT_POINT (light_sample.h), DISPERSION
+ * (n differs between channels: ng holds three fields, R, G, B, one after the
+ * other; photon i carries channel i mod 3 alone, with 3x that channel's
+ * power so every channel's mean is unchanged, and bends with that channel's
+ * n: pm_channel_field, pm_disperse), and PM_MODE:
  *
  * Modes: the march's optional inputs from kernels/light_domain.h, which it
  * uses without knowing who made them (the adaptive pipeline does):
@@ -113,6 +117,10 @@
 #ifndef PM_MODE
 #define PM_MODE PM_MODE_REFERENCE
 #endif
+#ifndef DISPERSION
+#define DISPERSION 0
+#endif
+#define PM_DISPERSION(P) (DISPERSION)
 #ifndef PM_FLUX
 #define PM_FLUX 0
 #endif
@@ -133,6 +141,7 @@
 #define PM_INTEGRATOR(P) ((P)->integrator)
 #define PM_NCH(P) ((int)(P)->channels)
 #define PM_MODE_OF(P) ((int)(P)->mode)
+#define PM_DISPERSION(P) ((P)->dispersion)
 #define PM_FLUX_COMPILED 1
 #define PM_FLUX_OF(P) ((P)->flux && (P)->mode != PM_MODE_ORIGINS)
 /* The host path marches one photon at a time on one thread. */
@@ -170,8 +179,9 @@ typedef struct pm_params {
   bk_uint has_refraction; /* host path only: the device uses the -D flags */
   bk_uint homogeneous;
   bk_uint integrator;
-  bk_uint flux;          /* host path: PM_FLUX (the device uses the -D flag) */
-  int pad2, pad3;
+  bk_uint dispersion;     /* host path only: the device uses -D DISPERSION */
+  bk_uint flux;           /* host path only: the device uses -D PM_FLUX */
+  int pad3;
   bk_uint mode;               /* PM_MODE_*: host path only (the device uses -D PM_MODE) */
   int coarse_shift;           /* pilot: deposits and marks at voxel >> coarse_shift */
   int cnx, cny, cnz;          /* pilot: the coarse grid */
@@ -289,6 +299,9 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
   float lum = 0.0f; /* the luminance deposited, for the flux */
 #endif
   for (int ch = 0; ch < nch; ch++) {
+#if !PH_DEVICE || DISPERSION
+    if (PM_DISPERSION(P) && ph->power[ch] == 0.0f) continue; /* not this photon's channel */
+#endif
     float sg, trans;
     if (PM_HOMOGENEOUS(P)) sg = P->sigma_t[ch];
     else sg = sigma[nch * idx + ch];
@@ -399,6 +412,22 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
   return status;
 }
 
+#if !PH_DEVICE || DISPERSION
+/* Dispersion: the field of photon `index`'s channel (index mod 3), the
+ * fields of R, G and B following one another in ng. */
+BK_INLINE BK_GLOBAL const float *pm_channel_field(const pm_params *P, BK_GLOBAL const float *ng,
+                                                  bk_uint index) {
+  const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
+  return ng + (bk_long)(index % 3u) * 4 * rc_pad_sz(n3) * (bk_long)(n3.nz + 2);
+}
+
+/* Dispersion: the photon carries channel ch alone, with three times its
+ * power there (each channel gets a third of the photons). */
+BK_INLINE void pm_disperse(pm_photon *ph, int ch) {
+  for (int c = 0; c < 3; c++) ph->power[c] = c == ch ? 3.0f * ph->power[c] : 0.0f;
+}
+#endif
+
 /* Starts photon `index`: its light, its point of the light domain (warped
  * through the light's sampling table in PM_MODE_TABLES, which sets its
  * weight), origin, direction and grid entry. Returns 0 when it misses the
@@ -438,6 +467,9 @@ BK_INLINE int pm_start(const pm_params *P, BK_CONSTANT const ph_light *lights,
   ph->power[0] = L->power[0] * w;
   ph->power[1] = L->power[1] * w;
   ph->power[2] = L->power[2] * w;
+#if !PH_DEVICE || DISPERSION
+  if (PM_DISPERSION(P)) pm_disperse(ph, (int)(index % 3u));
+#endif
   float pmax = ph->power[0];
   for (int ch = 1; ch < PM_NCH(P); ch++) pmax = ph->power[ch] > pmax ? ph->power[ch] : pmax;
   ph->threshold = P->absorb_fraction * pmax;
@@ -547,6 +579,9 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
   res->voxels = 0;
   res->path = 0.0f;
   pm_photon ph;
+#if !PH_DEVICE || DISPERSION
+  if (PM_DISPERSION(P)) ng = pm_channel_field(P, ng, index);
+#endif
   if (!pm_start(P, lights, ng, tables, index, &ph PM_REC_ARG)) return;
   bk_uint steps = 0;
   res->fate = pm_march_leg(P, ng, pyr, sigma, acc, masks, &ph, &steps PM_REC_ARG);

@@ -3,7 +3,8 @@
  * Specialised by the host with -D flags so that only what the file contains
  * is computed: HAS_REFRACTION (n varies: curved rays, else straight),
  * INTEGRATOR (0 Euler, 1 RK4), GREY (grey σt, packed with S = σs L̄ in one
- * float4), HOMOGENEOUS (RGB σt constant, passed in the parameters), ANISO
+ * float4), HOMOGENEOUS (RGB σt constant, passed in the parameters),
+ * DISPERSION (n per channel: three rays per pixel, one per field), ANISO
  * (an anisotropic phase: the `aniso` and `aniso_s` fields, absent otherwise). The
  * defaults below only serve the device-less compile check. */
 #include "kernels/view_march.h"
@@ -19,6 +20,9 @@
 #endif
 #ifndef HOMOGENEOUS
 #define HOMOGENEOUS 0
+#endif
+#ifndef DISPERSION
+#define DISPERSION 0
 #endif
 #ifndef ANISO
 #define ANISO 0
@@ -44,6 +48,7 @@ __kernel void view_render(const view_params_t p, __global const float *medium,
   fl.grey = GREY;
   fl.integrator = INTEGRATOR;
   fl.homogeneous = HOMOGENEOUS;
+  fl.dispersion = DISPERSION;
   fl.aniso = ANISO;
   float out[4];
   uint n;

@@ -85,6 +85,7 @@ typedef struct view_flags {
   int grey;           /* σt is lane w of `medium`, else the `sigma_t` array */
   int integrator;     /* VIEW_EULER or VIEW_RK4 */
   int homogeneous;    /* RGB σt constant: params.sigma_t, no `sigma_t` lookups */
+  int dispersion;     /* n per channel: ng holds R's, G's and B's fields in turn */
   int aniso;          /* the `aniso` field shapes the source by the camera direction */
 } view_flags;
 
@@ -300,7 +301,8 @@ BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags
   }
 }
 
-/* The whole camera ray of pixel (px, py): rgba and the number of steps.
+/* The whole camera ray of pixel (px, py): L (background included), T_end,
+ * and the number of steps (returned).
  * The ray is cut into chords, each integrated by uniform steps:
  *  - a brick of constant medium where n is constant: one step across it;
  *  - consecutive bricks of constant n and varying medium (the whole box
@@ -311,8 +313,8 @@ BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags
  *  - elsewhere, one curved step of the ray equation (Euler or RK4).
  * All segments go through one call site so the compiler keeps L and T in
  * registers. */
-BK_INLINE void view_march_pixel(const view_params_t *p, view_fields f, view_flags fl, int px,
-                                int py, float rgba[4], bk_uint *steps_out) {
+BK_INLINE bk_uint view_march_ray(const view_params_t *p, view_fields f, view_flags fl, int px,
+                                 int py, bk_v3 *L_out, bk_v3 *T_out) {
   bk_v3 d = view_camera_dir(p, (float)px + 0.5f, (float)py + 0.5f);
   bk_v3 L = v3(0.0f, 0.0f, 0.0f), T = v3(1.0f, 1.0f, 1.0f);
   bk_uint steps = 0;
@@ -345,12 +347,40 @@ BK_INLINE void view_march_pixel(const view_params_t *p, view_fields f, view_flag
     }
   }
   if (fl.grey) T.y = T.z = T.x;
-  L = v3_add(L, v3_mul(T, p->background));
+  *L_out = v3_add(L, v3_mul(T, p->background));
+  *T_out = T;
+  return steps;
+}
+
+/* Pixel (px, py): L and A = 1 − mean(T_end). With dispersion each channel
+ * bends with its own n: three rays, each through its channel's field, each
+ * giving its channel of L and of T (steps: the three together). */
+BK_INLINE void view_march_pixel(const view_params_t *p, view_fields f, view_flags fl, int px,
+                                int py, float rgba[4], bk_uint *steps_out) {
+  bk_v3 L, T;
+  if (!fl.dispersion) {
+    *steps_out = view_march_ray(p, f, fl, px, py, &L, &T);
+  } else {
+    const rc_dims n = view_dims(p);
+    const bk_long field = 4 * rc_pad_sz(n) * (bk_long)(n.nz + 2);
+    BK_GLOBAL const float *ng = f.ng;
+    bk_v3 Lc, Tc;
+    *steps_out = view_march_ray(p, f, fl, px, py, &Lc, &Tc);
+    L.x = Lc.x;
+    T.x = Tc.x;
+    f.ng = ng + field;
+    *steps_out += view_march_ray(p, f, fl, px, py, &Lc, &Tc);
+    L.y = Lc.y;
+    T.y = Tc.y;
+    f.ng = ng + 2 * field;
+    *steps_out += view_march_ray(p, f, fl, px, py, &Lc, &Tc);
+    L.z = Lc.z;
+    T.z = Tc.z;
+  }
   rgba[0] = L.x;
   rgba[1] = L.y;
   rgba[2] = L.z;
   rgba[3] = 1.0f - (T.x + T.y + T.z) / 3.0f;
-  *steps_out = steps;
 }
 
 #endif

@@ -31,3 +31,11 @@ add_test(NAME bench_harness
                  ${BAKER_SCRIPTS_DIR} $<TARGET_FILE:baker> $<TARGET_FILE:bench_tool>
                  ${BENCH_TINY_DIR})
 set_tests_properties(bench_harness PROPERTIES TIMEOUT 300)
+
+# The POV-Ray yardstick's scene translation (scripts/pov/scene2pov.py): the
+# committed sphere.pov is current, bad keys are refused, and a lit fog has
+# the same mean luminance in POV-Ray as in baker (skipped without povray).
+add_test(NAME pov_scene
+         COMMAND /usr/bin/python3 ${BAKER_SCRIPTS_DIR}/bench_check.py pov
+                 ${BAKER_SCRIPTS_DIR} $<TARGET_FILE:baker> ${CMAKE_BINARY_DIR}/pov_scene)
+set_tests_properties(pov_scene PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 120)

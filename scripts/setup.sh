@@ -1,9 +1,20 @@
 #!/usr/bin/env bash
 # Installs the Debian packages baker needs (as root with apt-get; otherwise it
 # prints the exact command to run) and configures + builds into build/.
-# Usage: scripts/setup.sh [--no-build]
+# Usage: scripts/setup.sh [--no-build] [--bench]
+# --bench adds the yardsticks that only benchmarks use (POV-Ray for
+# `scripts/bench --only povray`); the test suite never needs them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+build=1 bench=0
+for a in "$@"; do
+  case "$a" in
+    --no-build) build=0 ;;
+    --bench) bench=1 ;;
+    *) echo "setup: unknown option $a (expected --no-build, --bench)" >&2; exit 2 ;;
+  esac
+done
 
 PACKAGES=(
   build-essential cmake ccache pkg-config
@@ -15,6 +26,8 @@ PACKAGES=(
   # farm recipes tested for real, and the relocatable bundle (about 10 s to install)
   slurm-wlm munge parallel patchelf
 )
+BENCH_PACKAGES=(povray) # scripts/bench's povray section: POV-Ray 3.7, the photon-mapping yardstick
+[ "$bench" = 1 ] && PACKAGES+=("${BENCH_PACKAGES[@]}")
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -33,6 +46,6 @@ if [ ${#missing[@]} -gt 0 ]; then
   fi
 fi
 
-[ "${1:-}" = "--no-build" ] && exit 0
+[ "$build" = 0 ] && exit 0
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$(nproc)"

@@ -56,6 +56,7 @@ static inline void tv_summarise(volume_t *v) {
 
 static inline void tv_free(volume_t *v) {
   free(v->ior);
+  free(v->ior_rb);
   free(v->sigma_s);
   free(v->sigma_a);
 }

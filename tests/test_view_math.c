@@ -143,22 +143,22 @@ static void test_march(void) {
   p.background = v3(0.2f, 0.1f, 0.0f);
   p.sigma_t = v3(rgb_t[0], rgb_t[1], rgb_t[2]);
   enum { CHECKER = 0x80 }; /* the levels alternate brick by brick */
-  /* refraction, grey, integrator, homogeneous, aniso; n level, medium level */
+  /* refraction, grey, integrator, homogeneous, dispersion, aniso; n level, medium level */
   const struct { view_flags fl; int nlev, mlev; } var[] = {
-      {{0, 0, VIEW_EULER, 0, 0}, 0, 0},
-      {{0, 0, VIEW_EULER, 1, 0}, 0, 2},
-      {{0, 1, VIEW_EULER, 0, 0}, 0, 0},
-      {{1, 0, VIEW_EULER, 0, 0}, 2, 0},
-      {{1, 1, VIEW_RK4, 0, 0}, 0, 0},
-      {{1, 0, VIEW_EULER, 1, 0}, 2, 2},
-      {{1, 1, VIEW_EULER, 0, 0}, 1, 0},
-      {{1, 0, VIEW_RK4, 1, 0}, 1, 2},
+      {{0, 0, VIEW_EULER, 0, 0, 0}, 0, 0},
+      {{0, 0, VIEW_EULER, 1, 0, 0}, 0, 2},
+      {{0, 1, VIEW_EULER, 0, 0, 0}, 0, 0},
+      {{1, 0, VIEW_EULER, 0, 0, 0}, 2, 0},
+      {{1, 1, VIEW_RK4, 0, 0, 0}, 0, 0},
+      {{1, 0, VIEW_EULER, 1, 0, 0}, 2, 2},
+      {{1, 1, VIEW_EULER, 0, 0, 0}, 1, 0},
+      {{1, 0, VIEW_RK4, 1, 0, 0}, 1, 2},
       /* CHECKER: chords of varying bricks, single-step bricks, straight fine
        * blocks and curved steps follow one another along a ray */
-      {{0, 1, VIEW_EULER, 0, 0}, 0, CHECKER | 2},
-      {{1, 1, VIEW_EULER, 0, 0}, CHECKER | 2, CHECKER | 2},
-      {{1, 0, VIEW_RK4, 0, 0}, CHECKER | 2, 0},
-      {{1, 1, VIEW_EULER, 0, 0}, CHECKER | 1, 0},
+      {{0, 1, VIEW_EULER, 0, 0, 0}, 0, CHECKER | 2},
+      {{1, 1, VIEW_EULER, 0, 0, 0}, CHECKER | 2, CHECKER | 2},
+      {{1, 0, VIEW_RK4, 0, 0, 0}, CHECKER | 2, 0},
+      {{1, 1, VIEW_EULER, 0, 0, 0}, CHECKER | 1, 0},
   };
   bk_error_t err = {0};
   for (int i = 0; i < N * N * N; i++) ior[i] = 1.0f;

@@ -8,7 +8,8 @@ address-space cap (RLIMIT_AS, as `prlimit --as`) and a wall-clock limit.
 Every run must end with exit 0 (the flip changed nothing that matters; the
 image is written) or 2 (refused, the message names the file): never a
 signal, never 1, never past the limit. Prints the counts, the worst time
-and the largest resident size.
+and the largest resident size. First, one known case without the tight cap:
+a corrupt metadata length must fail at once (meta_length_case).
 
   vdb_flip.py BAKER SCENE_DIR WORK_DIR [--flips N] [--bakes N] [--seed S]
               [--mem-gib G] [--timeout S]
@@ -125,6 +126,29 @@ def sweep(args, work, c, rng, small, tally):
         tally.rss = rss
 
 
+def meta_length_case(args, work):
+    """The corrupt length field of docs/reliability.md: a grid metadata name
+    length ("vector_type", 11) made 2 080 374 795. Run without the sweep's
+    tight cap (a wide one guards the machine), it must fail at once, not
+    after filling the memory there is: the reader's parse limit."""
+    data = bytearray(open(os.path.join(work, "cube_zip.vdb"), "rb").read())
+    off = data.find(b"\x0b\x00\x00\x00vector_type")
+    if off < 0:
+        return ["meta length case: no \"vector_type\" entry in cube_zip.vdb"]
+    data[off + 3] = 0x7C
+    open(os.path.join(work, "bad.vdb"), "wb").write(data)
+    cmd = [args.baker, "view", "bad.vdb", "-o", "bad.exr", "--resolution", "64x48", "-q"]
+    rc, secs, rss, err = run(cmd, 6 << 30, args.timeout, work)
+    print(f"meta length flip at byte {off + 3}: exit {rc}, {secs:.2f} s, "
+          f"largest resident {rss:.0f} MiB (bound 1024 MiB, cap 6 GiB)")
+    problems = []
+    if rc != 2 or "bad.vdb" not in err:
+        problems.append(f"meta length case: exit {rc}, not 2 naming bad.vdb: {err.strip()[-300:]}")
+    if rss > 1024:
+        problems.append(f"meta length case: largest resident {rss:.0f} MiB over 1024 MiB")
+    return problems
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("baker")
@@ -142,6 +166,9 @@ def main():
     os.makedirs(args.work)
     small = bake_sources(args, args.work)
     rc = 0
+    for p in meta_length_case(args, args.work):
+        print("  FAIL", p)
+        rc = 1
     for c in COMPRESSIONS:
         tally = Tally()
         tally.rss = 0.0

@@ -162,9 +162,52 @@ def scaling(sc):
     return "\n".join(out)
 
 
+def povray(p):
+    if "skipped" in p:
+        return f"### Against POV-Ray 3.7 (issue 15)\n\nSkipped: {p['skipped']}."
+    st, povs = p["settings"], p["pov"]
+    w, h = st["size"]
+    head = (f"### Against POV-Ray 3.7 (issue 15)\n\n`{st['scene']}` scene, {w}x{h}. baker: `baker bake` at "
+            f"{st['resolution']}^3 with {st['photons']} photons (Euler, step 0.5) + `baker view`, wall time "
+            f"of both processes, best of the runs. POV-Ray {st['pov_version']}: the scene from "
+            f"scripts/pov/scene2pov.py (photon spacing {st['spacing']:g} m, media photons, media method 3, "
+            f"intervals 1, the samples shown), `{povs[0].get('pov_cmd')}`, one run each, wall time of the "
+            f"process (CPU s: user + system time of the processes, less sensitive to other users of the "
+            f"machine). Pictures: baker view --png against POV-Ray's PNG (both 8-bit sRGB), linear "
+            f"luminance, POV-Ray's mirrored back.\n\n")
+    labels = {"scene": "baker, the scene's transport (multiple scattering)",
+              "single": "baker, single scattering (`--set photons.bounces=0`), as POV-Ray"}
+    header = ["run", "bake s", "view s", "total s", "CPU s"]
+    for pv in povs:
+        header += [f"time / POV-Ray ({pv['samples']} samples)", f"mean luminance / POV-Ray ({pv['samples']})",
+                   f"rel. RMS diff. ({pv['samples']})"]
+    rows = []
+    for key, label in labels.items():
+        r = p["baker"].get(key) or {}
+        if r.get("status") != "ok":
+            rows.append([label, "failed"] + ["–"] * (len(header) - 2))
+            continue
+        cpu = (r["bake"].get("cpu_s") or 0) + (r["view"].get("cpu_s") or 0)
+        row = [label, _f(r["bake"]["wall_s"], "{:.2f}"), _f(r["view"]["wall_s"], "{:.2f}"), _f(r["wall_s"], "{:.2f}"),
+               _f(cpu, "{:.2f}")]
+        for pv in povs:
+            c = (pv.get("vs_baker") or {}).get(key) or {}
+            row += [f"1/{1 / c['time_ratio']:.1f}" if c.get("time_ratio") else "–",
+                    _f(c.get("mean_ratio"), "{:.3f}"), _f(c.get("rel_rms"), "{:.3f}")]
+        rows.append(row)
+    for pv in povs:
+        pt = pv.get("povray") or {}
+        rows.append([f"POV-Ray, media samples {pv['samples']} ({pv['status']}; photons {_f(pt.get('photon_s'), '{:.1f}')} s, "
+                     f"trace {_f(pt.get('trace_s'), '{:.1f}')} s; {pt.get('media_photons')} media photons; load "
+                     f"{_la(pv.get('load_before'))} before, {_la(pv.get('load_after'))} after)", "", "",
+                     _f(pv.get("wall_s"), "{:.1f}"), _f(pv.get("cpu_s"), "{:.1f}")] + [""] * (len(header) - 5))
+    return head + _table(header, rows) + "\n\n![baker and POV-Ray](povray.png)"
+
+
 def markdown(res):
     parts = ["## Benchmark results", machine(res)]
-    for sec, fn in (("perf", perf), ("sweep", sweep), ("extremes", extremes), ("scaling", scaling)):
+    for sec, fn in (("perf", perf), ("sweep", sweep), ("extremes", extremes), ("scaling", scaling),
+                    ("povray", povray)):
         if sec in res:
             parts.append(fn(res[sec]))
     for p in res.get("plots") or []:

@@ -87,15 +87,17 @@ sys.exit(code if code >= 0 else 128 - code)
 """
 
 
-def run(cmd, log_prefix, timeout_s, env=None):
-    """Runs cmd with stdout/stderr to log_prefix.out/.err; returns the record."""
+def run(cmd, log_prefix, timeout_s, env=None, cwd=None):
+    """Runs cmd (cmd[0] a path) with stdout/stderr to log_prefix.out/.err, in
+    folder cwd when given; returns the record."""
     rec = {"cmd": [str(c) for c in cmd], "load_before": loadavg()}
     out_path, err_path, ru_path = log_prefix + ".out", log_prefix + ".err", log_prefix + ".rusage"
     t0 = time.monotonic()
     try:
         with open(out_path, "w") as out, open(err_path, "w") as err:
             proc = subprocess.Popen([sys.executable, "-S", "-c", _LAUNCHER, ru_path] + rec["cmd"],
-                                    stdout=out, stderr=err, env=env, start_new_session=True)
+                                    stdout=out, stderr=err, env=env, cwd=cwd,
+                                    start_new_session=True)
     except OSError as e:
         rec.update(status="failed", rc=None, error=f"could not start: {e}", wall_s=0.0)
         return rec
