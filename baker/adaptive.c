@@ -391,10 +391,16 @@ static void report(const ad_run_t *r, bk_timings_t *timings) {
   const ad_stats_t *stats = r->stats;
   const int pilot = r->have_pilot ? r->scene->pilot : 0;
   const char *where = r->cl ? "" : ", host C";
-  if (timings) {
+  if (timings && r->base.fields_kept == 2) {
+    bk_timings_add(timings, "octree", stats->ms_octree, "reused from frame %d (volume unchanged)",
+                   r->base.fields_frame);
+    bk_timings_mark_reused(timings, r->base.fields_frame);
+  } else if (timings) {
     bk_timings_add(timings, "octree", stats->ms_octree, "%s",
                    r->base.has_refraction ? "constant-block pyramid of n, n/grad n field"
                                           : "n constant: one straight DDA per photon");
+  }
+  if (timings) {
     bk_timings_add(timings, "pilot marching", stats->ms_pilot,
                    "%d pilot photons, origin data on %dx%dx%d cells of %d^3 voxels", pilot,
                    r->cd.nx, r->cd.ny, r->cd.nz, 1 << r->shift);
@@ -439,7 +445,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   if (rc != BK_OK) return rc;
   r = (ad_run_t){.cl = cl, .scene = scene, .vol = vol, .opt = opt, .stats = stats,
                  .alpha = scene->alpha, .levels = (int)(2.0f * opt->max_radius + 0.5f)};
-  rc = pm_prepare(scene, vol, &r.base, NULL, &stats->march, err);
+  rc = pm_prepare_kept(scene, vol, opt->fields, &r.base, NULL, &stats->march, err);
   if (rc != BK_OK) return rc;
   stats->ms_octree = stats->march.ms_octree;
   stats->ms_generate = stats->march.ms_generate;

@@ -198,6 +198,8 @@ typedef struct ad_bake_opts {
    * radiance: ad_finish does that after the shards are added up. */
   pm_sums_t *sums;
   uint64_t first, last;
+  /* the march's fields kept from the frame before (march.h); NULL: built */
+  pm_field_cache_t *fields;
 } ad_bake_opts_t;
 void ad_bake_defaults(ad_bake_opts_t *o);
 

@@ -18,6 +18,7 @@
 #include "base/parallel.h"
 #include "budget.h"
 #include "clhost.h"
+#include "frame_reuse.h"
 #include "march.h"
 #include "shard.h"
 #include "stats_json.h"
@@ -27,9 +28,11 @@
 typedef struct bake_job {
   scene_t scene;
   int scene_loaded;
-  volume_t vol;
+  bake_reuse_t *reuse;  /* owns the volume and the OpenCL context (frame_reuse.h) */
+  const volume_t *vol;  /* &reuse->volume once built */
   bk_timings_t timings;
-  clh_context_t cl;
+  clh_context_t *cl;    /* &reuse->cl once started, else no_cl */
+  clh_context_t no_cl;
   pm_stats_t stats;
   ad_stats_t astats;
   bt_result_t error;
@@ -64,9 +67,9 @@ static void apply_overrides(const bake_options_t *opt, scene_t *s) {
   if (opt->time_budget_s > 0) s->time_budget_s = (float)opt->time_budget_s;
 }
 
-int bake_load_scene(const bake_options_t *opt, const char *scene_path, scene_t *s,
+int bake_load_scene(const bake_options_t *opt, const char *scene_path, int frame, scene_t *s,
                     bk_error_t *err) {
-  int rc = scene_load_with(scene_path, opt->sets, opt->set_count, s, err);
+  int rc = scene_load_frame(scene_path, opt->sets, opt->set_count, frame, s, err);
   if (!rc) apply_overrides(opt, s);
   return rc;
 }
@@ -138,31 +141,33 @@ static float *first_channel(const float *rgb, size_t n, bk_error_t *err) {
   return out;
 }
 
-/* Stage 1: the scene (with the command's overrides and the frame's paths)
- * and its voxels. */
+/* Stage 1: the scene (with the command's overrides, the frame's keyframed
+ * values and paths) and its voxels, kept from the frame before when they
+ * were made from the same inputs. */
 static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene_path, int frame,
                      bk_error_t *err) {
   double t0 = bk_now_ms();
-  int rc = bake_load_scene(opt, scene_path, &j->scene, err);
+  int rc = bake_load_scene(opt, scene_path, frame, &j->scene, err);
   if (rc) return rc;
   j->scene_loaded = 1;
   if ((rc = expand_scene_paths(&j->scene, frame, err))) return rc;
   bk_timings_add(&j->timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
                  j->scene.object_count, j->scene.light_count);
-  /* the whole bake's peak, before anything the size of the grid exists */
-  if ((rc = budget_check(&j->scene, opt->max_memory, err))) return rc;
-  return vox_build(&j->scene, &j->vol, &j->timings, err);
+  if ((rc = fr_volume(j->reuse, &j->scene, opt->max_memory, &j->timings, err))) return rc;
+  j->vol = &j->reuse->volume;
+  return BK_OK;
 }
 
 static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *err) {
-  size_t n = grid_count(&j->vol.dims);
+  size_t n = grid_count(&j->vol->dims);
   ad_bake_opts_t ao;
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
+  ao.fields = j->reuse->keep_fields ? &j->reuse->fields : NULL;
   if (opt->error_grid)
     return bk_fail(err, BK_ERR_INPUT, "%s: --error-grid: adaptive mode does not measure "
                    "per-voxel errors yet (use photons.mode \"reference\")", j->scene.path);
-  if (j->scene.medium_g != 0.0f || j->vol.g)
+  if (j->scene.medium_g != 0.0f || j->vol->g)
     bk_warn("%s: adaptive mode writes no radiance_flux: `baker view` shows the anisotropic "
             "medium's in-scattering as isotropic (photons.mode \"reference\" keeps it)",
             j->scene.path);
@@ -172,7 +177,7 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
     j->filter_radius = bk_calloc(n, sizeof(float), "filter_radius grid", err);
   if (!j->photon_count || !j->photon_weight || (opt->write_filter_radius && !j->filter_radius))
     return err->code;
-  int rc = ad_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, &ao, j->radiance,
+  int rc = ad_bake(opt->host_only ? NULL : j->cl, &j->scene, j->vol, &ao, j->radiance,
                    j->photon_count, j->photon_weight, j->filter_radius, &j->astats, &j->timings,
                    err);
   j->stats = j->astats.march;
@@ -183,7 +188,7 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
 /* Stage 2: the radiance grid, by the reference march or the adaptive
  * pipeline; a scene without lights still gets an (empty) radiance grid. */
 static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *err) {
-  size_t n = grid_count(&j->vol.dims);
+  size_t n = grid_count(&j->vol->dims);
   if (opt->shard_count && j->scene.light_count == 0)
     return bk_fail(err, BK_ERR_INPUT, "%s: --shard: the scene has no lights, so no photons to "
                    "split; bake it whole", j->scene.path);
@@ -191,17 +196,17 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
     return err->code;
   if (j->scene.light_count == 0) return BK_OK;
   if (!opt->host_only) {
-    double t0 = bk_now_ms();
-    int rc = clh_init(&j->cl, opt->device, err);
+    int rc = fr_opencl(j->reuse, opt->device, j->scene.frame, &j->timings, err);
     if (rc) return rc;
-    bk_timings_add(&j->timings, "OpenCL init", bk_now_ms() - t0, "%s", j->cl.device_name);
+    j->cl = &j->reuse->cl;
   }
   if (opt->shard_count)
-    return shard_march(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, opt, &j->shard,
+    return shard_march(opt->host_only ? NULL : j->cl, &j->scene, j->vol, opt, &j->shard,
                        &j->stats, &j->astats, &j->timings, err);
   if (j->scene.mode == MODE_ADAPTIVE) return bake_adaptive(j, opt, err);
-  bt_options_t bo = {opt->error_grid, 0, 0, NULL};
-  return bt_bake(opt->host_only ? NULL : &j->cl, &j->scene, &j->vol, &bo, j->radiance, &j->error,
+  bt_options_t bo = {opt->error_grid, 0, 0, NULL,
+                     j->reuse->keep_fields ? &j->reuse->fields : NULL};
+  return bt_bake(opt->host_only ? NULL : j->cl, &j->scene, j->vol, &bo, j->radiance, &j->error,
                  &j->stats, &j->timings, err);
 }
 
@@ -287,7 +292,7 @@ static float *bake_phase_g(const volume_t *vol, float medium_g, bk_error_t *err)
 
 static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], int *count,
                              bk_error_t *err) {
-  const volume_t *vol = &j->vol;
+  const volume_t *vol = j->vol;
   size_t n = grid_count(&vol->dims);
   int rc = derive_medium_grids(vol, &j->extinction, &j->density, err);
   if (rc) return rc;
@@ -369,7 +374,7 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
        * (0: single scattering) and the share of the deposit after the first */
       {"photon_bounces", VDBIO_META_INT, NULL, st->bounces, 0},
       {"scattered_share", VDBIO_META_FLOAT, NULL, 0, (float)pm_scattered_share(st)},
-      {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : j->cl.device_name, 0, 0},
+      {"opencl_device", VDBIO_META_STRING, opt->host_only ? "host C" : j->cl->device_name, 0, 0},
       {"bake_settings", VDBIO_META_STRING, settings, 0, 0},
       /* docs/error.md; -1: not measured */
       {"error_estimate", VDBIO_META_FLOAT, NULL, 0, (float)e->estimate},
@@ -394,14 +399,14 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
   vdbio_meta_t all[sizeof meta / sizeof meta[0] + SHARD_META_MAX];
   memcpy(all, meta, sizeof meta);
   if (j->shard.sums.acc)
-    meta_count += shard_meta(&j->shard, opt, s, &j->vol.dims, all + meta_count);
+    meta_count += shard_meta(&j->shard, opt, s, &j->vol->dims, all + meta_count);
   vdbio_write_opts_t wo = opt->write;
   if (j->shard.sums.acc) wo.half_float = 0; /* sums and medium go to the merge exactly */
-  return vdbio_write(out_path, &j->vol.dims, grids, count, all, meta_count, &wo, err);
+  return vdbio_write(out_path, &j->vol->dims, grids, count, all, meta_count, &wo, err);
 }
 
 static void bake_report(const bake_job_t *j, const char *scene_path, const char *out_path) {
-  const volume_t *vol = &j->vol;
+  const volume_t *vol = j->vol;
   const pm_stats_t *st = &j->stats;
   printf("baked %s -> %s (%dx%dx%d voxels of %g m)\n", scene_path, out_path, vol->dims.nx,
          vol->dims.ny, vol->dims.nz, vol->dims.voxel_size);
@@ -442,15 +447,17 @@ static void bake_job_free(bake_job_t *j) {
   free(j->error.flux);
   free(j->error.uncollided);
   free(j->phase_g);
-  clh_release(&j->cl);
-  vox_free(&j->vol);
   if (j->scene_loaded) scene_free(&j->scene);
 }
 
 int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
-               bk_error_t *err) {
+               bake_reuse_t *reuse, bk_error_t *err) {
   bake_job_t job, *j = &job;
+  bake_reuse_t alone;
   memset(j, 0, sizeof *j);
+  memset(&alone, 0, sizeof alone);
+  j->reuse = reuse ? reuse : &alone;
+  j->cl = &j->no_cl;
   vdbio_grid_t grids[BAKE_MAX_GRIDS];
   int count = 0;
   int rc = bk_check_output_dir(out_path, err);
@@ -463,11 +470,13 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   if (!rc) {
     double ms = bk_now_ms() - t0;
     bk_timings_add(&j->timings, "write", ms, "%s, %.0f M voxels/s", out_path,
-                   (double)grid_count(&j->vol.dims) / (ms * 1e3 + 1e-9));
+                   (double)grid_count(&j->vol->dims) / (ms * 1e3 + 1e-9));
     if (bk_verbosity >= 1) bake_report(j, scene_path, out_path);
     if (opt->stats_path) rc = bake_stats(j, opt, scene_path, out_path, frame, err);
   }
   bake_job_free(j);
+  if (rc == BK_ERR_RUNTIME) fr_drop_opencl(j->reuse); /* it may be what failed */
+  fr_free(&alone);
   return rc;
 }
 

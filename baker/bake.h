@@ -58,9 +58,10 @@ void bake_options_defaults(bake_options_t *opt);
  * task of Slurm, SGE or PBS for a patterned output, else frame 0), skipping
  * up-to-date outputs unless opt->force. */
 int bake_run(const bake_options_t *opt, bk_error_t *err);
-/* The scene with the command's --set and option overrides, as bake_frame
- * bakes it (frame patterns inside the scene not yet expanded). */
-int bake_load_scene(const bake_options_t *opt, const char *scene_path, scene_t *s,
+/* The scene with the command's --set and option overrides at `frame`
+ * (its keyframed values), as bake_frame bakes it (frame patterns inside the
+ * scene not yet expanded). */
+int bake_load_scene(const bake_options_t *opt, const char *scene_path, int frame, scene_t *s,
                     bk_error_t *err);
 /* What an output depends on besides the meshes and VDBs the scene names, as
  * "scene=HASH mode=M photons=N integrator=I step=S seed=S resolution=R
@@ -89,8 +90,12 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]);
 void bake_emission(const float *scattering, int sca_channels, const float *radiance, size_t voxels,
                    float *emission);
 
-/* Bakes one frame; `frame` is recorded in the metadata. */
+/* Bakes one frame; `frame` is recorded in the metadata and picks the
+ * scene's keyframed values. reuse (frame_reuse.h; NULL: nothing kept) holds
+ * what the frame before left: the stages whose inputs hash the same are
+ * taken from it, and this frame leaves its own there. */
+struct bake_reuse;
 int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
-               bk_error_t *err);
+               struct bake_reuse *reuse, bk_error_t *err);
 
 #endif

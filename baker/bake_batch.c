@@ -16,6 +16,7 @@
 #include "bake.h"
 #include "base/common.h"
 #include "base/frames.h"
+#include "frame_reuse.h"
 
 /* Array-task variables, first set wins: Slurm, SGE ("undefined" outside an
  * array job), PBS Torque, PBS Pro. */
@@ -110,11 +111,11 @@ static void settings_diff(const char *was, const char *now, char *out, size_t le
  * be baked (why: the reason, empty for a missing file); an error when the
  * scene cannot be loaded, so a missing scene is never a skip. */
 static int up_to_date(const bake_options_t *opt, const char *scene_path, const char *out_path,
-                      char *why, size_t len, bk_error_t *err) {
+                      int frame, char *why, size_t len, bk_error_t *err) {
   scene_t s;
   char now[512], was[512];
   why[0] = 0;
-  int rc = bake_load_scene(opt, scene_path, &s, err);
+  int rc = bake_load_scene(opt, scene_path, frame, &s, err);
   if (rc) return -rc;
   bake_settings(opt, &s, now, sizeof now);
   scene_free(&s);
@@ -143,14 +144,14 @@ typedef struct frame_result {
 
 /* One frame: skip, or bake (saying why when an output is replaced). */
 static int run_frame(const bake_options_t *opt, int frame, int i, int count,
-                     frame_result_t *res, bk_error_t *err) {
+                     frame_result_t *res, bake_reuse_t *reuse, bk_error_t *err) {
   char scene_path[SCENE_PATH_MAX], out_path[SCENE_PATH_MAX], why[SCENE_PATH_MAX + 512];
   int rc;
   if ((rc = frames_expand(opt->scene_path, frame, scene_path, sizeof scene_path, err)) ||
       (rc = frames_expand(opt->out_path, frame, out_path, sizeof out_path, err)))
     return rc;
   if (!opt->force) {
-    int up = up_to_date(opt, scene_path, out_path, why, sizeof why, err);
+    int up = up_to_date(opt, scene_path, out_path, frame, why, sizeof why, err);
     if (up < 0) return -up;
     if (up) {
       bk_log(1, "frame %d: %s is up to date: skipped (--force re-bakes it)", frame, out_path);
@@ -161,7 +162,7 @@ static int run_frame(const bake_options_t *opt, int frame, int i, int count,
   }
   if (count > 1) bk_log(1, "frame %d (%d of %d)", frame, i + 1, count);
   bk_progress_frame = frame;
-  return bake_frame(opt, scene_path, out_path, frame, err);
+  return bake_frame(opt, scene_path, out_path, frame, reuse, err);
 }
 
 /* The table --keep-going ends with, and the exit status it implies. */
@@ -183,12 +184,13 @@ static int summarize(const frames_list_t *list, const frame_result_t *res) {
 }
 
 /* Without --keep-going the first failure ends the batch, its message led by
- * the frame. */
+ * the frame. A frame takes what the one before left when its inputs hash the
+ * same (frame_reuse.h). */
 static int run_frames(const bake_options_t *opt, const frames_list_t *list, frame_result_t *res,
-                      bk_error_t *err) {
+                      bake_reuse_t *reuse, bk_error_t *err) {
   int n = list->count;
   for (int i = 0; i < n; i++) {
-    int rc = run_frame(opt, list->frames[i], i, n, &res[i], err);
+    int rc = run_frame(opt, list->frames[i], i, n, &res[i], reuse, err);
     if (!rc) continue;
     res[i].status = FRAME_FAILED;
     res[i].code = rc;
@@ -226,7 +228,11 @@ int bake_run(const bake_options_t *opt, bk_error_t *err) {
   if (!res) rc = BK_ERR_RUNTIME;
   if (!rc) rc = frames_expand(opt->out_path, list.frames[0], first_out, sizeof first_out, err);
   if (!rc) rc = check_output(opt, first_out, err);
-  if (!rc) rc = run_frames(opt, &list, res, err);
+  bake_reuse_t reuse;
+  memset(&reuse, 0, sizeof reuse);
+  reuse.keep_fields = list.count > 1; /* they cost memory: only for a next frame */
+  if (!rc) rc = run_frames(opt, &list, res, &reuse, err);
+  fr_free(&reuse);
   for (int i = 0; res && i < list.count; i++) free(res[i].reason);
   free(res);
   frames_list_free(&list);

@@ -352,7 +352,7 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
   memset(&x, 0, sizeof x);
   memset(&tr, 0, sizeof tr);
   memset(&grid, 0, sizeof grid);
-  int rc = pm_prepare(scene, vol, &s, timings, stats, err);
+  int rc = pm_prepare_kept(scene, vol, o->fields, &s, timings, stats, err);
   if (rc != BK_OK) return rc;
   x.scene = scene, x.o = o, x.s = &s, x.tr = &tr;
   snprintf(x.label, sizeof x.label, "photon marching");

@@ -63,6 +63,8 @@ typedef struct bt_options {
    * instead of radiance. 0: the whole bake. */
   int shard_index, shard_count;
   pm_sums_t *sums;
+  /* the march's fields kept from the frame before (march.h); NULL: built */
+  pm_field_cache_t *fields;
 } bt_options_t;
 
 typedef struct bt_result {

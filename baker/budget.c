@@ -42,22 +42,35 @@ uint64_t budget_available(uint64_t max_bytes) {
   return max_bytes > 0 && (avail == 0 || max_bytes < avail) ? max_bytes : avail;
 }
 
+/* The estimate plus `kept` bytes per voxel held over from frame to frame. */
+static int estimate_kept(const scene_t *s, int resolution, double kept, budget_t *b,
+                         bk_error_t *err) {
+  int rc = budget_estimate(s, resolution, b, err);
+  b->per_voxel += kept;
+  b->peak += kept * b->voxels;
+  return rc;
+}
+
 /* The largest resolution <= hi whose estimate fits in limit; 0 if none. */
-static int largest_fitting(const scene_t *s, int hi, double limit) {
+static int largest_fitting(const scene_t *s, int hi, double kept, double limit) {
   int lo = 0;
   while (lo < hi) {
     int mid = lo + (hi - lo + 1) / 2;
     budget_t b;
     bk_error_t e = {0};
-    if (budget_estimate(s, mid, &b, &e) == BK_OK && b.peak <= limit) lo = mid;
+    if (estimate_kept(s, mid, kept, &b, &e) == BK_OK && b.peak <= limit) lo = mid;
     else hi = mid - 1;
   }
   return lo;
 }
 
 int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err) {
+  return budget_check_kept(s, max_bytes, 0.0, err);
+}
+
+int budget_check_kept(const scene_t *s, uint64_t max_bytes, double kept, bk_error_t *err) {
   budget_t b;
-  int rc = budget_estimate(s, s->resolution, &b, err);
+  int rc = estimate_kept(s, s->resolution, kept, &b, err);
   if (rc != BK_OK) return rc;
   uint64_t limit = budget_available(max_bytes);
   char need[32], have[32];
@@ -65,7 +78,7 @@ int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err) {
          bk_format_bytes(b.peak, need, sizeof need), b.dims.nx, b.dims.ny, b.dims.nz,
          bk_format_bytes((double)limit, have, sizeof have));
   if (!limit || b.peak <= (double)limit) return BK_OK;
-  int fit = largest_fitting(s, s->resolution, (double)limit);
+  int fit = largest_fitting(s, s->resolution, kept, (double)limit);
   bk_format_bytes(b.peak, need, sizeof need);
   bk_format_bytes((double)limit, have, sizeof have);
   if (fit < 1)

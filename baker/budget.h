@@ -55,6 +55,9 @@ uint64_t budget_available(uint64_t max_bytes);
  * available, naming the estimate, the limit and the largest resolution that
  * would fit. */
 int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err);
+/* The same for a batch of frames that keeps `kept` more bytes per voxel
+ * from one frame to the next (baker/frame_reuse.h: the march's fields). */
+int budget_check_kept(const scene_t *s, uint64_t max_bytes, double kept, bk_error_t *err);
 
 /* Parses a size for --max-memory: a number with an optional K, M, G or T
  * (powers of 1024, an optional "iB" or "B"). Returns 0 when invalid. */

@@ -295,6 +295,8 @@ error:
 
 void clh_release(clh_context_t *cl) {
   if (!cl) return;
+  for (int i = 0; i < cl->kept_count; i++) clReleaseProgram(cl->kept[i].program);
+  cl->kept_count = cl->kept_next = 0;
   if (cl->queue) clReleaseCommandQueue(cl->queue);
   if (cl->context) clReleaseContext(cl->context);
   cl->queue = NULL;
@@ -500,6 +502,35 @@ error:
   return rc;
 }
 
+/* A program this context built before under `key`, with a reference for
+ * the caller; NULL when none. */
+static cl_program kept_program(clh_context_t *cl, uint64_t key) {
+  for (int i = 0; i < cl->kept_count; i++)
+    if (cl->kept[i].key == key && clRetainProgram(cl->kept[i].program) == CL_SUCCESS) {
+      cl->stats.kept_hits++;
+      cl->stats.last_hit = 2;
+      cl->stats.last_ms = 0.0;
+      bk_log(2, "kernel %016llx: built before in this run, reused", (unsigned long long)key);
+      return cl->kept[i].program;
+    }
+  return NULL;
+}
+
+/* Keeps a reference to a built program (the oldest one out when full). */
+static void keep_program(clh_context_t *cl, uint64_t key, cl_program program) {
+  if (!cl->keep_programs || clRetainProgram(program) != CL_SUCCESS) return;
+  int slot = cl->kept_count;
+  if (cl->kept_count < CLH_KEPT_PROGRAMS) {
+    cl->kept_count++;
+  } else {
+    slot = cl->kept_next;
+    cl->kept_next = (slot + 1) % CLH_KEPT_PROGRAMS;
+    clReleaseProgram(cl->kept[slot].program);
+  }
+  cl->kept[slot].key = key;
+  cl->kept[slot].program = program;
+}
+
 int clh_build_source(clh_context_t *cl, const char *name, const char *text, const char *options,
                      cl_program *out, bk_error_t *err) {
   char *src = NULL, *opts = NULL;
@@ -521,11 +552,16 @@ int clh_build_source(clh_context_t *cl, const char *name, const char *text, cons
   uint64_t key = clh_cache_key(cl, src, opts);
   cl->stats.last_key = key;
   cl->stats.last_hit = 0;
+  if ((*out = kept_program(cl, key)) != NULL) {
+    rc = BK_OK;
+    goto error; /* the cleanup block */
+  }
   int use_cache = clh_cache_dir(dir, sizeof dir);
   if (use_cache) snprintf(path, sizeof path, "%s/%016llx.clbin", dir, (unsigned long long)key);
   double t0 = bk_now_ms();
 
   if (use_cache && (*out = clh_load_cached(cl, name, path, key, opts, t0)) != NULL) {
+    keep_program(cl, key, *out);
     rc = BK_OK;
     goto error; /* the cleanup block */
   }
@@ -534,6 +570,7 @@ int clh_build_source(clh_context_t *cl, const char *name, const char *text, cons
     cache_store(dir, path, key, *out);
     clc_prune(dir, clc_max_bytes(), path); /* the cap, least recently used first */
   }
+  if (rc == BK_OK) keep_program(cl, key, *out);
 
 error:
   free(src);

@@ -26,10 +26,16 @@ typedef struct clh_build_stats {
   unsigned cache_hits;    /* programs loaded from the binary cache */
   unsigned cache_misses;  /* cache on, but no usable entry */
   unsigned source_builds; /* programs compiled from source */
-  int last_hit;           /* the latest build came from the cache */
+  int last_hit;           /* the latest build came from the cache (2: a kept program) */
   double last_ms;         /* wall time of the latest build */
   uint64_t last_key;      /* its cache key */
+  unsigned kept_hits;     /* programs this context had built before (no build at all) */
 } clh_build_stats_t;
+
+/* Programs a context with keep_programs set keeps after building them, by
+ * cache key (the expanded source, options and device): a batch of frames
+ * (baker/frame_reuse.h) builds each kernel once. */
+#define CLH_KEPT_PROGRAMS 8
 
 typedef struct clh_context {
   cl_platform_id platform;
@@ -45,6 +51,9 @@ typedef struct clh_context {
   int has_int64_atomics;   /* cl_khr_int64_base_atomics */
   int is_cpu;
   clh_build_stats_t stats;
+  int keep_programs;         /* set after clh_init: keep built programs (below) */
+  struct { uint64_t key; cl_program program; } kept[CLH_KEPT_PROGRAMS];
+  int kept_count, kept_next; /* filled; the slot replaced next when full */
 } clh_context_t;
 
 const char *clh_error_name(cl_int code);

@@ -53,27 +53,6 @@ double pm_scattered_share(const pm_stats_t *st) {
   return all > 0.0 ? st->deposit_later / all : 0.0;
 }
 
-/* n, then σt: which specialisations the volume allows. */
-static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, int *homogeneous,
-                        int *grey) {
-  *has_refraction = vol->ior_rb != NULL; /* dispersion: n differs between channels */
-  for (size_t i = 1; i < count && !*has_refraction; i++)
-    if (vol->ior[i] != vol->ior[0]) {
-      *has_refraction = 1;
-      break;
-    }
-  *homogeneous = 1;
-  *grey = 1;
-  float t0[3];
-  for (int c = 0; c < 3; c++) t0[c] = vol->sigma_s[c] + vol->sigma_a[c];
-  for (size_t i = 0; i < count && (*homogeneous || *grey); i++) {
-    float t[3];
-    for (int c = 0; c < 3; c++) t[c] = vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c];
-    if (t[0] != t0[0] || t[1] != t0[1] || t[2] != t0[2]) *homogeneous = 0;
-    if (t[0] != t[1] || t[0] != t[2]) *grey = 0;
-  }
-}
-
 /* The fixed-point scale and the conversion to radiance for the setup's
  * lights, when no photon carries more than w_max times its light's power per
  * photon (the weighted march, march.h): the bound of march.h's scale rule
@@ -116,35 +95,6 @@ static int check_inputs(const scene_t *scene, const grid_dims_t *d, size_t voxel
   return BK_OK;
 }
 
-/* Stage 3: the pyramid and the {∇n, n} field, only where n varies, and the
- * extinction grid unless the medium is homogeneous (σt per voxel length). */
-static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
-  const grid_dims_t *d = &s->dims;
-  const double h = d->voxel_size;
-  if (s->has_refraction) {
-    double t0 = bk_now_ms();
-    /* dispersion: constant where every channel's n is, a field per channel */
-    const size_t count = s->voxels;
-    const oct_source_t rgb[3] = {{vol->ior_rb, 1, 1}, {vol->ior, 1, 1}, {vol->ior_rb ? vol->ior_rb + count : NULL, 1, 1}};
-    int rc = vol->ior_rb ? oct_build_fields(d->nx, d->ny, d->nz, rgb, 3, OCT_HALO, &s->pyramid, err)
-                         : oct_build(d, vol->ior, &s->pyramid, err);
-    if (rc != BK_OK) return rc;
-    double t1 = bk_now_ms();
-    s->ng = vol->ior_rb ? fld_build_rgb(d->nx, d->ny, d->nz, h, vol->ior, vol->ior_rb, err)
-                        : fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
-    if (!s->ng) return BK_ERR_RUNTIME;
-    bk_log(2, "octree: pyramid %.0f ms, {grad n, n} field %.0f ms", t1 - t0, bk_now_ms() - t1);
-    s->octree_enabled = 1;
-  }
-  if (s->homogeneous) return BK_OK;
-  s->sigma = bk_calloc(s->voxels, s->channels * sizeof(float), "march: extinction grid", err);
-  if (!s->sigma) return BK_ERR_RUNTIME;
-  for (size_t i = 0; i < s->voxels; i++)
-    for (int c = 0; c < s->channels; c++)
-      s->sigma[s->channels * i + c] = (float)((vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c]) * h);
-  return BK_OK;
-}
-
 /* The march's parameters (kernels/photon_march.h) in reference mode. */
 static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
   const grid_dims_t *d = &s->dims;
@@ -175,7 +125,11 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
 
 static void report_prepare(const pm_setup_t *s, bk_timings_t *timings, double ms_octree,
                            double ms_generate) {
-  if (s->has_refraction) {
+  if (s->fields_kept == 2) {
+    bk_timings_add(timings, "octree", ms_octree, "reused from frame %d (volume unchanged)",
+                   s->fields_frame);
+    bk_timings_mark_reused(timings, s->fields_frame);
+  } else if (s->has_refraction) {
     const uint64_t *v = s->pyramid.voxels_at_level;
     double tot = (double)s->voxels;
     char note[96];
@@ -209,6 +163,11 @@ static void warn_coarse_step(const scene_t *scene, int has_refraction) {
 
 int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timings_t *timings,
                pm_stats_t *stats, bk_error_t *err) {
+  return pm_prepare_kept(scene, vol, NULL, s, timings, stats, err);
+}
+
+int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t *kept,
+                    pm_setup_t *s, bk_timings_t *timings, pm_stats_t *stats, bk_error_t *err) {
   memset(s, 0, sizeof *s);
   s->dims = vol->dims;
   s->voxels = grid_count(&vol->dims);
@@ -218,9 +177,9 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
 
   /* what the volume allows the kernel to skip: part of the octree stage */
   double t0 = bk_now_ms();
-  scan_volume(vol, s->voxels, &s->has_refraction, &s->homogeneous, &s->grey);
+  pm_fields_scan(vol, kept, scene->frame, s);
   int grey_scatter;
-  ms_decide(scene, vol, &s->ms, &grey_scatter);
+  pm_fields_decide(scene, vol, kept, &s->ms, &grey_scatter);
   /* one channel carries every colour only when the albedo is grey too */
   if (s->ms.params.max_bounces && !grey_scatter) s->grey = 0;
   warn_coarse_step(scene, s->has_refraction);
@@ -243,7 +202,7 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
   double ms_generate = bk_now_ms() - t0;
 
   t0 = bk_now_ms();
-  if ((rc = build_fields(vol, s, err)) != BK_OK) goto error;
+  if ((rc = pm_fields_build(vol, kept, s, err)) != BK_OK) goto error;
   double ms_octree = bk_now_ms() - t0 + ms_scan;
   t0 = bk_now_ms();
   if ((rc = set_params(scene, vol, s, err)) != BK_OK) goto error;
@@ -263,10 +222,12 @@ error:
 
 void pm_setup_free(pm_setup_t *s) {
   if (!s) return;
-  free(s->ng);
-  free(s->sigma);
+  if (!s->fields_kept) { /* kept fields belong to their pm_field_cache_t */
+    free(s->ng);
+    free(s->sigma);
+    oct_free(&s->pyramid);
+  }
   ms_free(&s->ms);
-  oct_free(&s->pyramid);
   s->ng = NULL;
   s->sigma = NULL;
 }

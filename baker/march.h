@@ -90,7 +90,42 @@ typedef struct pm_setup {
   /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */
   uint64_t *masks;       /* origin recorder: pm_mask_count masks, zeroed by the caller */
   const float *tables;   /* sampling tables: LD_TABLE_FLOATS(8, 8) floats per light */
+  /* ng, pyramid and sigma belong to a pm_field_cache_t (not freed with the
+   * setup): 1 built by this prepare, 2 taken from an earlier frame's
+   * (fields_frame); 0: owned */
+  int fields_kept, fields_frame;
 } pm_setup_t;
+
+/* The march's fields of one volume (the pyramid, the {∇n, n} field, the σt
+ * grid and what the volume scan found), kept by a batch of frames
+ * (baker/frame_reuse.h) for the next frame whose volume has the same key
+ * (volume_t.key: the hash of the voxelize stage's inputs, so the same n and
+ * σ voxel for voxel) and the march the same channel count. */
+typedef struct pm_field_cache {
+  uint64_t key;          /* the volume's key; 0: empty */
+  int frame;             /* the frame that built them */
+  int has_refraction, homogeneous, grey; /* the volume scan */
+  /* ms_decide's outcome (before ms_build), for photons.bounces `bounces`
+   * (its other inputs are the volume's); decided 0: none yet */
+  int decided, bounces, grey_scatter;
+  ms_setup_t ms;
+  int channels;          /* of the fields below; 0: none built yet */
+  float *ng;
+  oct_pyramid_t pyramid;
+  float *sigma;
+} pm_field_cache_t;
+void pm_field_cache_free(pm_field_cache_t *c);
+/* march_fields.c, for pm_prepare: the volume's specialisations (has_refraction,
+ * homogeneous, grey), from the cache when it holds this volume; then the
+ * fields, taken from the cache when they match, else built (and, with a
+ * cache, kept in it, the old ones freed first). kept may be NULL. */
+void pm_fields_scan(const volume_t *vol, pm_field_cache_t *kept, int frame, pm_setup_t *s);
+int pm_fields_build(const volume_t *vol, pm_field_cache_t *kept, pm_setup_t *s,
+                    bk_error_t *err);
+/* ms_decide (bounces.h), its outcome taken from the cache when it holds
+ * this volume decided for the same photons.bounces. */
+void pm_fields_decide(const scene_t *scene, const volume_t *vol, pm_field_cache_t *kept,
+                      ms_setup_t *ms, int *grey_scatter);
 
 /* The grid as the kernels see it (kernels/shared.h). */
 bk_grid pm_kernel_grid(const grid_dims_t *d);
@@ -103,9 +138,14 @@ double pm_fixed_scale(double power_max, double path_bound);
  * Timings (may be NULL) get the "octree" and "photon generation" rows. */
 int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timings_t *timings,
                pm_stats_t *stats, bk_error_t *err);
+/* The same, taking the fields from `kept` (may be NULL) when they were
+ * built from this volume, and leaving the ones it builds there. */
+int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t *kept,
+                    pm_setup_t *s, bk_timings_t *timings, pm_stats_t *stats, bk_error_t *err);
 void pm_setup_free(pm_setup_t *s);
 /* Treat every block as varying (after pm_prepare): the march then steps
- * everywhere, as the paper's reference pipeline without its octree. */
+ * everywhere, as the paper's reference pipeline without its octree. It
+ * writes the pyramid: not for a setup whose fields are kept. */
 void pm_disable_octree(pm_setup_t *s);
 
 /* Several marches may share one prepared setup (the octree and the n/∇n

@@ -203,9 +203,10 @@ static int sc_object_entry(const sc_ctx_t *c, const json_value_t *v, const char 
   if ((rc = sc_object(c, t, p))) return rc;
   sc_check_keys(c, t, p, tkeys);
   /* a zero scale collapses the mesh, a negative one turns it inside out */
-  if ((rc = sc_opt_floats(c, t, p, "scale", &R_POSITIVE, 3, 1, o->scale)) ||
-      (rc = sc_opt_floats(c, t, p, "rotate_deg", &R_ANY, 3, 0, o->rotate_deg)) ||
-      (rc = sc_opt_floats(c, t, p, "translate", &R_ANY, 3, 0, o->translate)))
+  const sc_keyed_t scale = {&R_POSITIVE, 3, 1, 0}, any = {&R_ANY, 3, 0, 0};
+  if ((rc = sc_opt_keyed(c, t, p, "scale", &scale, o->scale)) ||
+      (rc = sc_opt_keyed(c, t, p, "rotate_deg", &any, o->rotate_deg)) ||
+      (rc = sc_opt_keyed(c, t, p, "translate", &any, o->translate)))
     return rc;
   return BK_OK;
 }
@@ -217,28 +218,30 @@ typedef struct sc_light_ctx {
   const char *path;      /* "lights[i]" */
 } sc_light_ctx_t;
 
+/* Every light value may be keyframed (scene_keys.c): a light that moves,
+ * turns, dims or widens over the frames. */
 static int sc_light_position(void *ctx, const char *key, float out[3]) {
   const sc_light_ctx_t *x = ctx;
-  return sc_opt_floats(x->c, x->v, x->path, key, &R_ANY, 3, 0, out);
+  const sc_keyed_t k = {&R_ANY, 3, 0, 0};
+  return sc_opt_keyed(x->c, x->v, x->path, key, &k, out);
 }
 static int sc_light_colour(void *ctx, const char *key, float out[3]) {
   const sc_light_ctx_t *x = ctx;
-  return sc_opt_floats(x->c, x->v, x->path, key, &R_LIGHT, 3, 1, out);
+  const sc_keyed_t k = {&R_LIGHT, 3, 1, 0};
+  return sc_opt_keyed(x->c, x->v, x->path, key, &k, out);
 }
 static int sc_light_angle(void *ctx, const char *key, float *out) {
   const sc_light_ctx_t *x = ctx;
-  return sc_opt_float(x->c, x->v, x->path, key, &R_ANGLE, out);
+  const sc_keyed_t k = {&R_ANGLE, 1, 0, 0};
+  return sc_opt_keyed(x->c, x->v, x->path, key, &k, out);
 }
 static int sc_light_direction(void *ctx, const char *key, float out[3]) {
   const sc_light_ctx_t *x = ctx;
-  char p[SC_KEY_MAX];
+  const sc_keyed_t k = {&R_ANY, 3, 0, 1};
   const json_value_t *d;
   int rc;
   if ((rc = sc_required(x->c, x->v, x->path, key, &d))) return rc;
-  sc_key(p, x->path, key);
-  if ((rc = sc_floats(x->c, d, p, &R_ANY, 3, 0, out)) || (rc = sc_direction(x->c, d, p, out)))
-    return rc;
-  return BK_OK;
+  return sc_opt_keyed(x->c, x->v, x->path, key, &k, out);
 }
 
 /* One light: its kind from light_kinds[], whose keys are all required. */
@@ -480,19 +483,25 @@ static int scene_names(const char *path, scene_t *s, bk_error_t *err) {
 }
 
 int scene_load(const char *path, scene_t *s, bk_error_t *err) {
-  return scene_load_with(path, NULL, 0, s, err);
+  return scene_load_frame(path, NULL, 0, 0, s, err);
 }
 
 int scene_load_with(const char *path, const char *const *sets, int set_count, scene_t *s,
                     bk_error_t *err) {
+  return scene_load_frame(path, sets, set_count, 0, s, err);
+}
+
+int scene_load_frame(const char *path, const char *const *sets, int set_count, int frame,
+                     scene_t *s, bk_error_t *err) {
   bk_error_t local;
   char *text = NULL;
   const char *bytes;
   size_t len = 0;
   json_value_t *root = NULL;
   if (!err) err = &local;
-  sc_ctx_t c = {s->path, s->dir, err, sets};
+  sc_ctx_t c = {s->path, s->dir, err, sets, frame, &s->keyed_values};
   scene_defaults(s);
+  s->frame = frame;
   int rc = scene_names(path, s, err);
   if (rc) return rc;
   if (!strcmp(path, "-")) rc = scene_read_stdin(&bytes, &len, err);

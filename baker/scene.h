@@ -73,6 +73,8 @@ typedef struct scene {
   char path[SCENE_PATH_MAX]; /* the scene file as given */
   char dir[SCENE_PATH_MAX];  /* its directory, for relative paths */
   uint64_t hash;             /* FNV-1a of the scene file's bytes */
+  int frame;                 /* the frame its keyframed values were evaluated at */
+  int keyed_values;          /* how many of its values are keyframed (scene_keys.c) */
 
   /* grid */
   float bounds_min[3], bounds_max[3];
@@ -141,6 +143,11 @@ int scene_load(const char *path, scene_t *out, bk_error_t *err);
  * overrides as well as the file's bytes. */
 int scene_load_with(const char *path, const char *const *sets, int set_count, scene_t *out,
                     bk_error_t *err);
+/* The same at a frame: keyframed values ({"keys": {"FRAME": VALUE}}, lights'
+ * values and object transforms; docs/animation.md) take that frame's value.
+ * scene_load and scene_load_with evaluate them at frame 0. */
+int scene_load_frame(const char *path, const char *const *sets, int set_count, int frame,
+                     scene_t *out, bk_error_t *err);
 
 /* scene_set.c: the overrides on a parsed tree (BK_ERR_INPUT naming the
  * --set for a key path that does not fit the tree), and standard input's

@@ -26,6 +26,8 @@ typedef struct sc_ctx {
   /* --set KEY=VALUE texts: values they put in the tree carry line 0 and, as
    * column, the 1-based index of their --set, so messages name it */
   const char *const *sets;
+  int frame;  /* the frame keyframed values are evaluated at (scene_keys.c) */
+  int *keyed; /* counts the keyframed values read; NULL: not counted */
 } sc_ctx_t;
 
 /* "scene.json:LINE:COL", or "--set KEY=VALUE" for a value from the command
@@ -76,5 +78,19 @@ int sc_opt_floats(const sc_ctx_t *c, const json_value_t *obj, const char *path,
 int sc_opt_int(const sc_ctx_t *c, const json_value_t *obj, const char *path,
                const char *key, const sc_range_t *r, long long *out);
 int sc_direction(const sc_ctx_t *c, const json_value_t *v, const char *path, float d[3]);
+
+/* scene_keys.c: a value that may be keyframed, {"keys": {"FRAME": VALUE}},
+ * each VALUE what the plain key takes (n numbers in range, one number for
+ * all n when scalar_ok; a unit vector normalised), linear in the frame
+ * between keys and held outside them; a plain value reads as before. */
+typedef struct sc_keyed {
+  const sc_range_t *range;
+  size_t n;
+  int scalar_ok, unit;
+} sc_keyed_t;
+int sc_keyed(const sc_ctx_t *c, const json_value_t *v, const char *path, const sc_keyed_t *k,
+             float *out);
+int sc_opt_keyed(const sc_ctx_t *c, const json_value_t *obj, const char *parent, const char *key,
+                 const sc_keyed_t *k, float *out);
 
 #endif

@@ -49,7 +49,7 @@ int shard_march(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   shard_range(sh->photons, opt->shard_index, opt->shard_count, &sh->first, &sh->last);
   sh->alpha = scene->alpha;
   if (scene->mode != MODE_ADAPTIVE) { /* the same share of every batch (batches.h) */
-    bt_options_t bo = {0, opt->shard_index, opt->shard_count, &sh->sums};
+    bt_options_t bo = {0, opt->shard_index, opt->shard_count, &sh->sums, NULL};
     bt_result_t res;
     return bt_bake(cl, scene, vol, &bo, NULL, &res, stats, timings, err);
   }

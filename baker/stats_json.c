@@ -39,6 +39,11 @@ static void put_stages(FILE *f, const bk_timings_t *t) {
     put_string(f, t->stages[i].name);
     fprintf(f, ", \"ms\": %.3f, \"note\": ", t->stages[i].ms);
     put_string(f, t->stages[i].note);
+    /* a batch of frames kept this stage's result from an earlier frame */
+    if (t->stages[i].reused)
+      fprintf(f, ", \"reused\": true, \"reused_from_frame\": %d", t->stages[i].reused_frame);
+    else
+      fprintf(f, ", \"reused\": false");
     fprintf(f, "}%s\n", i + 1 < t->count ? "," : "");
     total += t->stages[i].ms;
   }

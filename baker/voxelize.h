@@ -51,6 +51,9 @@ typedef struct volume {
   int homogeneous;     /* sigma_s and sigma_a the same in every voxel */
   int grey;            /* R = G = B for both coefficients everywhere */
   float n_min, n_max;
+  /* A hash of every input vox_build read (baker/frame_reuse.h), set by a
+   * batch of frames to say which volume this is; 0: not known. */
+  uint64_t key;
 } volume_t;
 
 /* Bytes per voxel the volume needs (for grid_check_memory). */

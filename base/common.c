@@ -198,12 +198,19 @@ void bk_timings_add(bk_timings_t *t, const char *name, double ms, const char *no
   snprintf(s->name, sizeof s->name, "%s", name);
   s->ms = ms;
   s->note[0] = 0;
+  s->reused = s->reused_frame = 0;
   if (note_fmt) {
     va_list ap;
     va_start(ap, note_fmt);
     vsnprintf(s->note, sizeof s->note, note_fmt, ap);
     va_end(ap);
   }
+}
+
+void bk_timings_mark_reused(bk_timings_t *t, int frame) {
+  if (!t || t->count == 0) return;
+  t->stages[t->count - 1].reused = 1;
+  t->stages[t->count - 1].reused_frame = frame;
 }
 
 void bk_timings_print(const bk_timings_t *t, FILE *out) {

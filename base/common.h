@@ -82,6 +82,7 @@ typedef struct bk_stage_time {
   char name[48];
   double ms;
   char note[96];
+  int reused, reused_frame; /* the stage's result was kept from frame reused_frame */
 } bk_stage_time_t;
 typedef struct bk_timings {
   bk_stage_time_t stages[BK_MAX_STAGES];
@@ -90,6 +91,9 @@ typedef struct bk_timings {
 void bk_timings_add(bk_timings_t *t, const char *name, double ms, const char *note_fmt, ...)
     __attribute__((format(printf, 4, 5)));
 void bk_timings_print(const bk_timings_t *t, FILE *out);
+/* Marks the latest row as reused from `frame` (a batch of frames kept the
+ * stage's result; --stats says so). */
+void bk_timings_mark_reused(bk_timings_t *t, int frame);
 
 /* 64-bit FNV-1a, for scene hashes and the kernel cache key. */
 uint64_t bk_hash64(const void *data, size_t len, uint64_t seed);

@@ -33,3 +33,10 @@ foreach(case refuse max_memory honest)
                    ${CMAKE_BINARY_DIR}/cli_budget ${CMAKE_SOURCE_DIR}/scenes ${case})
 endforeach()
 set_tests_properties(cli_budget_honest PROPERTIES SKIP_RETURN_CODE 77 RUN_SERIAL TRUE)
+
+# Keyframed lights and frame reuse (docs/animation.md): a light-only batch
+# voxelizes once and writes grids bit-identical to single-frame bakes.
+add_test(NAME cli_bake_reuse
+         COMMAND bash ${BAKER_TEST_DIR}/bake_reuse.sh $<TARGET_FILE:baker>
+                 ${CMAKE_BINARY_DIR}/cli_reuse ${CMAKE_SOURCE_DIR}/scenes)
+set_tests_properties(cli_bake_reuse PROPERTIES SKIP_RETURN_CODE 77)

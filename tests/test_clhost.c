@@ -182,6 +182,20 @@ static int test_cache(const char *base) {
   setenv("BAKER_CACHE_DIR", "/proc/self/no/such/dir", 1);
   EXPECT(build_once(&cl, "-DCACHE_TEST_VARIANT=3") == BK_OK, "unwritable cache made the build fail");
 
+  /* a context that keeps its programs (a batch of frames, baker/frame_reuse.h)
+   * builds each once: the second build touches neither compiler nor cache */
+  setenv("BAKER_CACHE_DIR", dir, 1);
+  cl.keep_programs = 1;
+  build_once(&cl, "-DCACHE_TEST_VARIANT=4");
+  unsigned misses = cl.stats.cache_misses, hits2 = cl.stats.cache_hits;
+  builds = cl.stats.source_builds;
+  build_once(&cl, "-DCACHE_TEST_VARIANT=4");
+  EXPECT(cl.stats.kept_hits == 1 && cl.stats.last_hit == 2 && cl.stats.cache_misses == misses &&
+             cl.stats.cache_hits == hits2 && cl.stats.source_builds == builds,
+         "kept program: kept hits %u, last_hit %d", cl.stats.kept_hits, cl.stats.last_hit);
+  build_once(&cl, "-DCACHE_TEST_VARIANT=5"); /* other options: another program */
+  EXPECT(cl.stats.kept_hits == 1 && cl.stats.last_hit != 2, "other -D options took a kept program");
+
   clean_dir(dir);
   rmdir(parent);
   clh_release(&cl);

@@ -502,6 +502,66 @@ static void case_huge_number(void) {
                "found 1e12");
 }
 
+/* Keyframed values (baker/scene_keys.c): linear between keys, held outside,
+ * a key's own value on its frame, directions normalised; plain scenes read
+ * as before (no keyed values). */
+static const char *const keyed_scene =
+    "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 8 },\n"
+    "  \"objects\": [ { \"mesh\": \"m.obj\", \"transform\": {\n"
+    "      \"translate\": { \"keys\": { \"0\": [0, 0, 0], \"8\": [0.8, 0, 0] } } } } ],\n"
+    "  \"lights\": [ { \"type\": \"spot\",\n"
+    "      \"position\": { \"keys\": { \"6\": [4, 8, -4], \"2\": [0, 0, 0] } },\n"
+    "      \"direction\": { \"keys\": { \"0\": [0, -2, 0], \"10\": [1, 0, 0] } },\n"
+    "      \"intensity\": { \"keys\": { \"1\": 2, \"3\": [4, 6, 8] } },\n"
+    "      \"angle_deg\": { \"keys\": { \"5\": 10, \"15\": 30 } } } ] }\n";
+
+static void keyed_at(int frame, scene_t *s) {
+  bk_error_t err = {0};
+  const char *path = write_scene("keyed.json", keyed_scene);
+  int rc = scene_load_frame(path, NULL, 0, frame, s, &err);
+  printf("keyed.json at frame %d -> rc %d %s\n", frame, rc, err.msg);
+  EXPECT(rc == BK_OK && s->frame == frame && s->keyed_values == 5);
+}
+
+static void case_keyframes(void) {
+  scene_t s;
+  const scene_light_t *l;
+  keyed_at(0, &s); /* before the position's and intensity's first keys: held */
+  l = &s.lights[0];
+  EXPECT(l->position[0] == 0.0f && l->position[1] == 0.0f && l->intensity[0] == 2.0f &&
+         l->intensity[2] == 2.0f && l->angle_deg == 10.0f);
+  EXPECT(l->direction[0] == 0.0f && l->direction[1] == -1.0f); /* a key normalised */
+  scene_free(&s);
+  keyed_at(4, &s); /* halfway between position keys 2 and 6, 0.4 of the direction's */
+  l = &s.lights[0];
+  EXPECT(l->position[0] == 2.0f && l->position[1] == 4.0f && l->position[2] == -2.0f);
+  EXPECT(l->intensity[0] == 4.0f && l->intensity[1] == 6.0f && l->intensity[2] == 8.0f);
+  double dl = sqrt(0.4 * 0.4 + 0.6 * 0.6); /* (0, -1, 0) + 0.4 ((1, 0, 0) - (0, -1, 0)) */
+  EXPECT(fabs(l->direction[0] - 0.4 / dl) < 1e-6 && fabs(l->direction[1] + 0.6 / dl) < 1e-6);
+  EXPECT(fabs(s.objects[0].translate[0] - 0.4) < 1e-6);
+  scene_free(&s);
+  keyed_at(9, &s); /* after the last position key: held; angle 10 + 0.4 * 20 */
+  l = &s.lights[0];
+  EXPECT(l->position[0] == 4.0f && l->position[1] == 8.0f && fabs(l->angle_deg - 18.0) < 1e-5);
+  EXPECT(s.objects[0].translate[0] == 0.8f);
+  scene_free(&s);
+  EXPECT_ERROR("keys_not_object.json",
+               "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 8 },\n"
+               "  \"lights\": [ { \"type\": \"point\", \"intensity\": 1,\n"
+               "      \"position\": { \"keys\": [1, 2] } } ] }\n",
+               "keys_not_object.json:3:29: lights[0].position.keys: expected an object of frame");
+  EXPECT_ERROR("keys_missing.json",
+               "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 8 },\n"
+               "  \"lights\": [ { \"type\": \"point\", \"intensity\": 1,\n"
+               "      \"position\": { \"1\": [0, 0, 0] } } ] }\n",
+               "keys_missing.json:3:19: lights[0].position: missing required key \"keys\"");
+  EXPECT_ERROR("keys_value.json",
+               "{ \"grid\": { \"bounds\": [[-1,-1,-1],[1,1,1]], \"resolution\": 8 },\n"
+               "  \"lights\": [ { \"type\": \"point\", \"intensity\": 1,\n"
+               "      \"position\": { \"keys\": { \"1\": [0, 0, 0], \"4\": 3 } } } ] }\n",
+               "keys_value.json:3:52: lights[0].position.keys.4: expected an array of 3 numbers");
+}
+
 int main(int argc, char **argv) {
   static const struct {
     const char *name;
@@ -523,6 +583,7 @@ int main(int argc, char **argv) {
       {"spot_angle", case_spot_angle},
       {"unknown_key", case_unknown_key},
       {"huge_number", case_huge_number},
+      {"keyframes", case_keyframes},
   };
   if (argc != 3) {
     fprintf(stderr, "usage: %s CASE|all DIR\n", argv[0]);

@@ -1,0 +1,131 @@
+/* frame_reuse.c: the state a batch of frames keeps (see frame_reuse.h). */
+#include "frame_reuse.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "base/common.h"
+#include "budget.h"
+
+static void mix(uint64_t *h, const void *data, size_t len) { *h = bk_hash64(data, len, *h); }
+static void mix_string(uint64_t *h, const char *s) { mix(h, s, strlen(s) + 1); }
+
+/* A file by its path and contents (a mesh sequence whose frames hold the
+ * same mesh is still the same input). */
+static void mix_file(uint64_t *h, const char *path) {
+  static unsigned char buf[1 << 16];
+  mix_string(h, path);
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    int e = errno;
+    mix(h, &e, sizeof e);
+    return;
+  }
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, f)) > 0) mix(h, buf, n);
+  int bad = ferror(f);
+  mix(h, &bad, sizeof bad);
+  fclose(f);
+}
+
+static void mix_vdb(uint64_t *h, const scene_vdb_ref_t *r) {
+  mix(h, &r->present, sizeof r->present);
+  if (!r->present) return;
+  mix_file(h, r->file);
+  mix_string(h, r->grid);
+}
+
+uint64_t fr_volume_key(const scene_t *s) {
+  uint64_t h = BK_HASH_SEED;
+  mix(&h, s->bounds_min, sizeof s->bounds_min);
+  mix(&h, s->bounds_max, sizeof s->bounds_max);
+  mix(&h, &s->resolution, sizeof s->resolution);
+  mix(&h, &s->ior_smoothing, sizeof s->ior_smoothing);
+  mix(&h, s->medium_sigma_s, sizeof s->medium_sigma_s);
+  mix(&h, s->medium_sigma_a, sizeof s->medium_sigma_a);
+  mix(&h, &s->medium_ior, sizeof s->medium_ior);
+  mix(&h, &s->medium_g, sizeof s->medium_g);
+  mix_vdb(&h, &s->density_vdb);
+  mix_vdb(&h, &s->ior_vdb);
+  mix(&h, &s->object_count, sizeof s->object_count);
+  for (int i = 0; i < s->object_count; i++) {
+    const scene_object_t *o = &s->objects[i];
+    mix_file(&h, o->mesh);
+    mix(&h, &o->ior, sizeof o->ior);
+    mix(&h, o->ior_rgb, sizeof o->ior_rgb);
+    mix(&h, o->sigma_a, sizeof o->sigma_a);
+    mix(&h, o->sigma_s, sizeof o->sigma_s);
+    mix(&h, &o->g, sizeof o->g);
+    mix(&h, o->scale, sizeof o->scale);
+    mix(&h, o->rotate_deg, sizeof o->rotate_deg);
+    mix(&h, o->translate, sizeof o->translate);
+  }
+  return h ? h : 1;
+}
+
+int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings_t *t,
+              bk_error_t *err) {
+  double t0 = bk_now_ms();
+  uint64_t key = fr_volume_key(s);
+  if (r->has_volume && r->volume.key == key) {
+    bk_timings_add(t, "voxelize", bk_now_ms() - t0, "reused from frame %d (inputs unchanged)",
+                   r->volume_frame);
+    bk_timings_mark_reused(t, r->volume_frame);
+    return BK_OK;
+  }
+  /* before the budget: it counts this machine's free memory */
+  vox_free(&r->volume);
+  pm_field_cache_free(&r->fields);
+  r->has_volume = 0;
+  /* the whole bake's peak, before anything the size of the grid exists (a
+   * kept volume passed it with the same grid) */
+  /* dispersion keeps a {∇n, n} field per channel: 32 B more */
+  double kept = FR_KEPT_FIELDS_BYTES + (scene_has_dispersion(s) ? 32.0 : 0.0);
+  int rc = budget_check_kept(s, max_memory, r->keep_fields ? kept : 0.0, err);
+  if (!rc) rc = vox_build(s, &r->volume, t, err);
+  if (rc) return rc;
+  r->volume.key = key;
+  r->has_volume = 1;
+  r->volume_frame = s->frame;
+  return BK_OK;
+}
+
+int fr_opencl(bake_reuse_t *r, const char *device, int frame, bk_timings_t *t, bk_error_t *err) {
+  uint64_t key = BK_HASH_SEED;
+  mix_string(&key, device ? device : "");
+  if (r->has_cl && r->cl_key == key) {
+    bk_timings_add(t, "OpenCL init", 0.0, "reused from frame %d (device unchanged), %d kernels",
+                   r->cl_frame, r->cl.kept_count);
+    bk_timings_mark_reused(t, r->cl_frame);
+    return BK_OK;
+  }
+  fr_drop_opencl(r);
+  double t0 = bk_now_ms();
+  int rc = clh_init(&r->cl, device, err);
+  if (rc) {
+    clh_release(&r->cl);
+    memset(&r->cl, 0, sizeof r->cl);
+    return rc;
+  }
+  r->cl.keep_programs = 1; /* the next frames build the same kernels */
+  r->has_cl = 1;
+  r->cl_key = key;
+  r->cl_frame = frame;
+  bk_timings_add(t, "OpenCL init", bk_now_ms() - t0, "%s", r->cl.device_name);
+  return BK_OK;
+}
+
+void fr_drop_opencl(bake_reuse_t *r) {
+  if (r->has_cl) clh_release(&r->cl);
+  memset(&r->cl, 0, sizeof r->cl);
+  r->has_cl = 0;
+}
+
+void fr_free(bake_reuse_t *r) {
+  if (!r) return;
+  fr_drop_opencl(r);
+  pm_field_cache_free(&r->fields);
+  vox_free(&r->volume);
+  memset(r, 0, sizeof *r);
+}

@@ -1,0 +1,64 @@
+/* frame_reuse.h: what one frame of a batch leaves the next (docs/animation.md).
+ *
+ * In a batch where only the light moves, the frames' voxels, the march's
+ * fields and the OpenCL context are the same, so they are kept: each kept
+ * piece carries a hash of the inputs its stage read, and the next frame
+ * takes it only when its own inputs hash the same, never by guessing from
+ * what the scene looks like.
+ *   voxelize  (volume)   the grid (bounds, resolution, ior_smoothing); the
+ *                        medium (σs, σa, n, g, density_vdb and ior_vdb: path,
+ *                        grid name, file contents); every object (mesh path
+ *                        and file contents, n and its per-channel n, σs, σa,
+ *                        g, transform);
+ *   octree    (fields)   the volume's key and the march's channel count
+ *                        (march.h: pm_field_cache_t);
+ *   OpenCL init          the device spec; the context keeps its programs by
+ *                        expanded source, -D options and device (clhost.h),
+ *                        so a light of another type builds its own kernel.
+ * One frame's state at a time: a changed input frees the kept state before
+ * the new one is built. The volume lived through the write before too; the
+ * fields now do (FR_KEPT_FIELDS_BYTES more per voxel, counted in the memory
+ * budget), and only when the run bakes more than one frame. Frames
+ * are baked exactly as alone (the grids are bit-identical); only the work
+ * is skipped. */
+#ifndef BAKER_FRAME_REUSE_H
+#define BAKER_FRAME_REUSE_H
+
+#include "clhost.h"
+#include "march.h"
+#include "scene.h"
+#include "voxelize.h"
+
+/* Bytes per voxel the kept fields add to a frame's peak (they outlive the
+ * march into the write): the {∇n, n} field (16; 48 with dispersion, counted
+ * apart), the pyramid (1/8) and σt (4 per march channel, at most 12). */
+#define FR_KEPT_FIELDS_BYTES 28.125
+
+typedef struct bake_reuse {
+  int keep_fields;              /* a batch of several frames: keep the march's fields */
+  int has_volume, volume_frame; /* the kept volume, its key volume.key */
+  volume_t volume;
+  pm_field_cache_t fields;      /* the octree stage's (march.h) */
+  int has_cl, cl_frame;
+  uint64_t cl_key;
+  clh_context_t cl;
+} bake_reuse_t;
+
+/* The hash of every input the voxelize stage reads (above); files are
+ * hashed by content (one that cannot be read hashes its error: vox_build
+ * then says what is wrong). Never 0. */
+uint64_t fr_volume_key(const scene_t *s);
+/* The frame's volume in r->volume: the kept one when the key matches (a
+ * "voxelize" row saying so), else the kept one freed, the memory budget
+ * checked (max_memory: --max-memory; the kept fields counted when
+ * keep_fields) and the volume built. */
+int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings_t *t,
+              bk_error_t *err);
+/* The OpenCL context in r->cl: the kept one for the same device spec (an
+ * "OpenCL init" row saying so), else a new one. */
+int fr_opencl(bake_reuse_t *r, const char *device, int frame, bk_timings_t *t, bk_error_t *err);
+/* After a runtime failure: the context may be broken, so it is not kept. */
+void fr_drop_opencl(bake_reuse_t *r);
+void fr_free(bake_reuse_t *r);
+
+#endif

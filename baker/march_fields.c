@@ -1,0 +1,138 @@
+/* march_fields.c: the march's per-volume fields (march.h: pm_fields_scan,
+ * pm_fields_build), built, or taken from the frame before when its volume
+ * had the same key (baker/frame_reuse.h). */
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/common.h"
+#include "field.h"
+#include "march.h"
+
+/* n, then σt: which specialisations the volume allows. */
+static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, int *homogeneous,
+                        int *grey) {
+  *has_refraction = vol->ior_rb != NULL; /* dispersion: n differs between channels */
+  for (size_t i = 1; i < count && !*has_refraction; i++)
+    if (vol->ior[i] != vol->ior[0]) {
+      *has_refraction = 1;
+      break;
+    }
+  *homogeneous = 1;
+  *grey = 1;
+  float t0[3];
+  for (int c = 0; c < 3; c++) t0[c] = vol->sigma_s[c] + vol->sigma_a[c];
+  for (size_t i = 0; i < count && (*homogeneous || *grey); i++) {
+    float t[3];
+    for (int c = 0; c < 3; c++) t[c] = vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c];
+    if (t[0] != t0[0] || t[1] != t0[1] || t[2] != t0[2]) *homogeneous = 0;
+    if (t[0] != t[1] || t[0] != t[2]) *grey = 0;
+  }
+}
+
+/* The cache holds this volume's scan (its fields, channels > 0, may still
+ * differ in channels or be absent). */
+static int holds_volume(const pm_field_cache_t *c, const volume_t *vol) {
+  return c && vol->key != 0 && c->key == vol->key;
+}
+
+static void free_fields(pm_field_cache_t *c) {
+  free(c->ng);
+  free(c->sigma);
+  oct_free(&c->pyramid);
+  c->ng = c->sigma = NULL;
+  c->channels = 0;
+}
+
+/* The scan as found, before pm_prepare narrows grey for the scattering. */
+void pm_fields_scan(const volume_t *vol, pm_field_cache_t *kept, int frame, pm_setup_t *s) {
+  if (holds_volume(kept, vol)) {
+    s->has_refraction = kept->has_refraction;
+    s->homogeneous = kept->homogeneous;
+    s->grey = kept->grey;
+    return;
+  }
+  pm_field_cache_free(kept); /* another volume: its fields go before new ones are built */
+  scan_volume(vol, s->voxels, &s->has_refraction, &s->homogeneous, &s->grey);
+  if (!kept || vol->key == 0) return;
+  kept->key = vol->key;
+  kept->frame = frame;
+  kept->has_refraction = s->has_refraction;
+  kept->homogeneous = s->homogeneous;
+  kept->grey = s->grey;
+}
+
+void pm_field_cache_free(pm_field_cache_t *c) {
+  if (!c) return;
+  free_fields(c);
+  memset(c, 0, sizeof *c);
+}
+
+void pm_fields_decide(const scene_t *scene, const volume_t *vol, pm_field_cache_t *kept,
+                      ms_setup_t *ms, int *grey_scatter) {
+  const int holds = holds_volume(kept, vol);
+  if (holds && kept->decided && kept->bounces == scene->bounces) {
+    *ms = kept->ms;
+    *grey_scatter = kept->grey_scatter;
+    return;
+  }
+  ms_decide(scene, vol, ms, grey_scatter);
+  if (!holds) return;
+  kept->decided = 1;
+  kept->bounces = scene->bounces;
+  kept->ms = *ms; /* no scatter grid yet: ms_build makes it per march */
+  kept->grey_scatter = *grey_scatter;
+}
+
+/* The pyramid and the {∇n, n} field, only where n varies, and the
+ * extinction grid unless the medium is homogeneous (σt per voxel length). */
+static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
+  const grid_dims_t *d = &s->dims;
+  const double h = d->voxel_size;
+  if (s->has_refraction) {
+    double t0 = bk_now_ms();
+    /* dispersion: constant where every channel's n is, a field per channel */
+    const size_t count = s->voxels;
+    const oct_source_t rgb[3] = {{vol->ior_rb, 1, 1}, {vol->ior, 1, 1},
+                                 {vol->ior_rb ? vol->ior_rb + count : NULL, 1, 1}};
+    int rc = vol->ior_rb ? oct_build_fields(d->nx, d->ny, d->nz, rgb, 3, OCT_HALO, &s->pyramid, err)
+                         : oct_build(d, vol->ior, &s->pyramid, err);
+    if (rc != BK_OK) return rc;
+    double t1 = bk_now_ms();
+    s->ng = vol->ior_rb ? fld_build_rgb(d->nx, d->ny, d->nz, h, vol->ior, vol->ior_rb, err)
+                        : fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
+    if (!s->ng) return BK_ERR_RUNTIME;
+    bk_log(2, "octree: pyramid %.0f ms, {grad n, n} field %.0f ms", t1 - t0, bk_now_ms() - t1);
+  }
+  if (s->homogeneous) return BK_OK;
+  s->sigma = bk_calloc(s->voxels, s->channels * sizeof(float), "march: extinction grid", err);
+  if (!s->sigma) return BK_ERR_RUNTIME;
+  for (size_t i = 0; i < s->voxels; i++)
+    for (int c = 0; c < s->channels; c++)
+      s->sigma[s->channels * i + c] = (float)((vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c]) * h);
+  return BK_OK;
+}
+
+int pm_fields_build(const volume_t *vol, pm_field_cache_t *kept, pm_setup_t *s,
+                    bk_error_t *err) {
+  const int holds = holds_volume(kept, vol);
+  if (holds && kept->channels == s->channels) {
+    s->ng = kept->ng;
+    s->pyramid = kept->pyramid;
+    s->sigma = kept->sigma;
+    s->fields_kept = 2;
+    s->fields_frame = kept->frame;
+    s->octree_enabled = s->has_refraction;
+    return BK_OK;
+  }
+  if (holds) free_fields(kept); /* the channel count changed */
+  int rc = build_fields(vol, s, err);
+  s->octree_enabled = s->has_refraction;
+  if (rc != BK_OK || !holds_volume(kept, vol)) return rc;
+  kept->channels = s->channels;
+  kept->ng = s->ng;
+  kept->pyramid = s->pyramid;
+  kept->sigma = s->sigma;
+  s->fields_kept = 1;
+  s->fields_frame = kept->frame;
+  return BK_OK;
+}
