@@ -38,6 +38,7 @@ typedef struct bake_job {
   bt_result_t error;
   float *extinction, *density, *ext_grey, *sca_grey, *ior_rgb;
   float *radiance, *photon_count, *photon_weight, *filter_radius, *emission;
+  float *phase_g; /* with error.flux: g where σs > 0 */
   shard_state_t shard;  /* --shard: the raw sums written instead of radiance */
 } bake_job_t;
 
@@ -166,6 +167,10 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   if (opt->error_grid)
     return bk_fail(err, BK_ERR_INPUT, "%s: --error-grid: adaptive mode does not measure "
                    "per-voxel errors yet (use photons.mode \"reference\")", j->scene.path);
+  if (j->scene.medium_g != 0.0f || j->vol->g)
+    bk_warn("%s: adaptive mode writes no radiance_flux: `baker view` shows the anisotropic "
+            "medium's in-scattering as isotropic (photons.mode \"reference\" keeps it)",
+            j->scene.path);
   j->photon_count = bk_calloc(n, sizeof(float), "photon_count grid", err);
   j->photon_weight = bk_calloc(n, sizeof(float), "photon_weight grid", err);
   if (opt->write_filter_radius)
@@ -241,6 +246,12 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   if (a->ior_rgb) grids[g++] = (vdbio_grid_t){"ior_rgb", VDBIO_VEC3, a->ior_rgb, 0, a->medium_ior};
   if (a->radiance) grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, a->radiance, 1, 0.0f};
   if (a->emission) grids[g++] = (vdbio_grid_t){"emission", VDBIO_VEC3, a->emission, 1, 0.0f};
+  if (a->radiance_flux)
+    grids[g++] = (vdbio_grid_t){"radiance_flux", VDBIO_VEC3, a->radiance_flux, 0, 0.0f};
+  if (a->radiance_uncollided)
+    grids[g++] =
+        (vdbio_grid_t){"radiance_uncollided", VDBIO_FLOAT, a->radiance_uncollided, 0, 0.0f};
+  if (a->phase_g) grids[g++] = (vdbio_grid_t){"phase_g", VDBIO_FLOAT, a->phase_g, 0, 0.0f};
   if (a->photon_count)
     grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, a->photon_count, 0, 0.0f};
   if (a->photon_weight)
@@ -266,6 +277,19 @@ static float *ior_interleaved(const volume_t *vol, size_t n, bk_error_t *err) {
  * shard the medium grids and the raw sums (shard.h); *count of them. For
  * grey media the Vec3 grids collapse to floats (DESIGN §5 allows it, and
  * renderers read a float `extinction` more widely). */
+/* The Henyey–Greenstein g the view needs with radiance_flux: the object's
+ * or the medium's, where anything scatters (0, the background, elsewhere). */
+static float *bake_phase_g(const volume_t *vol, float medium_g, bk_error_t *err) {
+  size_t n = grid_count(&vol->dims);
+  float *g = bk_calloc(n, sizeof(float), "phase_g grid", err);
+  if (!g) return NULL;
+  for (size_t i = 0; i < n; i++) {
+    const float *s = vol->sigma_s + 3 * i;
+    if (s[0] > 0.0f || s[1] > 0.0f || s[2] > 0.0f) g[i] = vol->g ? vol->g[i] : medium_g;
+  }
+  return g;
+}
+
 static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], int *count,
                              bk_error_t *err) {
   const volume_t *vol = j->vol;
@@ -279,8 +303,12 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   }
   bake_arrays_t a = {vol->ior, j->extinction, vol->sigma_s, j->density, j->radiance, j->emission,
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
-                     j->scene.medium_ior, NULL};
+                     j->scene.medium_ior, NULL, j->error.flux, j->error.uncollided, NULL};
   if (vol->ior_rb && !(a.ior_rgb = j->ior_rgb = ior_interleaved(vol, n, err))) return err->code;
+  if (j->error.flux || j->shard.sums.flux) { /* a shard's flux is in its sums */
+    if (!(j->phase_g = bake_phase_g(vol, j->scene.medium_g, err))) return err->code;
+    a.phase_g = j->phase_g;
+  }
   if (vol->grey) {
     j->ext_grey = first_channel(j->extinction, n, err);
     j->sca_grey = first_channel(vol->sigma_s, n, err);
@@ -416,6 +444,9 @@ static void bake_job_free(bake_job_t *j) {
   free(j->emission);
   shard_free(&j->shard);
   free(j->error.error_grid);
+  free(j->error.flux);
+  free(j->error.uncollided);
+  free(j->phase_g);
   if (j->scene_loaded) scene_free(&j->scene);
 }
 

@@ -77,8 +77,12 @@ typedef struct bake_arrays {
   int sca_channels;
   float medium_ior;  /* the ior grid's background: n outside the box */
   const float *ior_rgb; /* dispersion: n per channel (R, G, B), 3 per voxel; else NULL */
+  /* some g != 0: F = ∫ L_Y ω dω / (4π) (3 per voxel) and the uncollided
+   * Y(L̄) (1, baker/march.h pm_to_flux), the Henyey–Greenstein g where
+   * σs > 0 (1 per voxel) */
+  const float *radiance_flux, *radiance_uncollided, *phase_g;
 } bake_arrays_t;
-#define BAKE_MAX_GRIDS 13
+#define BAKE_MAX_GRIDS 15
 /* The grids of a frame in file order, as `baker bake` and `baker merge`
  * write them; returns their count. */
 int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]);

@@ -330,6 +330,16 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
   return rc;
 }
 
+/* radiance_flux from the summed batches, when the march kept it. */
+static int make_flux(const pm_setup_t *s, const uint64_t *acc, bt_result_t *res, bk_error_t *err) {
+  if (!s->params.flux) return BK_OK;
+  res->flux = bk_calloc(s->voxels, 3 * sizeof(float), "radiance_flux grid", err);
+  res->uncollided = bk_calloc(s->voxels, sizeof(float), "radiance_uncollided grid", err);
+  if (!res->flux || !res->uncollided) return err->code;
+  pm_to_flux(s, acc, res->flux, res->uncollided);
+  return BK_OK;
+}
+
 int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const bt_options_t *o,
             float *radiance, bt_result_t *res, pm_stats_t *stats, bk_timings_t *timings,
             bk_error_t *err) {
@@ -365,7 +375,7 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
   if (!rc && o->error_grid && !(rc = ee_tracker_init(&grid, &s, 1, err))) x.grid = &grid;
   if (!rc) {
     rc = BK_ERR_RUNTIME;
-    acc = bk_calloc(s.voxels, s.channels * sizeof(uint64_t), "march: radiance accumulator", err);
+    acc = bk_calloc(pm_acc_count(&s), sizeof(uint64_t), "march: radiance accumulator", err);
   }
   if (acc) rc = run_all(cl, &x, res, acc, stats, &ms_march, err);
   if (rc) goto done;
@@ -384,6 +394,7 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
     res->terms.estimate = res->terms.noise = res->terms.step = -1.0;
   } else {
     pm_to_radiance(&s, acc, radiance);
+    if ((rc = make_flux(&s, acc, res, err))) goto done;
   }
   res->terms.twin_photons = x.step_exact ? 0 : res->terms.twin_photons;
   if (x.grid) res->error_grid = ee_take_error_grid(&grid, x.done);

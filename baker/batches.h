@@ -73,6 +73,7 @@ typedef struct bt_result {
   uint64_t batch_photons;
   double ms_twin, ms_track; /* the step twin; the per-batch statistics */
   float *error_grid;   /* opts.error_grid and >= 2 batches: the caller frees */
+  float *flux, *uncollided; /* some g != 0 (not a shard): pm_to_flux's grids; the caller frees */
   int budget_short;    /* the time budget ended the bake before 2 batches */
   int target_missed;   /* the target was not reached (batch cap or budget) */
   integrator_t integrator; /* what marched: the scene's, or target mode's choice */

@@ -7,6 +7,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Some medium has g != 0: the march keeps the flux too. */
+static int budget_anisotropic(const scene_t *s) {
+  int any = s->medium_g != 0.0f;
+  for (int i = 0; i < s->object_count; i++) any |= s->objects[i].g != 0.0f;
+  return any;
+}
+
 int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {
   grid_dims_t *d = &b->dims;
   const char *where = s->where_resolution[0] ? s->where_resolution : s->path;
@@ -15,7 +22,8 @@ int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *e
   b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
   b->per_voxel = (s->mode == MODE_ADAPTIVE ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES) +
                  (s->bounces != 0 ? BUDGET_SCATTER_BYTES : 0.0) +
-                 (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0);
+                 (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0) +
+                 (s->mode != MODE_ADAPTIVE && budget_anisotropic(s) ? BUDGET_FLUX_BYTES : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
   return BK_OK;
 }

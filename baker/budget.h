@@ -32,6 +32,9 @@ extern "C" {
 /* dispersion: two more fields {∇n, n} (32 bytes), the R and B planes of n
  * and the interleaved ior_rgb grid written (20): counted, not measured */
 #define BUDGET_DISPERSION_BYTES 52.0
+/* per voxel, the flux of an anisotropic medium (some g != 0, reference mode):
+ * 4 counters, radiance_flux, radiance_uncollided and phase_g (baker/march.h) */
+#define BUDGET_FLUX_BYTES 52.0
 
 typedef struct budget {
   grid_dims_t dims;

@@ -118,6 +118,7 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
   P->integrator = integrator_kind(scene->integrator)->device;
   P->dispersion = vol->ior_rb != NULL;
   P->mode = PM_MODE_REFERENCE;
+  P->flux = (bk_uint)s->ms.hg; /* the view's anisotropic phase needs the flux */
   set_scale(s, 1.0);
   return BK_OK;
 }
@@ -194,7 +195,8 @@ int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t 
   size_t per_voxel = (s->has_refraction ? (vol->ior_rb ? 12 : 4) * sizeof(float) + 1 : 0) +
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
                      s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
-                     (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0);
+                     (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0) +
+                     (s->ms.hg ? PM_FLUX_SLOTS * (sizeof(uint64_t) + sizeof(float)) + 4 : 0);
   rc = grid_check_memory(d, per_voxel, scene->path, err);
   if (rc != BK_OK) return rc;
   double ms_generate = bk_now_ms() - t0;
@@ -294,6 +296,7 @@ int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_
                    "\"reference\"",
                    (unsigned long long)s->lights.photons, count_bits);
   P->mode = PM_MODE_TABLES;
+  P->flux = 0; /* the adaptive pipeline makes no radiance_flux (yet) */
   P->count_shift = (bk_uint)shift;
   P->weight_scale = (float)ldexp(1.0, (int)floor(log2(room)) > 24 ? 24 : (int)floor(log2(room)));
   s->tables = tables;
@@ -304,7 +307,8 @@ int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_
 size_t pm_acc_count(const pm_setup_t *s) {
   const pm_params *P = &s->params;
   if (P->mode == PM_MODE_ORIGINS) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
-  return s->voxels * (size_t)pm_acc_stride((int)P->mode, s->channels);
+  return s->voxels *
+         ((size_t)pm_acc_stride((int)P->mode, s->channels) + (P->flux ? PM_FLUX_SLOTS : 0));
 }
 
 size_t pm_mask_count(const pm_setup_t *s) {
@@ -387,6 +391,31 @@ static void unpack_weights_range(void *arg, size_t lo, size_t hi) {
   }
 }
 
+/* quanta of the flux counters -> W m^-2 sr^-1 of luminance: one channel is
+ * coloured by to_radiance, three are weighted in the kernel (all three
+ * to_radiance equal then), so either way Σ lum_c to_radiance[c] */
+double pm_flux_scale(const pm_setup_t *s) {
+  static const double lum[3] = {0.2126, 0.7152, 0.0722}; /* pm_flux_weight's */
+  return lum[0] * s->to_radiance[0] + lum[1] * s->to_radiance[1] + lum[2] * s->to_radiance[2];
+}
+
+static void to_flux_range(void *arg, size_t lo, size_t hi) {
+  const pm_unpack_ctx_t *u = arg;
+  const int stride = pm_acc_stride((int)u->s->params.mode, u->s->channels);
+  const uint64_t *f = u->acc + u->s->voxels * (size_t)stride;
+  const double k = pm_flux_scale(u->s);
+  for (size_t i = lo; i < hi; i++) {
+    const uint64_t *q = f + PM_FLUX_SLOTS * i;
+    for (int a = 0; a < 3; a++) u->radiance[3 * i + a] = (float)((double)(int64_t)q[a] * k);
+    u->count[i] = (float)((double)q[3] * k);
+  }
+}
+
+void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux, float *uncollided) {
+  pm_unpack_ctx_t u = {s, acc, flux, uncollided, NULL};
+  bk_parallel(s->voxels, BK_GRAIN, to_flux_range, &u);
+}
+
 void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
                        float *mean_weight) {
   pm_unpack_ctx_t u = {s, acc, NULL, count, mean_weight};
@@ -400,6 +429,7 @@ void pm_sums_keep(const pm_setup_t *s, uint64_t *acc, pm_sums_t *out) {
   out->channels = s->channels;
   out->mode = (int)s->params.mode;
   out->stride = pm_acc_stride(out->mode, s->channels);
+  out->flux = (int)s->params.flux;
   memcpy(out->to_radiance, s->to_radiance, sizeof out->to_radiance);
   out->count_shift = s->params.count_shift;
   out->weight_scale = s->params.weight_scale;
@@ -413,6 +443,7 @@ void pm_sums_setup(const pm_sums_t *k, pm_setup_t *out) {
   out->params.channels = (bk_uint)k->channels;
   out->params.count_shift = k->count_shift;
   out->params.weight_scale = k->weight_scale;
+  out->params.flux = (bk_uint)k->flux;
   memcpy(out->to_radiance, k->to_radiance, sizeof out->to_radiance);
 }
 
@@ -462,7 +493,7 @@ int pm_bake_range(clh_context_t *cl, const scene_t *scene, const volume_t *vol, 
   if (rc != BK_OK) return rc;
   pm_set_range(&s, first, last);
   rc = BK_ERR_RUNTIME;
-  acc = bk_calloc(s.voxels, s.channels * sizeof(uint64_t), "march: radiance accumulator", err);
+  acc = bk_calloc(pm_acc_count(&s), sizeof(uint64_t), "march: radiance accumulator", err);
   if (!acc) goto error;
   double t0 = bk_now_ms();
   rc = cl ? pm_run_cl(cl, &s, acc, stats, err) : pm_run_host(&s, acc, stats, err);
@@ -504,7 +535,7 @@ error:
 /* Marches one photon with a path recorder, on a scratch accumulator. */
 static int trace(const pm_setup_t *s, const pm_params *P, const ph_light *lights, uint32_t index,
                  float *points, int max_points, int *count, pm_result *res, bk_error_t *err) {
-  uint64_t *scratch = bk_calloc(s->voxels, s->channels * sizeof(uint64_t), "march: trace scratch", err);
+  uint64_t *scratch = bk_calloc(pm_acc_count(s), sizeof(uint64_t), "march: trace scratch", err);
   if (!scratch) return BK_ERR_RUNTIME;
   pm_path_rec rec = {points, max_points, 0};
   pm_result r;

@@ -213,6 +213,16 @@ void pm_scale_batches(pm_setup_t *s, double batch_cap);
 /* acc -> radiance (3 floats per voxel, W m^-2 sr^-1); reference and
  * weighted modes. */
 void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);
+/* params.flux (some g != 0, kernels/photon_march.h PM_FLUX): the flux
+ * counters after the voxels' -> `radiance_flux`, 3 floats per voxel,
+ * F = ∫ L_Y ω dω / (4π) in W m^-2 sr^-1, the first moment of the luminance
+ * Y = 0.2126 R + 0.7152 G + 0.0722 B of radiance in radiance's own
+ * normalisation (L̄ = ∫ L dω / (4π)): |F| <= Y(L̄), = for a parallel beam;
+ * and `radiance_uncollided`, 1 float per voxel, the part of Y(L̄) that has
+ * not scattered yet (Y(L̄) itself with bounces 0). pm_flux_scale: quanta ->
+ * those units. */
+void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux, float *uncollided);
+double pm_flux_scale(const pm_setup_t *s);
 /* Weighted mode: per voxel the photon count and the mean weight (0 where no
  * photon came); either may be NULL. */
 void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
@@ -229,6 +239,7 @@ typedef struct pm_sums {
   double to_radiance[3];  /* quanta -> W m^-2 sr^-1 per output channel */
   unsigned count_shift;   /* PM_MODE_TABLES: the packed count's shift */
   float weight_scale;     /* ... and the weight sum's quanta per unit weight */
+  int flux;               /* PM_FLUX_SLOTS counters per voxel after voxels·stride (pm_to_flux) */
 } pm_sums_t;
 /* Takes acc (pm_acc_count(s) counters, now owned by out) with s's scales. */
 void pm_sums_keep(const pm_setup_t *s, uint64_t *acc, pm_sums_t *out);

@@ -54,10 +54,11 @@ static int build_kernel(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, 
   ph_kernel_defines(&s->lights, lights, sizeof lights);
   ms_kernel_defines(&s->ms, ms, sizeof ms);
   snprintf(opts, sizeof opts,
-           "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d %s -DPM_MODE=%d%s%s%s",
+           "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d %s -DPM_MODE=%d%s%s%s%s",
            s->has_refraction, s->homogeneous, s->params.integrator, s->channels, lights,
            (int)s->params.mode, scatter ? " " : "", ms,
-           s->params.dispersion ? " -DDISPERSION=1" : "");
+           s->params.dispersion ? " -DDISPERSION=1" : "",
+           s->params.flux && s->params.mode != PM_MODE_ORIGINS ? " -DPM_FLUX=1" : "");
   if (clh_build(cl, scatter ? "march_ms.cl" : "march.cl", opts, &r->prog, err) != BK_OK)
     return BK_ERR_RUNTIME;
   r->kern = clCreateKernel(r->prog, scatter ? "pm_march_ms" : "pm_march", &cerr);

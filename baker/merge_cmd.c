@@ -94,7 +94,7 @@ static int read_shard(merge_shard_t *s, bk_error_t *err) {
  * shards), and the sums' layout and scales. */
 static const char *const SAME_KEYS[] = {
     "shard_key", "shard_count", "shard_photons", "shard_sum_stride", "shard_sum_channels",
-    "shard_sum_mode", "shard_sum_scales", "shard_grid", "shard_ior_background", "shard_filter",
+    "shard_sum_mode", "shard_sum_flux", "shard_sum_scales", "shard_grid", "shard_ior_background", "shard_filter",
     "checksum_ior", "checksum_extinction", "checksum_scattering", "checksum_density"};
 
 static int check_together(const merge_shard_t *sh, int n, bk_error_t *err) {
@@ -170,21 +170,26 @@ static int add_sums(const merge_shard_t *sh, int n, const grid_dims_t *d, pm_sum
              &k->to_radiance[1], &k->to_radiance[2], &k->count_shift, &ws) != 5)
     return bk_fail(err, BK_ERR_INPUT, "%s: shard_sum_scales is not readable", sh[0].path);
   k->weight_scale = (float)ws;
-  int rc = grid_check_memory(d, (size_t)k->stride * (sizeof(uint64_t) + 3 * sizeof(float)),
+  k->flux = meta_get(&sh[0], "shard_sum_flux") != NULL;
+  const int slots = k->stride + (k->flux ? PM_FLUX_SLOTS : 0);
+  int rc = grid_check_memory(d, (size_t)slots * (sizeof(uint64_t) + 3 * sizeof(float)),
                              sh[0].path, err);
   if (rc) return rc;
-  k->acc = bk_calloc(k->voxels, (size_t)k->stride * sizeof(uint64_t), "merge: sums", err);
+  k->acc = bk_calloc(k->voxels, (size_t)slots * sizeof(uint64_t), "merge: sums", err);
   float *enc = bk_calloc(k->voxels, 3 * sizeof(float), "merge: shard sum grid", err);
   if (!k->acc || !enc) {
     free(enc);
     return BK_ERR_RUNTIME;
   }
   for (int i = 0; i < n && !rc; i++)
-    for (int s = 0; s < k->stride && !rc; s++) {
+    for (int s = 0; s < slots && !rc; s++) {
       char name[32];
-      snprintf(name, sizeof name, "shard_sum_%d", s);
+      const int f = s - k->stride; /* >= 0: a flux counter (shard.c shard_grids) */
+      snprintf(name, sizeof name, f < 0 ? "shard_sum_%d" : "shard_flux_%d", f < 0 ? s : f);
       if (!(rc = vdbio_read_box(sh[i].path, name, d, 3, enc, err)) &&
-          !shard_decode_add(enc, k->voxels, k->stride, s, k->acc))
+          !(f < 0 ? shard_decode_add(enc, k->voxels, k->stride, s, k->acc)
+                  : shard_decode_add(enc, k->voxels, PM_FLUX_SLOTS, f,
+                                     k->acc + k->voxels * k->stride)))
         rc = bk_fail(err, BK_ERR_INPUT, "%s: grid %s holds values that are not sums of this "
                      "baker (a corrupt shard)", sh[i].path, name);
     }
@@ -199,12 +204,14 @@ typedef struct merge_out {
   float medium_ior;
   float *ior, *extinction, *scattering, *density, *radiance, *emission, *count, *weight, *radius;
   float *ior_rgb; /* dispersion: the shards' n per channel */
+  float *flux, *uncollided, *phase_g; /* the shards kept the flux (some g != 0) */
   ad_stats_t astats;
 } merge_out_t;
 
 static void merge_out_free(merge_out_t *o) {
-  float *all[] = {o->ior, o->extinction, o->scattering, o->density, o->radiance,
-                  o->emission, o->count, o->weight, o->radius, o->ior_rgb};
+  float *all[] = {o->ior,    o->extinction, o->scattering, o->density, o->radiance,
+                  o->emission, o->count,    o->weight,     o->radius,  o->ior_rgb,
+                  o->flux,   o->uncollided, o->phase_g};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) free(all[i]);
 }
 
@@ -248,7 +255,13 @@ static int finish(const merge_shard_t *s, const pm_sums_t *k, merge_out_t *o, bk
     pm_setup_t setup;
     pm_sums_setup(k, &setup);
     pm_to_radiance(&setup, k->acc, o->radiance);
-    return BK_OK;
+    if (!k->flux) return BK_OK;
+    o->flux = bk_calloc(n, 3 * sizeof(float), "radiance_flux grid", err);
+    o->uncollided = bk_calloc(n, sizeof(float), "radiance_uncollided grid", err);
+    if (!o->flux || !o->uncollided) return err->code;
+    pm_to_flux(&setup, k->acc, o->flux, o->uncollided);
+    if (!(o->phase_g = bk_calloc(n, sizeof(float), "phase_g grid", err))) return err->code;
+    return vdbio_read_box(s->path, "phase_g", &o->dims, 1, o->phase_g, err);
   }
   const char *f = meta_get(s, "shard_filter");
   ad_bake_opts_t ao;
@@ -365,7 +378,8 @@ static int merge_run(merge_shard_t *sh, int n, const char *out_path, bk_error_t 
   if (!rc) {
     bake_emission(o.scattering, o.sca_channels, o.radiance, sums.voxels, o.emission);
     bake_arrays_t a = {o.ior, o.extinction, o.scattering, o.density, o.radiance, o.emission,
-                       o.count, o.weight, o.radius, o.sca_channels, o.medium_ior, o.ior_rgb};
+                       o.count, o.weight, o.radius, o.sca_channels, o.medium_ior, o.ior_rgb,
+                       o.flux, o.uncollided, o.phase_g};
     int count = bake_grid_list(&a, grids);
     int mc = merged_meta(sh, n, &o, &text, meta);
     vdbio_write_opts_t w = write_opts(text.settings);

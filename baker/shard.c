@@ -99,15 +99,19 @@ int shard_decode_add(const float *in, size_t voxels, int stride, int slot, uint6
 int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids, int *count,
                 int max, bk_error_t *err) {
   const pm_sums_t *k = &sh->sums;
-  if (k->stride < 1 || k->stride > SHARD_MAX_STRIDE || *count + k->stride > max)
+  const int slots = k->stride + (k->flux ? PM_FLUX_SLOTS : 0);
+  if (k->stride < 1 || k->stride > SHARD_MAX_STRIDE || *count + slots > max)
     return bk_fail(err, BK_ERR_RUNTIME, "shard: %d counters per voxel do not fit the file",
-                   k->stride);
+                   slots);
   size_t n = grid_count(dims);
-  for (int s = 0; s < k->stride; s++) {
+  for (int s = 0; s < slots; s++) {
+    const int f = s - k->stride; /* >= 0: a flux counter, after the voxels' */
     sh->encoded[s] = bk_calloc(n, 3 * sizeof(float), "shard sum grid", err);
     if (!sh->encoded[s]) return err->code;
-    shard_encode(k->acc, n, k->stride, s, sh->encoded[s]);
-    snprintf(sh->names[s], sizeof sh->names[s], "shard_sum_%d", s);
+    if (f < 0) shard_encode(k->acc, n, k->stride, s, sh->encoded[s]);
+    else shard_encode(k->acc + n * (size_t)k->stride, n, PM_FLUX_SLOTS, f, sh->encoded[s]);
+    snprintf(sh->names[s], sizeof sh->names[s], f < 0 ? "shard_sum_%d" : "shard_flux_%d",
+             f < 0 ? s : f);
     grids[(*count)++] = (vdbio_grid_t){sh->names[s], VDBIO_VEC3, sh->encoded[s], 0, 0.0f};
   }
   return BK_OK;
@@ -129,6 +133,7 @@ int shard_meta(shard_state_t *sh, const bake_options_t *opt, const scene_t *s,
   meta[m++] = (vdbio_meta_t){"shard_sum_stride", VDBIO_META_INT, NULL, k->stride, 0};
   meta[m++] = (vdbio_meta_t){"shard_sum_channels", VDBIO_META_INT, NULL, k->channels, 0};
   meta[m++] = (vdbio_meta_t){"shard_sum_mode", VDBIO_META_INT, NULL, k->mode, 0};
+  if (k->flux) meta[m++] = (vdbio_meta_t){"shard_sum_flux", VDBIO_META_INT, NULL, 1, 0};
   meta[m++] = (vdbio_meta_t){"shard_sum_scales", VDBIO_META_STRING, sh->scales, 0, 0};
   snprintf(sh->ior_bg, sizeof sh->ior_bg, "%a", (double)s->medium_ior);
   snprintf(sh->grid, sizeof sh->grid, "%d %d %d %a %a %a %a", dims->nx, dims->ny, dims->nz,
@@ -143,7 +148,7 @@ int shard_meta(shard_state_t *sh, const bake_options_t *opt, const scene_t *s,
 
 void shard_free(shard_state_t *sh) {
   pm_sums_free(&sh->sums);
-  for (int s = 0; s < SHARD_MAX_STRIDE; s++) {
+  for (int s = 0; s < SHARD_MAX_SLOTS; s++) {
     free(sh->encoded[s]);
     sh->encoded[s] = NULL;
   }

@@ -35,14 +35,15 @@
 
 #define SHARD_META_MAX 20 /* entries shard_meta adds, at most */
 #define SHARD_MAX_STRIDE 4 /* counters per voxel: 3 channels + packed count/weight */
+#define SHARD_MAX_SLOTS (SHARD_MAX_STRIDE + PM_FLUX_SLOTS) /* and the flux's (shard_flux_A) */
 #define SHARD_MAX_COUNT 100000
 
 /* One shard's state between the march and the write. */
 typedef struct shard_state {
   pm_sums_t sums;
   uint64_t first, last, photons; /* the range of photons.count traced */
-  float *encoded[SHARD_MAX_STRIDE]; /* shard_sum_S, 3 floats per voxel */
-  char key[24], scales[160], names[SHARD_MAX_STRIDE][16], filter[160], ior_bg[40], grid[160];
+  float *encoded[SHARD_MAX_SLOTS]; /* shard_sum_S, then shard_flux_A; 3 floats per voxel */
+  char key[24], scales[160], names[SHARD_MAX_SLOTS][16], filter[160], ior_bg[40], grid[160];
   float alpha;                   /* adaptive.alpha, for the merge's filter */
 } shard_state_t;
 

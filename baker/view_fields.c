@@ -33,9 +33,17 @@ int view_fields_build(view_volume_t *v, bk_error_t *err) {
   if (v->refraction && (rc = build_refraction(v, err))) return rc;
   /* S and σt constant over a block and the voxel around it that trilinear
    * sampling reads; built before padding */
-  const oct_source_t medium[2] = {{v->medium, 4, 4}, {v->sigma_t4, 4, 3}};
-  if ((rc = oct_build_fields(v->nx, v->ny, v->nz, medium, v->sigma_t4 ? 2 : 1, 1, &v->mpyr, err)))
+  oct_source_t medium[4] = {{v->medium, 4, 4}, {v->sigma_t4, 4, 3}, {v->aniso, 4, 4},
+                            {v->aniso_s, 4, 3}};
+  int nsrc = 1;
+  if (v->sigma_t4) medium[nsrc++] = medium[1];
+  if (v->aniso) { /* the phase lobes: part of the source */
+    medium[nsrc++] = medium[2];
+    medium[nsrc++] = medium[3];
+  }
+  if ((rc = oct_build_fields(v->nx, v->ny, v->nz, medium, nsrc, 1, &v->mpyr, err))) return rc;
+  if ((rc = pad_field(v, &v->medium, err)) || (rc = pad_field(v, &v->sigma_t4, err)) ||
+      (rc = pad_field(v, &v->aniso, err)) || (rc = pad_field(v, &v->aniso_s, err)))
     return rc;
-  if ((rc = pad_field(v, &v->medium, err)) || (rc = pad_field(v, &v->sigma_t4, err))) return rc;
   return BK_OK;
 }

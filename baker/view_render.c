@@ -114,9 +114,10 @@ static double cpu_ms(void) {
  * one pixel after another. Slow; for tests and for machines without OpenCL. */
 static int render_host(const view_volume_t *v, const view_params_t *p, int integrator,
                        float *rgba, view_totals_t *tot) {
-  const view_fields f = {v->medium, v->sigma_t4, v->ng, v->npyr.level, v->mpyr.level};
+  const view_fields f = {v->medium,     v->sigma_t4, v->ng,     v->npyr.level,
+                         v->mpyr.level, v->aniso,    v->aniso_s};
   const view_flags fl = {v->refraction, v->sigma_ch == 1, integrator, v->homogeneous,
-                         v->ior_rb != NULL};
+                         v->ior_rb != NULL, v->aniso != NULL};
   double t0 = bk_now_ms(), c0 = cpu_ms();
   bk_progress_t prog;
   bk_progress_begin(&prog, "view: marching (host)", (uint64_t)p->height);
@@ -144,8 +145,9 @@ static int build_kernel(view_gpu_t *g, const view_volume_t *v, int integrator,
   int rc;
   char opts[256];
   snprintf(opts, sizeof opts,
-           "-DHAS_REFRACTION=%d -DINTEGRATOR=%d -DGREY=%d -DHOMOGENEOUS=%d%s", v->refraction,
-           integrator, v->sigma_ch == 1, v->homogeneous, v->ior_rb ? " -DDISPERSION=1" : "");
+           "-DHAS_REFRACTION=%d -DINTEGRATOR=%d -DGREY=%d -DHOMOGENEOUS=%d%s%s", v->refraction,
+           integrator, v->sigma_ch == 1, v->homogeneous, v->ior_rb ? " -DDISPERSION=1" : "",
+           v->aniso ? " -DANISO=1" : "");
   if (!g->kernel || strcmp(opts, g->options) != 0) {
     if (g->kernel) clReleaseKernel(g->kernel), g->kernel = NULL;
     if (g->program) clReleaseProgram(g->program), g->program = NULL;
@@ -162,10 +164,12 @@ error:
   return err->code;
 }
 
-/* The fields and the image as buffers b[0..6], set as the kernel's
+/* The fields and the image as buffers b[0..8], set as the kernel's
  * arguments after the parameters. */
 static int upload(view_gpu_t *g, const view_volume_t *v, const view_params_t *p, size_t npix,
-                  cl_mem b[7], bk_error_t *err) {
+                  cl_mem b[9], bk_error_t *err) {
+  const size_t aniso_bytes = v->aniso ? fld_padded_count(v->nx, v->ny, v->nz) * 4 * sizeof(float)
+                                      : 16;
   const size_t npad = fld_padded_count(v->nx, v->ny, v->nz);
   const cl_mem_flags ro = CL_MEM_READ_ONLY;
   if (!(b[0] = make_buffer(g, v->medium, npad * 4 * sizeof(float), ro, "medium", err)) ||
@@ -177,10 +181,12 @@ static int upload(view_gpu_t *g, const view_volume_t *v, const view_params_t *p,
       !(b[4] = make_buffer(g, v->mpyr.level, pyr_bytes(&v->mpyr), ro, "constant blocks", err)) ||
       !(b[5] = make_buffer(g, NULL, npix * 4 * sizeof(float), CL_MEM_WRITE_ONLY, "image", err)) ||
       !(b[6] =
-            make_buffer(g, NULL, npix * sizeof(bk_uint), CL_MEM_WRITE_ONLY, "step counts", err)))
+            make_buffer(g, NULL, npix * sizeof(bk_uint), CL_MEM_WRITE_ONLY, "step counts", err)) ||
+      !(b[7] = make_buffer(g, v->aniso, aniso_bytes, ro, "phase lobes", err)) ||
+      !(b[8] = make_buffer(g, v->aniso_s, aniso_bytes, ro, "phase lobes", err)))
     return err->code ? err->code : BK_ERR_RUNTIME;
   CLH_CHECK(clSetKernelArg(g->kernel, 0, sizeof *p, p), err, error);
-  for (int a = 0; a < 7; a++)
+  for (int a = 0; a < 9; a++)
     CLH_CHECK(clSetKernelArg(g->kernel, (cl_uint)a + 1, sizeof(cl_mem), &b[a]), err, error);
   CLH_CHECK(clFinish(g->cl.queue), err, error);
   return BK_OK;
@@ -232,7 +238,7 @@ int view_render(view_gpu_t *g, const view_volume_t *v, const view_cam_t *c, cons
                 int integrator, float step, float *rgba, view_totals_t *tot, bk_error_t *err) {
   const size_t npix = (size_t)c->width * (size_t)c->height;
   int rc = BK_OK;
-  cl_mem b[8] = {0};
+  cl_mem b[9] = {0};
   err->code = BK_OK;
   bk_uint *steps = NULL;
   view_params_t p;
@@ -267,7 +273,7 @@ int view_render(view_gpu_t *g, const view_volume_t *v, const view_cam_t *c, cons
 
 error:
   if (rc == BK_OK) rc = err->code; /* set by CLH_CHECK */
-  for (int a = 0; a < 7; a++)
+  for (int a = 0; a < 9; a++)
     if (b[a]) clReleaseMemObject(b[a]);
   free(steps);
   return rc;

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "base/grid.h"
+#include "kernels/view_march.h"
 #include "vdbio.h"
 #include "view_camera.h"
 #include "view_fields.h"
@@ -27,6 +28,8 @@ void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err) {
 void view_volume_free(view_volume_t *v) {
   free(v->medium);
   free(v->sigma_t4);
+  free(v->aniso);
+  free(v->aniso_s);
   free(v->ior);
   free(v->ior_rb);
   free(v->ng);
@@ -166,7 +169,7 @@ static int is_constant(const float *a, size_t n, int ch, float c[3]) {
   return 1;
 }
 
-enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_IOR_RGB, G_COUNT };
+enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_IOR_RGB, G_FLUX, G_PHG, G_UNC, G_COUNT };
 
 /* One file's grids while they are read and moved onto one box. */
 typedef struct view_load {
@@ -201,16 +204,17 @@ static int load_select(view_load_t *L, bk_error_t *err) {
   for (int g = 0; g < G_COUNT; g++) {
     if (idx[g] < 0) continue;
     const char *t = types[idx[g]];
-    int ok = g == G_RAD || g == G_IOR_RGB ? is_vec3_type(t)
-             : g == G_IOR ? is_scalar_type(t)
-                          : (is_scalar_type(t) || is_vec3_type(t));
+    int ok = g == G_RAD || g == G_IOR_RGB || g == G_FLUX ? is_vec3_type(t)
+             : g == G_IOR || g == G_PHG || g == G_UNC ? is_scalar_type(t)
+                                                        : (is_scalar_type(t) || is_vec3_type(t));
     if (!ok)
       return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected %s", path,
                      L->gname[g], t,
-                     g == G_RAD       ? "Vec3f (vec3s) radiance"
-                     : g == G_IOR_RGB ? "Vec3f (vec3s) n per channel"
-                     : g == G_IOR ? "float"
-                                  : "float or Vec3f");
+                     g == G_RAD                               ? "Vec3f (vec3s) radiance"
+                     : g == G_IOR_RGB                         ? "Vec3f (vec3s) n per channel"
+                     : g == G_FLUX                            ? "Vec3f (vec3s)"
+                     : g == G_IOR || g == G_PHG || g == G_UNC ? "float"
+                                                              : "float or Vec3f");
     L->present[g] = 1;
   }
   return BK_OK;
@@ -369,6 +373,60 @@ static int load_ior_rgb(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_
   return BK_OK;
 }
 
+/* The phase lobes per voxel (view_march.h), in index space: the
+ * uncollided light u = Y0 / Y(L̄) as a beam along F̂, aniso = {g F̂, u}; the
+ * rest as an HG lobe of mean cosine m_s = (|F| / Y(L̄) − u) / (1 − u),
+ * aniso_s = {g m_s F̂, 0}; |g|, |g m_s| at most VIEW_ANISO_MAX. Only with
+ * radiance_flux and phase_g (without radiance_uncollided: u = 0). */
+static void aniso_voxel(const float *F, float g, const float *l, const float *y0,
+                        const double m[3][3], float *a, float *as) {
+  double y = 0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2], d[3], len = 0.0;
+  for (int r = 0; r < 3; r++) {
+    d[r] = m[r][0] * F[0] + m[r][1] * F[1] + m[r][2] * F[2];
+    len += d[r] * d[r];
+  }
+  len = sqrt(len);
+  if (!(y > 0.0) || !(len > 0.0)) return; /* zeroed: isotropic */
+  double u = y0 ? fmin(fmax(*y0 / y, 0.0), 1.0) : 0.0, mean = fmin(len / y, 1.0);
+  double ms = u < 1.0 ? fmin(fmax((mean - u) / (1.0 - u), 0.0), 1.0) : 0.0;
+  double gc = fmax(fmin(g, VIEW_ANISO_MAX), -VIEW_ANISO_MAX);
+  for (int r = 0; r < 3; r++) {
+    a[r] = (float)(gc * d[r] / len);
+    as[r] = (float)(gc * ms * d[r] / len);
+  }
+  a[3] = (float)u;
+}
+
+static int load_aniso(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
+  const float *F = L->arr[G_FLUX], *g = L->arr[G_PHG], *rad = L->arr[G_RAD];
+  const float *unc = L->arr[G_UNC];
+  if (!F || !g) {
+    if (F) bk_warn("%s: grid \"radiance_flux\" without \"phase_g\": in-scattering is shown "
+                   "isotropic", L->path);
+    return BK_OK;
+  }
+  double m[3][3]; /* world -> index, scaled back to unit length (a similarity) */
+  for (int r = 0; r < 3; r++)
+    for (int c = 0; c < 3; c++) m[r][c] = L->like.world_to_index[r][c] * L->scale;
+  v->aniso = view_alloc(nvox, 4 * sizeof(float), "view: anisotropy", err);
+  v->aniso_s = view_alloc(nvox, 4 * sizeof(float), "view: anisotropy", err);
+  if (!v->aniso || !v->aniso_s) return BK_ERR_RUNTIME;
+  for (size_t i = 0; i < nvox; i++) {
+    if (!(g[i] > -1.0f && g[i] < 1.0f))
+      return bk_fail(err, BK_ERR_INPUT, "%s: grid \"phase_g\" holds %g; expected -1 < g < 1",
+                     L->path, (double)g[i]);
+    aniso_voxel(F + 3 * i, g[i], rad + 3 * i, unc ? unc + i : NULL, m, v->aniso + 4 * i,
+                v->aniso_s + 4 * i);
+    v->anisotropic |= v->aniso[4 * i] != 0.0f || v->aniso[4 * i + 1] != 0.0f ||
+                      v->aniso[4 * i + 2] != 0.0f;
+  }
+  if (!v->anisotropic) {
+    free(v->aniso), v->aniso = NULL;
+    free(v->aniso_s), v->aniso_s = NULL;
+  }
+  return BK_OK;
+}
+
 /* Coefficients: σs absent -> σt; σt absent -> σs; both absent -> 0. */
 static int load_coefficients(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
   float **arr = L->arr;
@@ -425,7 +483,9 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
   memset(v, 0, sizeof *v);
   L.path = path;
   L.scale = 1.0;
-  const char *gname[G_COUNT] = {"radiance", "ior", "extinction", "scattering", "ior_rgb"};
+  const char *gname[G_COUNT] = {"radiance",      "ior",     "extinction",         "scattering",
+                                "ior_rgb",       "radiance_flux", "phase_g",
+                                "radiance_uncollided"};
   memcpy(L.gname, gname, sizeof gname);
 
   int rc = vdbio_list_grids(path, &L.names, &L.types, &L.count, err);
@@ -442,6 +502,7 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
                                        g == G_EXT || g == G_SCA, err)))
       goto error;
   if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_ior_rgb(&L, v, nvox, err)) ||
+      (rc = load_aniso(&L, v, nvox, err)) ||
       (rc = load_medium(&L, v, nvox, err)))
     goto error;
   /* the grids as read are packed now: free them before padding (peak memory) */

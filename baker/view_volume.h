@@ -2,7 +2,9 @@
  * kernel reads them.
  *
  * In: a VDB with a `radiance` Vec3f grid and optionally `ior`, `extinction`
- * (else `density`), `scattering` (view.h says how absent grids default), any
+ * (else `density`), `scattering` (view.h says how absent grids default),
+ * `radiance_flux` with `phase_g` and `radiance_uncollided` (the anisotropic
+ * phase's lobes), any
  * similarity transform. Out: the union of the grids' active boxes in the
  * radiance grid's index space, with the index <-> world transforms, and the
  * packed fields: S = σs L̄ with σt, RGB σt, n, {∇n, n}, the flat distances
@@ -26,6 +28,8 @@ typedef struct view_volume {
   int empty;                   /* no grid has active voxels: the image is the background */
   float *medium;               /* 4 per voxel: S = σs L̄ (RGB), σt when grey; per voxel length */
   float *sigma_t4;             /* 4 per voxel: σt (RGB) when RGB and not homogeneous */
+  float *aniso, *aniso_s;      /* 4 per voxel: the phase lobes (view_march.h), index space */
+  int anisotropic;             /* some lobe is not isotropic (radiance_flux and phase_g) */
   int sigma_ch;                /* 1: grey coefficients, 3: RGB */
   int homogeneous;             /* RGB σt constant: st_const */
   float st_const[3];

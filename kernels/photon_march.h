@@ -51,7 +51,18 @@
  *                     (consecutive deposits in the same voxel, the small
  *                     steps of a refractive region, count once). One packed
  *                     atomic per passage and none per extra deposit: the
- *                     slides lost time to atomics for exactly these data. */
+ *                     slides lost time to atomics for exactly these data.
+ *
+ * PM_FLUX (g != 0 somewhere, baker/bounces.c ms_decide): the accumulator
+ * also holds, after the voxels' counters, PM_FLUX_SLOTS counters per voxel:
+ * 3 signed ones (two's complement in the ulong atomics, order-independent
+ * like the others), the luminance-weighted deposit times the chord's unit
+ * direction, Σ Y·ℓ·ω with Y = Σ_c lum_c Φ_c (Rec. 709; the one channel
+ * itself when PM_CHANNELS is 1), the first moment of radiance next to
+ * radiance's zeroth; and Σ Y·ℓ of the photons not scattered yet (a
+ * multiple-scattering chain's first leg; every deposit with bounces 0), the
+ * uncollided light (baker/march.h pm_to_flux). Not in PM_MODE_ORIGINS.
+ * Without the flag nothing of it is compiled. */
 #ifndef BAKER_MARCH_KERNEL_H
 #define BAKER_MARCH_KERNEL_H
 
@@ -84,6 +95,8 @@
 #define PM_FATE_ABSORBED 2   /* power below PM_ABSORB_FRACTION */
 #define PM_FATE_STEP_LIMIT 3 /* PM_MAX_STEPS or PM_MAX_PATH_DIAGONALS */
 
+#define PM_FLUX_SLOTS 4 /* PM_FLUX: counters per voxel after the voxels' */
+
 #define PM_MODE_REFERENCE 0
 #define PM_MODE_ORIGINS 1
 #define PM_MODE_TABLES 2
@@ -108,6 +121,11 @@
 #define DISPERSION 0
 #endif
 #define PM_DISPERSION(P) (DISPERSION)
+#ifndef PM_FLUX
+#define PM_FLUX 0
+#endif
+#define PM_FLUX_COMPILED (PM_FLUX && PM_MODE != PM_MODE_ORIGINS)
+#define PM_FLUX_OF(P) (PM_FLUX_COMPILED)
 #define PM_HAS_REFRACTION(P) (HAS_REFRACTION)
 #define PM_HOMOGENEOUS(P) (HOMOGENEOUS)
 #define PM_INTEGRATOR(P) (INTEGRATOR)
@@ -124,6 +142,8 @@
 #define PM_NCH(P) ((int)(P)->channels)
 #define PM_MODE_OF(P) ((int)(P)->mode)
 #define PM_DISPERSION(P) ((P)->dispersion)
+#define PM_FLUX_COMPILED 1
+#define PM_FLUX_OF(P) ((P)->flux && (P)->mode != PM_MODE_ORIGINS)
 /* The host path marches one photon at a time on one thread. */
 #define PM_ATOMIC_ADD(p, q) (*(p) += (q))
 /* Host-only path recording for tests (pm_trace_* in baker/march.h). */
@@ -160,7 +180,8 @@ typedef struct pm_params {
   bk_uint homogeneous;
   bk_uint integrator;
   bk_uint dispersion;     /* host path only: the device uses -D DISPERSION */
-  int pad2, pad3;
+  bk_uint flux;           /* host path only: the device uses -D PM_FLUX */
+  int pad3;
   bk_uint mode;               /* PM_MODE_*: host path only (the device uses -D PM_MODE) */
   int coarse_shift;           /* pilot: deposits and marks at voxel >> coarse_shift */
   int cnx, cny, cnz;          /* pilot: the coarse grid */
@@ -193,6 +214,10 @@ typedef struct pm_photon {
 #if PM_MS_COMPILED
   ms_flight fl;     /* multiple scattering: this leg's free flight */
 #endif
+#if PM_FLUX_COMPILED
+  bk_v3 fdir;       /* PM_FLUX: the unit direction of the chord being deposited */
+  bk_uint scattered; /* PM_FLUX: 0 on the light's own leg, 1 after a scattering event */
+#endif
 } pm_photon;
 
 /* Adds value (already multiplied by the fixed-point scale) to one counter,
@@ -201,6 +226,26 @@ BK_INLINE void pm_deposit(BK_GLOBAL bk_ulong *acc, float value) {
   bk_ulong q = (bk_ulong)(value + 0.5f);
   if (q) PM_ATOMIC_ADD(acc, q);
 }
+
+#if PM_FLUX_COMPILED
+/* PM_FLUX: a channel's weight in the flux's luminance (Rec. 709; one
+ * channel carries the sum of RGB, coloured by the host). */
+BK_INLINE float pm_flux_weight(int nch, int ch) {
+  return nch == 1 ? 1.0f : ch == 0 ? 0.2126f : ch == 1 ? 0.7152f : 0.0722f;
+}
+
+/* Adds y·d to the flux counters of a voxel (signed quanta, rounded to the
+ * nearest, in the ulongs' two's complement), and y to the uncollided one
+ * while the photon has not scattered. */
+BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d, bk_uint scattered) {
+  const float v[3] = {y * d.x, y * d.y, y * d.z};
+  for (int a = 0; a < 3; a++) {
+    bk_long q = (bk_long)(v[a] >= 0.0f ? v[a] + 0.5f : v[a] - 0.5f);
+    if (q) PM_ATOMIC_ADD(f + a, (bk_ulong)q);
+  }
+  if (!scattered) pm_deposit(f + 3, y);
+}
+#endif
 
 BK_INLINE bk_long pm_index(const bk_grid g, int i, int j, int k) {
   return (bk_long)i + (bk_long)g.nx * ((bk_long)j + (bk_long)g.ny * (bk_long)k);
@@ -250,6 +295,9 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
   }
 #endif
   float pmax = 0.0f;
+#if PM_FLUX_COMPILED
+  float lum = 0.0f; /* the luminance deposited, for the flux */
+#endif
   for (int ch = 0; ch < nch; ch++) {
 #if !PH_DEVICE || DISPERSION
     if (PM_DISPERSION(P) && ph->power[ch] == 0.0f) continue; /* not this photon's channel */
@@ -259,12 +307,23 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
     else sg = sigma[nch * idx + ch];
     float r = rc_atten(sg * seg, &trans);
     pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
+#if PM_FLUX_COMPILED
+    lum += pm_flux_weight(nch, ch) * ph->power[ch] * seg * r;
+#endif
 #if PM_MS_COMPILED
     ph->fl.deposit += ph->power[ch] * seg * r;
 #endif
     ph->power[ch] *= trans;
     pmax = ph->power[ch] > pmax ? ph->power[ch] : pmax;
   }
+#if PM_FLUX_COMPILED
+  if (PM_FLUX_OF(P)) {
+    const bk_grid g = P->grid;
+    const bk_long base = (bk_long)g.nx * (bk_long)g.ny * (bk_long)g.nz * (bk_long)stride;
+    pm_deposit_flux(acc + base + PM_FLUX_SLOTS * idx, lum * P->fixed_scale, ph->fdir,
+                    ph->scattered);
+  }
+#endif
   ph->path += seg;
   ph->voxels++;
   return pmax < ph->threshold;
@@ -291,6 +350,9 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
   const bk_long stride[3] = {1, (bk_long)n[0], (bk_long)n[0] * (bk_long)n[1]};
   bk_long idx = pm_index(P->grid, c[0], c[1], c[2]), didx[3];
   if (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f) return PM_DDA_REACHED; /* v = 0: stays */
+#if PM_FLUX_COMPILED
+  ph->fdir = d;
+#endif
   for (int a = 0; a < 3; a++) {
     if (dv[a] > 0.0f) {
       stp[a] = 1;
@@ -416,6 +478,9 @@ BK_INLINE int pm_start(const pm_params *P, BK_CONSTANT const ph_light *lights,
 #if PM_MS_COMPILED
   ph->fl.state = MS_IDLE;
 #endif
+#if PM_FLUX_COMPILED
+  ph->scattered = 0;
+#endif
   PM_RECORD(ph->x);
 #if !PH_DEVICE || HAS_REFRACTION
   if (PM_HAS_REFRACTION(P)) {
@@ -443,6 +508,9 @@ BK_INLINE int pm_curved_step(const pm_params *P, BK_GLOBAL const float *ng,
   int r = PM_DDA_REACHED;
   if (rc_floori(x1.x) == ph->c[0] && rc_floori(x1.y) == ph->c[1] && rc_floori(x1.z) == ph->c[2]) {
     /* most steps of half a voxel stay in their voxel: no DDA set-up */
+#if PM_FLUX_COMPILED
+    if (len > 0.0f) ph->fdir = v3_scale(seg, 1.0f / len);
+#endif
     if (len > 0.0f &&
         pm_cross_voxel(P, sigma, acc, masks, ph, pm_index(g, ph->c[0], ph->c[1], ph->c[2]), ph->c, len))
       r = PM_DDA_ABSORBED;

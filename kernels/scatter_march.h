@@ -66,6 +66,9 @@ BK_INLINE int ms_scatter(const pm_params *P, const ms_params *M, BK_GLOBAL const
   ph->c[2] = ph->fl.c[2];
   ph->v = d;
   ph->last = -1;
+#if PM_FLUX_COMPILED
+  ph->scattered = 1;
+#endif
 #if !PH_DEVICE || HAS_REFRACTION
   if (PM_HAS_REFRACTION(P)) {
     const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};

@@ -4,7 +4,8 @@
  * is computed: HAS_REFRACTION (n varies: curved rays, else straight),
  * INTEGRATOR (0 Euler, 1 RK4), GREY (grey σt, packed with S = σs L̄ in one
  * float4), HOMOGENEOUS (RGB σt constant, passed in the parameters),
- * DISPERSION (n per channel: three rays per pixel, one per field). The
+ * DISPERSION (n per channel: three rays per pixel, one per field), ANISO
+ * (an anisotropic phase: the `aniso` and `aniso_s` fields, absent otherwise). The
  * defaults below only serve the device-less compile check. */
 #include "kernels/view_march.h"
 
@@ -23,11 +24,15 @@
 #ifndef DISPERSION
 #define DISPERSION 0
 #endif
+#ifndef ANISO
+#define ANISO 0
+#endif
 
 __kernel void view_render(const view_params_t p, __global const float *medium,
                           __global const float *sigma_t, __global const float *ng,
                           __global const uchar *npyr, __global const uchar *mpyr,
-                          __global float *rgba, __global uint *steps) {
+                          __global float *rgba, __global uint *steps,
+                          __global const float *aniso, __global const float *aniso_s) {
   int px = (int)get_global_id(0), py = (int)get_global_id(1);
   if (px >= p.width || py >= p.height) return;
   view_fields f;
@@ -36,12 +41,15 @@ __kernel void view_render(const view_params_t p, __global const float *medium,
   f.ng = ng;
   f.npyr = npyr;
   f.mpyr = mpyr;
+  f.aniso = aniso;
+  f.aniso_s = aniso_s;
   view_flags fl;
   fl.refraction = HAS_REFRACTION;
   fl.grey = GREY;
   fl.integrator = INTEGRATOR;
   fl.homogeneous = HOMOGENEOUS;
   fl.dispersion = DISPERSION;
+  fl.aniso = ANISO;
   float out[4];
   uint n;
   view_march_pixel(&p, f, fl, px, py, out, &n);

@@ -29,7 +29,20 @@
  * constant and integrates exactly with the ray core's attenuation:
  *   L += T S Δ (1 − e^(−σt Δ))/(σt Δ),  T *= e^(−σt Δ).
  * A ray stops when it leaves the box or max(T) < VIEW_T_CUTOFF. Outside the
- * box the medium is empty. */
+ * box the medium is empty.
+ *
+ * Anisotropic phase (flags.aniso, from `radiance_flux`, `phase_g` and
+ * `radiance_uncollided`): the radiance at a point is taken as the share
+ * u = Y0 / Y(L̄) of uncollided light, a beam along F̂, and the rest, a lobe
+ * of mean cosine m_s = (|F| / Y(L̄) − u) / (1 − u) about F̂. The Henyey–
+ * Greenstein phase g scatters the beam into an HG lobe g about F̂ and the
+ * rest, convolved, into an HG lobe of asymmetry g·m_s (exact in the first
+ * moment, and for single scattering of one light: u = 1; exact for every
+ * moment when the scattered light's lobe is HG-shaped). The fields hold per
+ * voxel (index space) aniso = {g F̂, u} and aniso_s = {g m_s F̂, 0}, so
+ * toward the camera, i.e. along −d for a ray of direction d,
+ *   S → S · (u P(g F̂) + (1 − u) P(g m_s F̂)),
+ *   P(A) = 4π p_HG(|A|, Â·(−d)) = (1 − |A|²) / (1 + |A|² + 2 A·d)^(3/2). */
 #ifndef BAKER_VIEW_MARCH_H
 #define BAKER_VIEW_MARCH_H
 
@@ -44,6 +57,7 @@
 #define VIEW_T_CUTOFF 1e-4f      /* below this the rest of the ray is invisible */
 #define VIEW_BRICK_LEVEL 2        /* bricks are the pyramid's blocks of 8³ */
 #define VIEW_DIR_EPS 1e-12f
+#define VIEW_ANISO_MAX 0.999f     /* |g·m|: a lobe narrower than this is a spike */
 
 enum { VIEW_EULER = RC_EULER, VIEW_RK4 = RC_RK4 };
 
@@ -72,6 +86,7 @@ typedef struct view_flags {
   int integrator;     /* VIEW_EULER or VIEW_RK4 */
   int homogeneous;    /* RGB σt constant: params.sigma_t, no `sigma_t` lookups */
   int dispersion;     /* n per channel: ng holds R's, G's and B's fields in turn */
+  int aniso;          /* the `aniso` field shapes the source by the camera direction */
 } view_flags;
 
 typedef struct view_fields {
@@ -79,8 +94,16 @@ typedef struct view_fields {
   BK_GLOBAL const float *sigma_t;         /* 4 per voxel: σt (RGB), when not grey */
   BK_GLOBAL const float *ng;              /* 4 per voxel: ∇n (per voxel length), n >= 1 */
   BK_GLOBAL const bk_uchar *npyr;         /* refraction: constant-block pyramid of n */
-  BK_GLOBAL const bk_uchar *mpyr;         /* constant-block pyramid of S and σt */
+  BK_GLOBAL const bk_uchar *mpyr;         /* constant-block pyramid of S, σt (and A) */
+  BK_GLOBAL const float *aniso;           /* 4 per voxel: {g F̂, u}, when fl.aniso */
+  BK_GLOBAL const float *aniso_s;         /* 4 per voxel: {g m_s F̂, 0}, when fl.aniso */
 } view_fields;
+
+/* P(A) = 4π p_HG(|A|, Â·(−d)): a lobe's factor toward a camera looking along d. */
+BK_INLINE float view_phase_factor(bk_v3 a, bk_v3 d) {
+  float k2 = v3_dot(a, a), den = 1.0f + k2 + 2.0f * v3_dot(a, d);
+  return (1.0f - k2) / (den * RC_SQRT(den));
+}
 
 
 /* Direction (voxel space, unit length) through image point (fx, fy) in
@@ -158,11 +181,16 @@ BK_INLINE float view_block_exit(const int *lo, const int *hi, bk_v3 *u, bk_v3 d,
  * its midpoint um, into L and T. Grey media evaluate one channel, not three,
  * and keep their transmittance in T->x alone (the caller copies it to y, z). */
 BK_INLINE void view_segment(const view_params_t *p, view_fields f, view_flags fl, bk_v3 um,
-                            float len, bk_v3 *L, bk_v3 *T) {
+                            bk_v3 d, float len, bk_v3 *L, bk_v3 *T) {
   const rc_dims n = view_dims(p);
   rc_tri t = rc_tri_at(n, um);
   rc_f4 m = rc_gather4(n, f.medium, &t);
   bk_v3 src = v3(m.x, m.y, m.z);
+  if (fl.aniso) {
+    rc_f4 a = rc_gather4(n, f.aniso, &t), b = rc_gather4(n, f.aniso_s, &t);
+    src = v3_scale(src, a.w * view_phase_factor(v3(a.x, a.y, a.z), d) +
+                            (1.0f - a.w) * view_phase_factor(v3(b.x, b.y, b.z), d));
+  }
   if (fl.grey) {
     float trans, wg = rc_atten(m.w * len, &trans);
     *L = v3_madd(*L, src, T->x * wg * len);
@@ -309,7 +337,7 @@ BK_INLINE bk_uint view_march_ray(const view_params_t *p, view_fields f, view_fla
       if (!(r.clen > 0.0f)) continue;
       const float h = r.clen / (float)r.cn;
       for (int i = 0; i < r.cn; i++) {
-        view_segment(p, f, fl, v3_madd(r.ca, r.cd, ((float)i + 0.5f) * h), h, &L, &T);
+        view_segment(p, f, fl, v3_madd(r.ca, r.cd, ((float)i + 0.5f) * h), r.cd, h, &L, &T);
         steps++;
         if (view_t_max(fl, T) < VIEW_T_CUTOFF) {
           r.done = 1;

@@ -5,6 +5,7 @@ add_executable(test_scatter ${BAKER_TEST_DIR}/test_scatter.c)
 target_link_libraries(test_scatter PRIVATE bakercore)
 foreach(path host cl)
   add_test(NAME scatter_energy_${path} COMMAND test_scatter energy ${path})
+  add_test(NAME scatter_flux_${path} COMMAND test_scatter flux ${path})
 endforeach()
 add_test(NAME scatter_diffusion COMMAND test_scatter diffusion cl)
 add_test(NAME scatter_diffusion_hg COMMAND test_scatter diffusion_hg cl)
@@ -19,8 +20,8 @@ list(FILTER SCATTER_TESTS INCLUDE REGEX "^scatter_")
 set_tests_properties(${SCATTER_TESTS} PROPERTIES
   ENVIRONMENT "BAKER_CACHE_DIR=${CMAKE_CURRENT_BINARY_DIR}/march_kernel_cache" TIMEOUT 120)
 
-# Against Mitsuba 3 (scripts/bench_mitsuba --quick: one small fog scene, all
-# scattering orders, total within 2%); skipped when mitsuba is not importable
+# Against Mitsuba 3 (scripts/bench_mitsuba --quick: small fog scenes, g 0 and
+# 0.3 all orders, g 0.8 single scattering, totals within 2%); skipped when mitsuba is not importable
 # (scripts/setup_mitsuba.sh installs it into build/mitsuba-venv).
 add_test(NAME mitsuba_small
          COMMAND ${CMAKE_SOURCE_DIR}/scripts/bench_mitsuba --quick --baker $<TARGET_FILE:baker>

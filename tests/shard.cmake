@@ -7,8 +7,8 @@ add_executable(test_shard ${BAKER_TEST_DIR}/test_shard.c)
 target_link_libraries(test_shard PRIVATE bakercore)
 set(SHARD_OUT ${CMAKE_BINARY_DIR}/shard_tests)
 file(MAKE_DIRECTORY ${SHARD_OUT})
-foreach(t reference adaptive refuse range)
+foreach(t reference adaptive refuse range anisotropic)
   add_test(NAME shard_${t} COMMAND test_shard ${CMAKE_SOURCE_DIR}/scenes ${SHARD_OUT} ${t})
 endforeach()
-set_tests_properties(shard_reference shard_adaptive shard_refuse PROPERTIES
+set_tests_properties(shard_reference shard_adaptive shard_refuse shard_anisotropic PROPERTIES
   ENVIRONMENT "BAKER_CACHE_DIR=${CMAKE_BINARY_DIR}/kernel-cache" TIMEOUT 300)

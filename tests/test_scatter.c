@@ -2,6 +2,7 @@
  * baker/bounces.h) against analytic truths, on the host C path and on
  * OpenCL. Usage: test_scatter TEST [host|cl]. */
 #include "kernels/scatter_march.h"
+#include "kernels/view_march.h"
 #include "test_march_util.h"
 #include "voxelize.h"
 
@@ -284,6 +285,135 @@ static int test_object_g(void) {
   return 0;
 }
 
+/* A 16³ cube of 1 m with g = 0.5 (so the march keeps radiance_flux) under a
+ * directional light along dir; RGB absorption when rgb (three channels,
+ * the flux weighted in the kernel), else grey (one). The raw sums, with
+ * radiance and flux (3 floats per voxel each) and the uncollided luminance
+ * (1) filled from them. */
+static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3], float *rad,
+                           float *flux, float *unc) {
+  volume_t v;
+  tv_alloc(&v, 16, 16, 16, 1.0f / 16, 0, 0, 0);
+  const float ss[3] = {3.0f, 3.0f, 3.0f}, sa[3] = {0.1f, rgb ? 0.3f : 0.1f, rgb ? 0.9f : 0.1f};
+  tv_fill(&v, 1.0f, ss, sa);
+  tv_summarise(&v);
+  scene_light_t light = tl_directional(dir[0], dir[1], dir[2], 1.0f);
+  scene_t s;
+  ts_init(&s, &light, 1, 20000);
+  s.bounces = bounces;
+  s.medium_g = 0.5f;
+  bk_error_t err;
+  memset(&err, 0, sizeof err);
+  pm_setup_t setup;
+  REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+  REQUIRE(setup.params.flux == 1, "g = 0.5 must turn the flux on");
+  REQUIRE(setup.channels == (rgb ? 3 : 1), "expected %d channels", rgb ? 3 : 1);
+  uint64_t *acc = calloc(pm_acc_count(&setup), sizeof *acc);
+  REQUIRE(acc, "out of memory");
+  int rc = cl ? pm_run_cl(cl, &setup, acc, NULL, &err) : pm_run_host(&setup, acc, NULL, &err);
+  REQUIRE(rc == BK_OK, "march: %s", err.msg);
+  pm_to_radiance(&setup, acc, rad);
+  pm_to_flux(&setup, acc, flux, unc);
+  pm_setup_free(&setup);
+  tv_free(&v);
+  return acc;
+}
+
+static double lum3(const float *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
+
+/* The view's phase factor 4π p_HG(|A|, Â·(−d)): 1 over the sphere on
+ * average, (1 + k)/(1 − k)² looking into the lobe, the HG formula itself at
+ * an angle. */
+static int check_phase_factor(void) {
+  const float k = 0.7f;
+  const bk_v3 a = v3(0.0f, k * 0.6f, k * 0.8f);
+  double sum = 0.0;
+  const int nt = 400, np = 200;
+  for (int i = 0; i < nt; i++)
+    for (int j = 0; j < np; j++) {
+      double mu = -1.0 + (i + 0.5) * 2.0 / nt, phi = (j + 0.5) * 2.0 * M_PI / np;
+      double r = sqrt(1.0 - mu * mu);
+      sum += view_phase_factor(a, v3((float)(r * cos(phi)), (float)(r * sin(phi)), (float)mu));
+    }
+  double mean = sum / ((double)nt * np);
+  double peak = view_phase_factor(a, v3(0.0f, -0.6f, -0.8f)), want = (1 + k) / pow(1 - k, 2);
+  /* at 60° from the lobe's axis: 4π p_HG(k, cos 60°) */
+  double c60 = 0.5, side = (1 - k * k) / pow(1 + k * k - 2 * k * c60, 1.5);
+  bk_v3 d60 = v3(0.0f, -(float)(0.6 * c60 - 0.8 * sqrt(0.75)), -(float)(0.8 * c60 + 0.6 * sqrt(0.75)));
+  double got60 = view_phase_factor(a, d60);
+  printf("view phase factor (|A| %.1f): sphere mean %.5f, into the lobe %.4f (want %.4f), at 60° "
+         "%.5f (want %.5f)\n", k, mean, peak, want, got60, side);
+  REQUIRE(fabs(mean - 1.0) < 2e-3, "phase factor not normalised: mean %.5f", mean);
+  REQUIRE(fabs(peak / want - 1.0) < 1e-5, "peak %.6f, want %.6f", peak, want);
+  REQUIRE(fabs(got60 / side - 1.0) < 1e-5, "60 degrees: %.6f, want %.6f", got60, side);
+  return 0;
+}
+
+/* radiance_flux and radiance_uncollided (march.h pm_to_flux). Single
+ * scattering of a parallel beam: in every lit voxel F = Y(L̄) ω0 (mean
+ * cosine 1, the direction exact) and all of Y(L̄) uncollided, RGB and grey.
+ * Multiple scattering: |F| <= Y(L̄) everywhere, the net flux down the beam,
+ * the uncollided part of Y(L̄) between 0 and all of it, less deep down. On OpenCL the signed fixed-point sums of two bakes are
+ * bit-identical whatever order the work-items' atomics came in. */
+static int test_flux(clh_context_t *cl) {
+  const size_t n = 16 * 16 * 16;
+  const float dir[3] = {0.3f, 0.2f, 1.0f};
+  const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
+  float *rad = calloc(3 * n, sizeof(float)), *flux = calloc(3 * n, sizeof(float));
+  float *unc = calloc(n, sizeof(float));
+  REQUIRE(rad && flux && unc, "out of memory");
+  for (int rgb = 0; rgb < 2; rgb++) {
+    uint64_t *acc = flux_bake(cl, 0, rgb, dir, rad, flux, unc);
+    double worst = 0.0, worst_u = 0.0;
+    size_t lit = 0;
+    for (size_t i = 0; i < n; i++) {
+      double y = lum3(rad + 3 * i);
+      if (!(y > 0.0)) continue;
+      lit++;
+      for (int a = 0; a < 3; a++) worst = fmax(worst, fabs(flux[3 * i + a] / y - w0[a]));
+      worst_u = fmax(worst_u, fabs(unc[i] / y - 1.0));
+    }
+    printf("flux, single scattering (%s): %zu lit voxels, |F/Y(L) - w0| at most %.2e, "
+           "|uncollided/Y(L) - 1| at most %.2e (limits 1e-4)\n", rgb ? "RGB" : "grey", lit,
+           worst, worst_u);
+    REQUIRE(lit > n / 2 && worst < 1e-4, "beam flux off by %.3e", worst);
+    REQUIRE(worst_u < 1e-4, "uncollided share off by %.3e", worst_u);
+    free(acc);
+  }
+  uint64_t *acc = flux_bake(cl, 8, 0, dir, rad, flux, unc);
+  double along = 0.0, ysum = 0.0, over = -1.0, ymax = 0.0, usum = 0.0, umin = 1.0, uover = -1.0;
+  for (size_t i = 0; i < n; i++) ymax = fmax(ymax, lum3(rad + 3 * i));
+  for (size_t i = 0; i < n; i++) {
+    const float *F = flux + 3 * i;
+    double y = lum3(rad + 3 * i), f = sqrt((double)F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+    over = fmax(over, (f - y) / ymax); /* rounding: a few quanta, ~1e-12 of ymax */
+    along += flux[3 * i] * w0[0] + flux[3 * i + 1] * w0[1] + flux[3 * i + 2] * w0[2];
+    ysum += y;
+    usum += unc[i];
+    uover = fmax(uover, (unc[i] - y) / ymax);
+    if (y > 1e-3 * ymax) umin = fmin(umin, unc[i] / y);
+  }
+  printf("uncollided, multiple scattering: %.3f of Y(L) in all, at least %.3f in a voxel, "
+         "max (uncollided - Y(L)) / max Y(L) = %.2e\n", usum / ysum, umin, uover);
+  REQUIRE(uover < 1e-6 && umin >= 0.0 && umin < 0.5 && usum / ysum > 0.2 && usum / ysum < 0.9,
+          "uncollided share %.3f (voxel minimum %.3f, above Y by %.2e)", usum / ysum, umin, uover);
+  printf("flux, multiple scattering (g 0.5, 3 mean free paths): mean cosine along the beam "
+         "%.3f, max (|F| - Y(L)) / max Y(L) = %.2e (limit 1e-6)\n", along / ysum, over);
+  REQUIRE(over < 1e-6, "|F| exceeds Y(L) by %.3e of the largest Y(L)", over);
+  REQUIRE(along / ysum > 0.2 && along / ysum < 0.95, "mean cosine %.3f", along / ysum);
+  if (cl) {
+    float *r2 = calloc(3 * n, sizeof(float)), *f2 = calloc(3 * n, sizeof(float));
+    REQUIRE(r2 && f2, "out of memory");
+    uint64_t *again = flux_bake(cl, 8, 0, dir, r2, f2, unc);
+    REQUIRE(memcmp(again, acc, n * (1 + PM_FLUX_SLOTS) * sizeof *acc) == 0,
+            "two OpenCL bakes' sums differ");
+    printf("flux: two OpenCL bakes' sums bit-identical (the atomics' order does not matter)\n");
+    free(again), free(r2), free(f2);
+  }
+  free(acc), free(rad), free(flux), free(unc);
+  return check_phase_factor();
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     fprintf(stderr, "usage: test_scatter TEST [host|cl]\n");
@@ -299,6 +429,7 @@ int main(int argc, char **argv) {
   if (strcmp(t, "phase") == 0) return test_phase();
   if (strcmp(t, "reproducible") == 0) return test_reproducible(cl);
   if (strcmp(t, "object_g") == 0) return test_object_g();
+  if (strcmp(t, "flux") == 0) return test_flux(cl);
   fprintf(stderr, "test_scatter: unknown test %s\n", t);
   return 2;
 }

@@ -13,7 +13,10 @@
  *  refuse     shards of another seed, a repeated shard, a missing one, a
  *             file that is no shard, the output among the inputs: exit 2
  *             and no output file
- *  range      shard_range: contiguous, disjoint, complete, balanced */
+ *  range      shard_range: contiguous, disjoint, complete, balanced
+ *  anisotropic medium.g 0.6: 2 shards merged against the single bake,
+ *             radiance_flux, radiance_uncollided and phase_g too, bit for
+ *             bit */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
 #include <stdlib.h>
@@ -84,7 +87,7 @@ static void compare(const char *a, const char *b, const char *name, int ch, doub
     nonzero += y[i] != 0.0f;
   }
   double e = tu_rel_l2(x, y, n);
-  printf("  %-14s %zu of %zu values differ, relative L2 %.3g, %zu non-zero\n", name, differ, n,
+  printf("  %-19s %zu of %zu values differ, relative L2 %.3g, %zu non-zero\n", name, differ, n,
          e, nonzero);
   EXPECT(nonzero > 100, "%s: grid %s is almost empty (%zu non-zero): nothing was compared", b,
          name, nonzero);
@@ -144,6 +147,19 @@ static int test_reference(void) {
             err.msg);
     expect_meta(merged, "bake_settings", settings);
   }
+  return tu_failures ? 1 : 0;
+}
+
+static int test_anisotropic(void) {
+  const char *single = path_of("aniso_single.vdb"), *merged = path_of("aniso_merged_2.vdb");
+  const char *const g[] = {"--set", "medium.g=0.6"};
+  REQUIRE(bake(single, PHOTONS, g, 2) == 0, "single bake failed");
+  shard_and_merge("aniso", 2, PHOTONS, g, 2, merged);
+  printf("anisotropic (g 0.6), 2 shards merged vs the single bake:\n");
+  compare(merged, single, "radiance", 3, 0.0);
+  compare(merged, single, "radiance_flux", 3, 0.0);
+  compare(merged, single, "radiance_uncollided", 1, 0.0);
+  compare(merged, single, "phase_g", 1, 0.0);
   return tu_failures ? 1 : 0;
 }
 
@@ -239,6 +255,7 @@ int main(int argc, char **argv) {
   if (!strcmp(t, "adaptive")) return test_adaptive();
   if (!strcmp(t, "refuse")) return test_refuse();
   if (!strcmp(t, "range")) return test_range();
+  if (!strcmp(t, "anisotropic")) return test_anisotropic();
   fprintf(stderr, "unknown test '%s'\n", t);
   return 2;
 }

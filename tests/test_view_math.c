@@ -143,22 +143,22 @@ static void test_march(void) {
   p.background = v3(0.2f, 0.1f, 0.0f);
   p.sigma_t = v3(rgb_t[0], rgb_t[1], rgb_t[2]);
   enum { CHECKER = 0x80 }; /* the levels alternate brick by brick */
-  /* refraction, grey, integrator, homogeneous, dispersion; n level, medium level */
+  /* refraction, grey, integrator, homogeneous, dispersion, aniso; n level, medium level */
   const struct { view_flags fl; int nlev, mlev; } var[] = {
-      {{0, 0, VIEW_EULER, 0, 0}, 0, 0},
-      {{0, 0, VIEW_EULER, 1, 0}, 0, 2},
-      {{0, 1, VIEW_EULER, 0, 0}, 0, 0},
-      {{1, 0, VIEW_EULER, 0, 0}, 2, 0},
-      {{1, 1, VIEW_RK4, 0, 0}, 0, 0},
-      {{1, 0, VIEW_EULER, 1, 0}, 2, 2},
-      {{1, 1, VIEW_EULER, 0, 0}, 1, 0},
-      {{1, 0, VIEW_RK4, 1, 0}, 1, 2},
+      {{0, 0, VIEW_EULER, 0, 0, 0}, 0, 0},
+      {{0, 0, VIEW_EULER, 1, 0, 0}, 0, 2},
+      {{0, 1, VIEW_EULER, 0, 0, 0}, 0, 0},
+      {{1, 0, VIEW_EULER, 0, 0, 0}, 2, 0},
+      {{1, 1, VIEW_RK4, 0, 0, 0}, 0, 0},
+      {{1, 0, VIEW_EULER, 1, 0, 0}, 2, 2},
+      {{1, 1, VIEW_EULER, 0, 0, 0}, 1, 0},
+      {{1, 0, VIEW_RK4, 1, 0, 0}, 1, 2},
       /* CHECKER: chords of varying bricks, single-step bricks, straight fine
        * blocks and curved steps follow one another along a ray */
-      {{0, 1, VIEW_EULER, 0, 0}, 0, CHECKER | 2},
-      {{1, 1, VIEW_EULER, 0, 0}, CHECKER | 2, CHECKER | 2},
-      {{1, 0, VIEW_RK4, 0, 0}, CHECKER | 2, 0},
-      {{1, 1, VIEW_EULER, 0, 0}, CHECKER | 1, 0},
+      {{0, 1, VIEW_EULER, 0, 0, 0}, 0, CHECKER | 2},
+      {{1, 1, VIEW_EULER, 0, 0, 0}, CHECKER | 2, CHECKER | 2},
+      {{1, 0, VIEW_RK4, 0, 0, 0}, CHECKER | 2, 0},
+      {{1, 1, VIEW_EULER, 0, 0, 0}, CHECKER | 1, 0},
   };
   bk_error_t err = {0};
   for (int i = 0; i < N * N * N; i++) ior[i] = 1.0f;
@@ -182,7 +182,7 @@ static void test_march(void) {
     fill_pyramid(mpyr, mb);
     fld_pad4(N, N, N, medium, medium_p);
     fld_pad4(N, N, N, st4, st4_p);
-    view_fields f = {medium_p, st4_p, ng, npyr, mpyr};
+    view_fields f = {medium_p, st4_p, ng, npyr, mpyr, NULL, NULL};
     const int px[3] = {16, 25, 0}, py[3] = {16, 9, 32};
     for (int k = 0; k < 3; k++) {
       float rgba[4];
