@@ -420,7 +420,23 @@ BK_INLINE BK_GLOBAL const float *pm_channel_field(const pm_params *P, BK_GLOBAL 
   const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
   return ng + (bk_long)(index % 3u) * 4 * rc_pad_sz(n3) * (bk_long)(n3.nz + 2);
 }
+#endif
 
+/* What both walks (pm_march_photon, pm_march_scattered) do first: an empty
+ * result, and the field the photon bends in (its channel's, with dispersion). */
+BK_INLINE BK_GLOBAL const float *pm_begin(const pm_params *P, BK_GLOBAL const float *ng,
+                                          bk_uint index, pm_result *res) {
+  res->fate = PM_FATE_MISSED;
+  res->steps = 0;
+  res->voxels = 0;
+  res->path = 0.0f;
+#if !PH_DEVICE || DISPERSION
+  if (PM_DISPERSION(P)) return pm_channel_field(P, ng, index);
+#endif
+  return ng;
+}
+
+#if !PH_DEVICE || DISPERSION
 /* Dispersion: the photon carries channel ch alone, with three times its
  * power there (each channel gets a third of the photons). */
 BK_INLINE void pm_disperse(pm_photon *ph, int ch) {
@@ -574,14 +590,8 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
    * would reload it after every atomic */
   const pm_params Pv = *Pc;
   const pm_params *P = &Pv;
-  res->fate = PM_FATE_MISSED;
-  res->steps = 0;
-  res->voxels = 0;
-  res->path = 0.0f;
+  ng = pm_begin(P, ng, index, res);
   pm_photon ph;
-#if !PH_DEVICE || DISPERSION
-  if (PM_DISPERSION(P)) ng = pm_channel_field(P, ng, index);
-#endif
   if (!pm_start(P, lights, ng, tables, index, &ph PM_REC_ARG)) return;
   bk_uint steps = 0;
   res->fate = pm_march_leg(P, ng, pyr, sigma, acc, masks, &ph, &steps PM_REC_ARG);

@@ -93,16 +93,10 @@ BK_INLINE void pm_march_scattered(BK_CONSTANT const pm_params *Pc, BK_CONSTANT c
   const ms_params Mv = *Mc;
   const ms_params *M = &Mv;
   const int nch = PM_NCH(P);
-  res->fate = PM_FATE_MISSED;
-  res->steps = 0;
-  res->voxels = 0;
-  res->path = 0.0f;
+  ng = pm_begin(P, ng, index, res);
   tally->entered = tally->escaped = tally->first = tally->later = 0.0f;
   tally->events = 0;
   pm_photon ph;
-#if !PH_DEVICE || DISPERSION
-  if (PM_DISPERSION(P)) ng = pm_channel_field(P, ng, index);
-#endif
   if (!pm_start(P, lights, ng, tables, index, &ph PM_REC_ARG)) return;
   float w0 = 0.0f;
   for (int ch = 0; ch < nch; ch++) {
