@@ -4,8 +4,9 @@
 # fits; --max-memory caps it; and the estimate is not below the real peak.
 # Usage: budget.sh BAKER WORKDIR SCENES CASE
 set -u
-baker=$1 work=$2 scenes=$3 case=$4
-mkdir -p "$work" && cd "$work" || exit 1
+# Each case works in a directory of its own: ctest -j runs them side by side.
+baker=$1 work=$2/$4 scenes=$3 case=$4
+rm -rf "$work" && mkdir -p "$work" && cd "$work" || exit 1
 fail() { echo "FAIL: $*"; exit 1; }
 case $case in
 refuse)
