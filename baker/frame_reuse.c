@@ -11,22 +11,29 @@
 static void mix(uint64_t *h, const void *data, size_t len) { *h = bk_hash64(data, len, *h); }
 static void mix_string(uint64_t *h, const char *s) { mix(h, s, strlen(s) + 1); }
 
-/* A file by its path and contents (a mesh sequence whose frames hold the
- * same mesh is still the same input). */
-static void mix_file(uint64_t *h, const char *path) {
-  static unsigned char buf[1 << 16];
-  mix_string(h, path);
+uint64_t fr_file_key(const char *path) {
+  unsigned char buf[1 << 16];
+  uint64_t h = BK_HASH_SEED;
   FILE *f = fopen(path, "rb");
   if (!f) {
     int e = errno;
-    mix(h, &e, sizeof e);
-    return;
+    mix(&h, &e, sizeof e);
+    return h ? h : 1;
   }
   size_t n;
-  while ((n = fread(buf, 1, sizeof buf, f)) > 0) mix(h, buf, n);
+  while ((n = fread(buf, 1, sizeof buf, f)) > 0) mix(&h, buf, n);
   int bad = ferror(f);
-  mix(h, &bad, sizeof bad);
+  mix(&h, &bad, sizeof bad);
   fclose(f);
+  return h ? h : 1;
+}
+
+/* A file by its path and contents (a mesh sequence whose frames hold the
+ * same mesh is still the same input). */
+static void mix_file(uint64_t *h, const char *path) {
+  mix_string(h, path);
+  uint64_t k = fr_file_key(path);
+  mix(h, &k, sizeof k);
 }
 
 static void mix_vdb(uint64_t *h, const scene_vdb_ref_t *r) {
