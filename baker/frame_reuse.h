@@ -44,6 +44,10 @@ typedef struct bake_reuse {
   clh_context_t cl;
 } bake_reuse_t;
 
+/* A file's contents, hashed (one that cannot be read hashes its error);
+ * never 0. `baker view --frames` keeps a frame's volume for the next when
+ * its input's key is the same. */
+uint64_t fr_file_key(const char *path);
 /* The hash of every input the voxelize stage reads (above); files are
  * hashed by content (one that cannot be read hashes its error: vox_build
  * then says what is wrong). Never 0. */

@@ -352,6 +352,15 @@ static int sc_adaptive(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
   return BK_OK;
 }
 
+/* A camera vector for a message: as written, or a keyframed one's value at
+ * the frame. */
+static const char *cam_vec_text(const json_value_t *v, int frame, const float x[3], char *buf,
+                                size_t n) {
+  if (v->type != JSON_OBJECT) return sc_vec_text(v, buf, n);
+  snprintf(buf, n, "[%g, %g, %g] at frame %d", x[0], x[1], x[2], frame);
+  return buf;
+}
+
 static int sc_camera(const sc_ctx_t *c, const json_value_t *v, scene_camera_t *cam) {
   static const char *const keys[] = {"position", "look_at", "up", "fov_deg", "resolution", NULL};
   const json_value_t *pos, *at, *up;
@@ -360,12 +369,14 @@ static int sc_camera(const sc_ctx_t *c, const json_value_t *v, scene_camera_t *c
   int rc;
   if ((rc = sc_object(c, v, "camera"))) return rc;
   sc_check_keys(c, v, "camera", keys);
+  /* position, look_at, up and fov_deg may be keyframed (docs/animation.md) */
+  const sc_keyed_t point = {&R_ANY, 3, 0, 0}, fov = {&R_FOV, 1, 0, 0};
   if ((rc = sc_required(c, v, "camera", "position", &pos)) ||
       (rc = sc_required(c, v, "camera", "look_at", &at)) ||
-      (rc = sc_floats(c, pos, "camera.position", &R_ANY, 3, 0, cam->position)) ||
-      (rc = sc_floats(c, at, "camera.look_at", &R_ANY, 3, 0, cam->look_at)) ||
-      (rc = sc_opt_floats(c, v, "camera", "up", &R_ANY, 3, 0, cam->up)) ||
-      (rc = sc_opt_float(c, v, "camera", "fov_deg", &R_FOV, &cam->fov_deg)) ||
+      (rc = sc_keyed(c, pos, "camera.position", &point, cam->position)) ||
+      (rc = sc_keyed(c, at, "camera.look_at", &point, cam->look_at)) ||
+      (rc = sc_opt_keyed(c, v, "camera", "up", &point, cam->up)) ||
+      (rc = sc_opt_keyed(c, v, "camera", "fov_deg", &fov, &cam->fov_deg)) ||
       (rc = sc_opt_floats(c, v, "camera", "resolution", &R_PIXELS, 2, 0, size)))
     return rc;
   cam->width = (int)size[0];
@@ -377,9 +388,13 @@ static int sc_camera(const sc_ctx_t *c, const json_value_t *v, scene_camera_t *c
     fl += f[a] * f[a];
     ul += u[a] * u[a];
   }
+  if (!(fl > 0.0) && pos->type == JSON_OBJECT)
+    return sc_fail(c, at, "camera.look_at", "expected a point other than camera.position, found "
+                   "[%g, %g, %g], where the keyframed position is at frame %d", cam->look_at[0],
+                   cam->look_at[1], cam->look_at[2], c->frame);
   if (!(fl > 0.0))
     return sc_fail(c, at, "camera.look_at", "expected a point other than camera.position, found %s",
-                   sc_vec_text(at, text, sizeof text));
+                   cam_vec_text(at, c->frame, cam->look_at, text, sizeof text));
   for (int a = 0; a < 3; a++) {
     x[a] = f[(a + 1) % 3] * u[(a + 2) % 3] - f[(a + 2) % 3] * u[(a + 1) % 3];
     xl += x[a] * x[a];
@@ -389,7 +404,8 @@ static int sc_camera(const sc_ctx_t *c, const json_value_t *v, scene_camera_t *c
     up = json_object_get(v, "up");
     return sc_fail(c, up ? up : at, up ? "camera.up" : "camera.look_at",
                    "expected a vector not parallel to look_at - position, found %s",
-                   up ? sc_vec_text(up, text, sizeof text) : "the default up [0, 1, 0]");
+                   up ? cam_vec_text(up, c->frame, cam->up, text, sizeof text)
+                      : "the default up [0, 1, 0]");
   }
   cam->present = 1;
   return BK_OK;

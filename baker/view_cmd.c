@@ -15,6 +15,7 @@
 #include "clhost.h"
 #include "cmdline.h"
 #include "base/frames.h"
+#include "frame_reuse.h"
 #include "kernels/view_march.h"
 #include "scene.h"
 
@@ -52,9 +53,11 @@ void view_usage(FILE *out) {
           "  --step VOXELS            step where n varies, in voxels (default the scene's\n"
           "                           photons.step, else %g); straight stretches take\n"
           "                           max(step, 1) voxels\n"
-          "  --frames A-BxS           render frames A..B every S; IN, OUT and --png hold a\n"
+          "  --frames A-BxS           render frames A..B every S; OUT and --png hold a\n"
           "                           frame pattern: #### (zero padded to the number of #),\n"
-          "                           $F4 (Houdini, padded to 4) or $F (unpadded)\n"
+          "                           $F4 (Houdini, padded to 4) or $F (unpadded); IN holds\n"
+          "                           one too, or is one file seen by a keyframed --scene\n"
+          "                           camera (read once: docs/animation.md)\n"
           "  --device SPEC            OpenCL device: `P:D` indices or a name substring;\n"
           "                           `list` prints the devices (default PoCL); `host`\n"
           "                           runs the same ray code in plain C, one thread\n"
@@ -198,7 +201,8 @@ static int view_option(view_opts_t *o, int c, const char *name, const char *val,
 }
 
 /* What the options must agree on: an input and an .exr output, a .png
- * preview, frame patterns exactly when --frames renders several. */
+ * preview, frame patterns exactly when --frames renders several (the input
+ * may be one file for every frame: a camera moving through one bake). */
 static int view_check_opts(view_opts_t *o, bk_error_t *err) {
   if (o->device && !strcmp(o->device, "list")) return BK_OK;
   if (!o->in) return bk_fail(err, BK_ERR_INPUT, "no input given (baker view IN.vdb -o OUT.exr)");
@@ -222,7 +226,7 @@ static int view_check_opts(view_opts_t *o, bk_error_t *err) {
       return bk_fail(err, BK_ERR_INPUT,
                      "%s: the %s path holds a frame pattern (#### or $F4); give --frames A-B",
                      paths[k], what[k]);
-    if (!pat && o->has_frames && frames_count(&o->frames) > 1)
+    if (!pat && k > 0 && o->has_frames && frames_count(&o->frames) > 1)
       return bk_fail(err, BK_ERR_INPUT,
                      "%s: --frames renders %d frames but the %s path has no frame pattern "
                      "(#### or $F4)", paths[k], frames_count(&o->frames), what[k]);
@@ -263,8 +267,11 @@ typedef struct view_job {
   int integrator;
   frames_range_t fr;
   int nframes;
+  int camera_keyed; /* the scene keyframes a value: its camera is set per frame */
   view_gpu_t gpu;
   view_volume_t vol;
+  uint64_t vol_key; /* fr_file_key of the file vol was read from (0: none) */
+  int vol_frame;
   view_totals_t tot;
   float *rgba;
 } view_job_t;
@@ -277,6 +284,7 @@ static int view_settings(view_job_t *j, bk_error_t *err) {
   if (o->scene) {
     if ((rc = scene_load(o->scene, &j->scene, err))) return rc;
     j->have_scene = 1;
+    j->camera_keyed = o->has_frames && j->scene.keyed_values > 0;
   }
   view_cam_from_inputs(&o->cam, j->have_scene ? &j->scene : NULL, &j->cam);
   if ((rc = view_cam_validate(&j->cam, err))) return rc;
@@ -308,8 +316,21 @@ static int view_frame_paths(const view_opts_t *o, int frame, char *in, char *out
   return BK_OK;
 }
 
-/* Every frame's input must exist and every output directory be writable
- * before the first image is rendered; then the image buffer. */
+/* A keyframed scene's camera at this frame (the flags still override it). */
+static int view_frame_camera(view_job_t *j, int frame, bk_error_t *err) {
+  if (!j->camera_keyed) return BK_OK;
+  scene_free(&j->scene);
+  j->have_scene = 0;
+  int rc = scene_load_frame(j->o.scene, NULL, 0, frame, &j->scene, err);
+  if (rc) return rc;
+  j->have_scene = 1;
+  view_cam_from_inputs(&j->o.cam, &j->scene, &j->cam);
+  return view_cam_validate(&j->cam, err);
+}
+
+/* Every frame's input must exist, its camera be valid and every output
+ * directory be writable before the first image is rendered; then the image
+ * buffer. */
 static int view_prepare(view_job_t *j, bk_error_t *err) {
   const view_opts_t *o = &j->o;
   char in[VIEW_PATH_MAX], out[VIEW_PATH_MAX], png[VIEW_PATH_MAX];
@@ -322,7 +343,8 @@ static int view_prepare(view_job_t *j, bk_error_t *err) {
     if (access(in, R_OK) != 0)
       return bk_fail(err, BK_ERR_INPUT, "%s: cannot open VDB file: %s%s", in, strerror(errno),
                      o->has_frames ? " (frame pattern expanded with --frames)" : "");
-    if ((rc = bk_check_output_dir(out, err)) || (o->png && (rc = bk_check_output_dir(png, err))))
+    if ((rc = bk_check_output_dir(out, err)) || (o->png && (rc = bk_check_output_dir(png, err))) ||
+        (rc = view_frame_camera(j, frames_at(&j->fr, f), err)))
       return rc;
   }
   const view_cam_t *cam = &j->cam;
@@ -338,20 +360,39 @@ static int view_prepare(view_job_t *j, bk_error_t *err) {
   return j->rgba ? BK_OK : BK_ERR_RUNTIME;
 }
 
-/* Frame f of the range: read, (first frame) frame a default camera, render,
- * write. */
+/* The frame's volume: the previous frame's when the file's contents hash
+ * the same (docs/animation.md), else read. */
+static int view_frame_volume(view_job_t *j, const char *in, int frame, bk_error_t *err) {
+  double t0 = bk_now_ms();
+  uint64_t key = j->nframes > 1 ? fr_file_key(in) : 0;
+  if (key && key == j->vol_key) {
+    j->tot.read_ms += bk_now_ms() - t0;
+    j->tot.reused++;
+    bk_log(2, "view: %s: reused from frame %d (file unchanged)", in, j->vol_frame);
+    return BK_OK;
+  }
+  view_volume_free(&j->vol);
+  j->vol_key = 0;
+  int rc = view_volume_load(in, &j->vol, err);
+  j->tot.read_ms += bk_now_ms() - t0;
+  if (rc) return rc;
+  j->vol_key = key, j->vol_frame = frame;
+  bk_log(2, "view: %s: %s%s; n in [%g, %g]%s", in, j->vol.desc, j->vol.empty ? " (all empty)" : "",
+         j->vol.n_min, j->vol.n_max, j->vol.refraction ? ", refracting" : "");
+  return BK_OK;
+}
+
+/* Frame f of the range: camera (keyframed), read (or keep), (first frame)
+ * frame a default camera, render, write. */
 static int view_frame(view_job_t *j, int f, bk_error_t *err) {
   const view_opts_t *o = &j->o;
   view_cam_t *cam = &j->cam;
   char in[VIEW_PATH_MAX], out[VIEW_PATH_MAX], png[VIEW_PATH_MAX];
   int rc, frame = frames_at(&j->fr, f);
   view_frame_paths(o, frame, in, out, png, err); /* checked by view_prepare */
-  double t0 = bk_now_ms();
-  if ((rc = view_volume_load(in, &j->vol, err))) return rc;
-  j->tot.read_ms += bk_now_ms() - t0;
-  bk_log(2, "view: %s: %s%s; n in [%g, %g]%s", in, j->vol.desc, j->vol.empty ? " (all empty)" : "",
-         j->vol.n_min, j->vol.n_max, j->vol.refraction ? ", refracting" : "");
-  if (f == 0) { /* a default camera is framed on the first frame and kept */
+  if ((rc = view_frame_camera(j, frame, err)) || (rc = view_frame_volume(j, in, frame, err)))
+    return rc;
+  if (f == 0 || j->camera_keyed) { /* a default camera is framed on the first frame and kept */
     double bmin[3], bmax[3];
     view_volume_world_box(&j->vol, bmin, bmax);
     view_cam_fill_default(cam, bmin, bmax);
@@ -364,7 +405,7 @@ static int view_frame(view_job_t *j, int f, bk_error_t *err) {
   if ((rc = view_render(&j->gpu, &j->vol, cam, j->bg, j->integrator, j->step, j->rgba, &j->tot,
                         err)))
     return rc;
-  t0 = bk_now_ms();
+  double t0 = bk_now_ms();
   if ((rc = view_write_images(in, out, o->png ? png : NULL, cam, j->rgba, o->has_frames, frame,
                               o->exposure, j->integrator, j->step, err)))
     return rc;
@@ -373,7 +414,6 @@ static int view_frame(view_job_t *j, int f, bk_error_t *err) {
   if (bk_verbosity >= 1)
     printf("view: %s -> %s%s%s (%dx%d)\n", in, out, o->png ? ", " : "", o->png ? png : "",
            cam->width, cam->height);
-  view_volume_free(&j->vol);
   return BK_OK;
 }
 

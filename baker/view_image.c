@@ -46,7 +46,15 @@ int view_write_images(const char *in, const char *out, const char *png, const vi
   return rc;
 }
 
+/* ", N reused (file unchanged)" for the read row, or "". */
+static const char *reused_note(const view_totals_t *tot, char *buf, size_t n) {
+  if (!tot->reused) return "";
+  snprintf(buf, n, ", %d reused (file unchanged)", tot->reused);
+  return buf;
+}
+
 void view_report(const view_totals_t *tot, int with_png) {
+  char note[64];
   /* a handful of grazing rays circulate inside a smoothed interface where
    * the discrete field lets them (the photons do the same); many is news */
   if (tot->capped)
@@ -58,8 +66,8 @@ void view_report(const view_totals_t *tot, int with_png) {
     bk_timings_t t;
     memset(&t, 0, sizeof t);
     double msteps = tot->march_ms > 0 ? (double)tot->ray_steps / (tot->march_ms * 1e3) : 0.0;
-    bk_timings_add(&t, "read", tot->read_ms, "%d frame%s", tot->frames,
-                   tot->frames == 1 ? "" : "s");
+    bk_timings_add(&t, "read", tot->read_ms, "%d frame%s%s", tot->frames,
+                   tot->frames == 1 ? "" : "s", reused_note(tot, note, sizeof note));
     bk_timings_add(&t, "build kernel", tot->build_ms, "%s", tot->last_options);
     bk_timings_add(&t, "upload", tot->upload_ms, NULL);
     /* CPU time too: on a shared machine wall time says little about the kernel */

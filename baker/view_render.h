@@ -33,6 +33,7 @@ typedef struct view_totals {
   double march_cpu_ms; /* CPU time of the whole process (all device threads) while marching */
   uint64_t ray_steps, pixels, capped;
   int frames;
+  int reused;          /* frames that kept the previous frame's volume */
   char last_options[256];
 } view_totals_t;
 

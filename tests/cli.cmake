@@ -40,3 +40,9 @@ add_test(NAME cli_bake_reuse
          COMMAND bash ${BAKER_TEST_DIR}/bake_reuse.sh $<TARGET_FILE:baker>
                  ${CMAKE_BINARY_DIR}/cli_reuse ${CMAKE_SOURCE_DIR}/scenes)
 set_tests_properties(cli_bake_reuse PROPERTIES SKIP_RETURN_CODE 77)
+
+# A keyframed camera through one bake: `baker view --frames` reads the file
+# once and renders each frame as a single view with that frame's camera.
+add_test(NAME cli_view_camera_frames
+         COMMAND bash ${BAKER_TEST_DIR}/view_camera_frames.sh $<TARGET_FILE:baker>
+                 $<TARGET_FILE:bench_tool> ${CMAKE_BINARY_DIR}/cli_view_camera ${CMAKE_SOURCE_DIR}/scenes)
