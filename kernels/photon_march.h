@@ -58,11 +58,12 @@
  * 3 signed ones (two's complement in the ulong atomics, order-independent
  * like the others), the luminance-weighted deposit times the chord's unit
  * direction, Σ Y·ℓ·ω with Y = Σ_c lum_c Φ_c (Rec. 709; the one channel
- * itself when PM_CHANNELS is 1), the first moment of radiance next to
- * radiance's zeroth; then Σ Y·ℓ and Σ Y·ℓ·ω (3 signed) of the photons not
- * scattered yet (a multiple-scattering chain's first leg; every deposit with
- * bounces 0), the uncollided light and its own flux (baker/march.h
- * pm_to_flux): the view gives the beam and the scattered light each its own
+ * itself when PM_CHANNELS is 1), of the photons that have scattered; then
+ * Σ Y·ℓ and Σ Y·ℓ·ω (3 signed) of the photons not scattered yet (a
+ * multiple-scattering chain's first leg; every deposit with bounces 0).
+ * baker/march.h pm_to_flux: the first moment of radiance (the two Σ Y·ℓ·ω
+ * added), next to radiance's zeroth, and the uncollided light with its own
+ * flux: the view gives the beam and the scattered light each its own
  * direction (they differ by tens of degrees in thick fog, where one mean
  * direction for both misplaced the forward lobes by 5-15% of the image).
  * Not in PM_MODE_ORIGINS.
@@ -248,11 +249,15 @@ BK_INLINE void pm_deposit_vector(BK_GLOBAL bk_ulong *f, float y, bk_v3 d) {
   }
 }
 
-/* Adds y·d to the flux counters of a voxel, and y and y·d to the
- * uncollided ones while the photon has not scattered. */
+/* Adds y·d to the scattered light's flux counters of a voxel, or, while
+ * the photon has not scattered, y and y·d to the uncollided ones: four
+ * atomics per deposit at most, as many as one flux sum for all and Y0 took
+ * (the total F is the sum of the two, baker/march.c). */
 BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d, bk_uint scattered) {
-  pm_deposit_vector(f, y, d);
-  if (scattered) return;
+  if (scattered) {
+    pm_deposit_vector(f, y, d);
+    return;
+  }
   pm_deposit(f + 3, y);
   pm_deposit_vector(f + 4, y, d);
 }
