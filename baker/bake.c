@@ -251,6 +251,9 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   if (a->radiance_uncollided)
     grids[g++] =
         (vdbio_grid_t){"radiance_uncollided", VDBIO_FLOAT, a->radiance_uncollided, 0, 0.0f};
+  if (a->radiance_flux_uncollided)
+    grids[g++] = (vdbio_grid_t){"radiance_flux_uncollided", VDBIO_VEC3,
+                                a->radiance_flux_uncollided, 0, 0.0f};
   if (a->phase_g) grids[g++] = (vdbio_grid_t){"phase_g", VDBIO_FLOAT, a->phase_g, 0, 0.0f};
   if (a->photon_count)
     grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, a->photon_count, 0, 0.0f};
@@ -303,7 +306,8 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   }
   bake_arrays_t a = {vol->ior, j->extinction, vol->sigma_s, j->density, j->radiance, j->emission,
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
-                     j->scene.medium_ior, NULL, j->error.flux, j->error.uncollided, NULL};
+                     j->scene.medium_ior, NULL, j->error.flux, j->error.uncollided, NULL, NULL};
+  if (j->error.uncollided) a.radiance_flux_uncollided = j->error.uncollided + n; /* after Y0 */
   if (vol->ior_rb && !(a.ior_rgb = j->ior_rgb = ior_interleaved(vol, n, err))) return err->code;
   if (j->error.flux || j->shard.sums.flux) { /* a shard's flux is in its sums */
     if (!(j->phase_g = bake_phase_g(vol, j->scene.medium_g, err))) return err->code;

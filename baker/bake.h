@@ -79,8 +79,9 @@ typedef struct bake_arrays {
   const float *ior_rgb; /* dispersion: n per channel (R, G, B), 3 per voxel; else NULL */
   /* some g != 0: F = ∫ L_Y ω dω / (4π) (3 per voxel) and the uncollided
    * Y(L̄) (1, baker/march.h pm_to_flux), the Henyey–Greenstein g where
-   * σs > 0 (1 per voxel) */
+   * σs > 0 (1 per voxel); the uncollided light's own F (3 per voxel) */
   const float *radiance_flux, *radiance_uncollided, *phase_g;
+  const float *radiance_flux_uncollided;
 } bake_arrays_t;
 #define BAKE_MAX_GRIDS 15
 /* The grids of a frame in file order, as `baker bake` and `baker merge`

@@ -334,7 +334,7 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
 static int make_flux(const pm_setup_t *s, const uint64_t *acc, bt_result_t *res, bk_error_t *err) {
   if (!s->params.flux) return BK_OK;
   res->flux = bk_calloc(s->voxels, 3 * sizeof(float), "radiance_flux grid", err);
-  res->uncollided = bk_calloc(s->voxels, sizeof(float), "radiance_uncollided grid", err);
+  res->uncollided = bk_calloc(s->voxels, 4 * sizeof(float), "radiance_uncollided grids", err);
   if (!res->flux || !res->uncollided) return err->code;
   pm_to_flux(s, acc, res->flux, res->uncollided);
   return BK_OK;

@@ -33,8 +33,9 @@ extern "C" {
  * and the interleaved ior_rgb grid written (20): counted, not measured */
 #define BUDGET_DISPERSION_BYTES 52.0
 /* per voxel, the flux of an anisotropic medium (some g != 0, reference mode):
- * 4 counters, radiance_flux, radiance_uncollided and phase_g (baker/march.h) */
-#define BUDGET_FLUX_BYTES 52.0
+ * 7 counters, radiance_flux, radiance_uncollided, radiance_flux_uncollided
+ * and phase_g (baker/march.h) */
+#define BUDGET_FLUX_BYTES 88.0
 
 typedef struct budget {
   grid_dims_t dims;

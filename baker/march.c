@@ -406,7 +406,11 @@ static void to_flux_range(void *arg, size_t lo, size_t hi) {
   const double k = pm_flux_scale(u->s);
   for (size_t i = lo; i < hi; i++) {
     const uint64_t *q = f + PM_FLUX_SLOTS * i;
-    for (int a = 0; a < 3; a++) u->radiance[3 * i + a] = (float)((double)(int64_t)q[a] * k);
+    float *f0 = u->count + u->s->voxels + 3 * i; /* the uncollided flux, after Y0's */
+    for (int a = 0; a < 3; a++) { /* F: the scattered light's sum + the uncollided one's */
+      u->radiance[3 * i + a] = (float)((double)(int64_t)(q[a] + q[4 + a]) * k);
+      f0[a] = (float)((double)(int64_t)q[4 + a] * k);
+    }
     u->count[i] = (float)((double)q[3] * k);
   }
 }

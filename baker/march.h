@@ -219,8 +219,10 @@ void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);
  * Y = 0.2126 R + 0.7152 G + 0.0722 B of radiance in radiance's own
  * normalisation (L̄ = ∫ L dω / (4π)): |F| <= Y(L̄), = for a parallel beam;
  * and `radiance_uncollided`, 1 float per voxel, the part of Y(L̄) that has
- * not scattered yet (Y(L̄) itself with bounces 0). pm_flux_scale: quanta ->
- * those units. */
+ * not scattered yet (Y(L̄) itself with bounces 0), followed in the same
+ * array (4 floats per voxel in all) by `radiance_flux_uncollided`, 3 floats
+ * per voxel, that part's own F (|F0| <= Y0, = for one beam). pm_flux_scale:
+ * quanta -> those units. */
 void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux, float *uncollided);
 double pm_flux_scale(const pm_setup_t *s);
 /* Weighted mode: per voxel the photon count and the mean weight (0 where no

@@ -257,7 +257,7 @@ static int finish(const merge_shard_t *s, const pm_sums_t *k, merge_out_t *o, bk
     pm_to_radiance(&setup, k->acc, o->radiance);
     if (!k->flux) return BK_OK;
     o->flux = bk_calloc(n, 3 * sizeof(float), "radiance_flux grid", err);
-    o->uncollided = bk_calloc(n, sizeof(float), "radiance_uncollided grid", err);
+    o->uncollided = bk_calloc(n, 4 * sizeof(float), "radiance_uncollided grids", err);
     if (!o->flux || !o->uncollided) return err->code;
     pm_to_flux(&setup, k->acc, o->flux, o->uncollided);
     if (!(o->phase_g = bk_calloc(n, sizeof(float), "phase_g grid", err))) return err->code;
@@ -379,7 +379,8 @@ static int merge_run(merge_shard_t *sh, int n, const char *out_path, bk_error_t 
     bake_emission(o.scattering, o.sca_channels, o.radiance, sums.voxels, o.emission);
     bake_arrays_t a = {o.ior, o.extinction, o.scattering, o.density, o.radiance, o.emission,
                        o.count, o.weight, o.radius, o.sca_channels, o.medium_ior, o.ior_rgb,
-                       o.flux, o.uncollided, o.phase_g};
+                       o.flux, o.uncollided, o.phase_g,
+                       o.uncollided ? o.uncollided + sums.voxels : NULL}; /* after Y0 */
     int count = bake_grid_list(&a, grids);
     int mc = merged_meta(sh, n, &o, &text, meta);
     vdbio_write_opts_t w = write_opts(text.settings);

@@ -169,7 +169,7 @@ static int is_constant(const float *a, size_t n, int ch, float c[3]) {
   return 1;
 }
 
-enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_IOR_RGB, G_FLUX, G_PHG, G_UNC, G_COUNT };
+enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_IOR_RGB, G_FLUX, G_PHG, G_UNC, G_FUNC, G_COUNT };
 
 /* One file's grids while they are read and moved onto one box. */
 typedef struct view_load {
@@ -204,7 +204,7 @@ static int load_select(view_load_t *L, bk_error_t *err) {
   for (int g = 0; g < G_COUNT; g++) {
     if (idx[g] < 0) continue;
     const char *t = types[idx[g]];
-    int ok = g == G_RAD || g == G_IOR_RGB || g == G_FLUX ? is_vec3_type(t)
+    int ok = g == G_RAD || g == G_IOR_RGB || g == G_FLUX || g == G_FUNC ? is_vec3_type(t)
              : g == G_IOR || g == G_PHG || g == G_UNC ? is_scalar_type(t)
                                                         : (is_scalar_type(t) || is_vec3_type(t));
     if (!ok)
@@ -212,7 +212,7 @@ static int load_select(view_load_t *L, bk_error_t *err) {
                      L->gname[g], t,
                      g == G_RAD                               ? "Vec3f (vec3s) radiance"
                      : g == G_IOR_RGB                         ? "Vec3f (vec3s) n per channel"
-                     : g == G_FLUX                            ? "Vec3f (vec3s)"
+                     : g == G_FLUX || g == G_FUNC             ? "Vec3f (vec3s)"
                      : g == G_IOR || g == G_PHG || g == G_UNC ? "float"
                                                               : "float or Vec3f");
     L->present[g] = 1;
@@ -373,33 +373,48 @@ static int load_ior_rgb(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_
   return BK_OK;
 }
 
-/* The phase lobes per voxel (view_march.h), in index space: the
- * uncollided light u = Y0 / Y(L̄) as a beam along F̂, aniso = {g F̂, u}; the
- * rest as an HG lobe of mean cosine m_s = (|F| / Y(L̄) − u) / (1 − u),
- * aniso_s = {g m_s F̂, 0}; |g|, |g m_s| at most VIEW_ANISO_MAX. Only with
- * radiance_flux and phase_g (without radiance_uncollided: u = 0). */
-static void aniso_voxel(const float *F, float g, const float *l, const float *y0,
-                        const double m[3][3], float *a, float *as) {
-  double y = 0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2], d[3], len = 0.0;
+/* g·v/y in index space (m: world -> index, a similarity), its length at
+ * most |g| (VIEW_ANISO_MAX): the HG lobe of the light whose flux is v and
+ * luminance y, scattered once more by g; zero where y is. */
+static void aniso_lobe(const double m[3][3], const double *v, double y, double g, float *out) {
+  double d[3], len = 0.0;
   for (int r = 0; r < 3; r++) {
-    d[r] = m[r][0] * F[0] + m[r][1] * F[1] + m[r][2] * F[2];
+    d[r] = m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2];
     len += d[r] * d[r];
   }
   len = sqrt(len);
   if (!(y > 0.0) || !(len > 0.0)) return; /* zeroed: isotropic */
-  double u = y0 ? fmin(fmax(*y0 / y, 0.0), 1.0) : 0.0, mean = fmin(len / y, 1.0);
-  double ms = u < 1.0 ? fmin(fmax((mean - u) / (1.0 - u), 0.0), 1.0) : 0.0;
-  double gc = fmax(fmin(g, VIEW_ANISO_MAX), -VIEW_ANISO_MAX);
+  double k = fmin(len / y, 1.0) * fmax(fmin(g, VIEW_ANISO_MAX), -VIEW_ANISO_MAX) / len;
+  for (int r = 0; r < 3; r++) out[r] = (float)(k * d[r]);
+}
+
+/* The phase lobes per voxel (view_march.h), in index space: the
+ * uncollided light, share u = Y0 / Y(L̄), as an HG lobe of its own flux F0
+ * (a beam along it for one light: |F0| = Y0), aniso = {g F0 / Y0, u}; the
+ * scattered rest as an HG lobe of its flux F − F0, aniso_s =
+ * {g (F − F0) / (Y(L̄) − Y0), 0}; each |g·mean| at most VIEW_ANISO_MAX.
+ * Only with radiance_flux and phase_g (without radiance_uncollided: u = 0;
+ * without radiance_flux_uncollided, files of before it: F0 = Y0 F̂, one
+ * direction for both, which misplaces the lobes in thick fog). */
+static void aniso_voxel(const float *F, float g, const float *l, const float *y0, const float *f0,
+                        const double m[3][3], float *a, float *as) {
+  double y = 0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2], len = 0.0;
+  for (int r = 0; r < 3; r++) len += (double)F[r] * F[r];
+  len = sqrt(len);
+  if (!(y > 0.0)) return; /* zeroed: isotropic */
+  double u = y0 ? fmin(fmax(*y0 / y, 0.0), 1.0) : 0.0, beam[3], rest[3];
   for (int r = 0; r < 3; r++) {
-    a[r] = (float)(gc * d[r] / len);
-    as[r] = (float)(gc * ms * d[r] / len);
+    beam[r] = f0 ? f0[r] : len > 0.0 ? u * y * F[r] / len : 0.0;
+    rest[r] = F[r] - beam[r];
   }
+  aniso_lobe(m, beam, u * y, g, a);
+  if (u < 1.0) aniso_lobe(m, rest, (1.0 - u) * y, g, as);
   a[3] = (float)u;
 }
 
 static int load_aniso(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
   const float *F = L->arr[G_FLUX], *g = L->arr[G_PHG], *rad = L->arr[G_RAD];
-  const float *unc = L->arr[G_UNC];
+  const float *unc = L->arr[G_UNC], *func = L->arr[G_FUNC];
   if (!F || !g) {
     if (F) bk_warn("%s: grid \"radiance_flux\" without \"phase_g\": in-scattering is shown "
                    "isotropic", L->path);
@@ -415,10 +430,10 @@ static int load_aniso(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t 
     if (!(g[i] > -1.0f && g[i] < 1.0f))
       return bk_fail(err, BK_ERR_INPUT, "%s: grid \"phase_g\" holds %g; expected -1 < g < 1",
                      L->path, (double)g[i]);
-    aniso_voxel(F + 3 * i, g[i], rad + 3 * i, unc ? unc + i : NULL, m, v->aniso + 4 * i,
-                v->aniso_s + 4 * i);
-    v->anisotropic |= v->aniso[4 * i] != 0.0f || v->aniso[4 * i + 1] != 0.0f ||
-                      v->aniso[4 * i + 2] != 0.0f;
+    aniso_voxel(F + 3 * i, g[i], rad + 3 * i, unc ? unc + i : NULL,
+                unc && func ? func + 3 * i : NULL, m, v->aniso + 4 * i, v->aniso_s + 4 * i);
+    for (int k = 0; k < 3; k++)
+      v->anisotropic |= v->aniso[4 * i + k] != 0.0f || v->aniso_s[4 * i + k] != 0.0f;
   }
   if (!v->anisotropic) {
     free(v->aniso), v->aniso = NULL;
@@ -485,7 +500,7 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
   L.scale = 1.0;
   const char *gname[G_COUNT] = {"radiance",      "ior",     "extinction",         "scattering",
                                 "ior_rgb",       "radiance_flux", "phase_g",
-                                "radiance_uncollided"};
+                                "radiance_uncollided", "radiance_flux_uncollided"};
   memcpy(L.gname, gname, sizeof gname);
 
   int rc = vdbio_list_grids(path, &L.names, &L.types, &L.count, err);

@@ -58,10 +58,15 @@
  * 3 signed ones (two's complement in the ulong atomics, order-independent
  * like the others), the luminance-weighted deposit times the chord's unit
  * direction, Σ Y·ℓ·ω with Y = Σ_c lum_c Φ_c (Rec. 709; the one channel
- * itself when PM_CHANNELS is 1), the first moment of radiance next to
- * radiance's zeroth; and Σ Y·ℓ of the photons not scattered yet (a
- * multiple-scattering chain's first leg; every deposit with bounces 0), the
- * uncollided light (baker/march.h pm_to_flux). Not in PM_MODE_ORIGINS.
+ * itself when PM_CHANNELS is 1), of the photons that have scattered; then
+ * Σ Y·ℓ and Σ Y·ℓ·ω (3 signed) of the photons not scattered yet (a
+ * multiple-scattering chain's first leg; every deposit with bounces 0).
+ * baker/march.h pm_to_flux: the first moment of radiance (the two Σ Y·ℓ·ω
+ * added), next to radiance's zeroth, and the uncollided light with its own
+ * flux: the view gives the beam and the scattered light each its own
+ * direction (they differ by tens of degrees in thick fog, where one mean
+ * direction for both misplaced the forward lobes by 5-15% of the image).
+ * Not in PM_MODE_ORIGINS.
  * Without the flag nothing of it is compiled. */
 #ifndef BAKER_MARCH_KERNEL_H
 #define BAKER_MARCH_KERNEL_H
@@ -95,7 +100,7 @@
 #define PM_FATE_ABSORBED 2   /* power below PM_ABSORB_FRACTION */
 #define PM_FATE_STEP_LIMIT 3 /* PM_MAX_STEPS or PM_MAX_PATH_DIAGONALS */
 
-#define PM_FLUX_SLOTS 4 /* PM_FLUX: counters per voxel after the voxels' */
+#define PM_FLUX_SLOTS 7 /* PM_FLUX: counters per voxel after the voxels' */
 
 #define PM_MODE_REFERENCE 0
 #define PM_MODE_ORIGINS 1
@@ -234,16 +239,27 @@ BK_INLINE float pm_flux_weight(int nch, int ch) {
   return nch == 1 ? 1.0f : ch == 0 ? 0.2126f : ch == 1 ? 0.7152f : 0.0722f;
 }
 
-/* Adds y·d to the flux counters of a voxel (signed quanta, rounded to the
- * nearest, in the ulongs' two's complement), and y to the uncollided one
- * while the photon has not scattered. */
-BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d, bk_uint scattered) {
+/* Adds y·d to three signed counters (quanta rounded to the nearest, in the
+ * ulongs' two's complement). */
+BK_INLINE void pm_deposit_vector(BK_GLOBAL bk_ulong *f, float y, bk_v3 d) {
   const float v[3] = {y * d.x, y * d.y, y * d.z};
   for (int a = 0; a < 3; a++) {
     bk_long q = (bk_long)(v[a] >= 0.0f ? v[a] + 0.5f : v[a] - 0.5f);
     if (q) PM_ATOMIC_ADD(f + a, (bk_ulong)q);
   }
-  if (!scattered) pm_deposit(f + 3, y);
+}
+
+/* Adds y·d to the scattered light's flux counters of a voxel, or, while
+ * the photon has not scattered, y and y·d to the uncollided ones: four
+ * atomics per deposit at most, as many as one flux sum for all and Y0 took
+ * (the total F is the sum of the two, baker/march.c). */
+BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d, bk_uint scattered) {
+  if (scattered) {
+    pm_deposit_vector(f, y, d);
+    return;
+  }
+  pm_deposit(f + 3, y);
+  pm_deposit_vector(f + 4, y, d);
 }
 #endif
 

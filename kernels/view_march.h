@@ -31,17 +31,19 @@
  * A ray stops when it leaves the box or max(T) < VIEW_T_CUTOFF. Outside the
  * box the medium is empty.
  *
- * Anisotropic phase (flags.aniso, from `radiance_flux`, `phase_g` and
- * `radiance_uncollided`): the radiance at a point is taken as the share
- * u = Y0 / Y(L̄) of uncollided light, a beam along F̂, and the rest, a lobe
- * of mean cosine m_s = (|F| / Y(L̄) − u) / (1 − u) about F̂. The Henyey–
- * Greenstein phase g scatters the beam into an HG lobe g about F̂ and the
- * rest, convolved, into an HG lobe of asymmetry g·m_s (exact in the first
- * moment, and for single scattering of one light: u = 1; exact for every
- * moment when the scattered light's lobe is HG-shaped). The fields hold per
- * voxel (index space) aniso = {g F̂, u} and aniso_s = {g m_s F̂, 0}, so
- * toward the camera, i.e. along −d for a ray of direction d,
- *   S → S · (u P(g F̂) + (1 − u) P(g m_s F̂)),
+ * Anisotropic phase (flags.aniso, from `radiance_flux`, `phase_g`,
+ * `radiance_uncollided` and `radiance_flux_uncollided`): the radiance at a
+ * point is taken as the share u = Y0 / Y(L̄) of uncollided light, an HG
+ * lobe of its own flux F0 (a beam along F̂0 for one light), and the
+ * scattered rest, an HG lobe of its flux F − F0 (mean cosine m_s =
+ * |F − F0| / (Y(L̄) − Y0)). The Henyey–Greenstein phase g convolves each
+ * into an HG lobe of g times its mean cosine (exact in the first moment,
+ * and for the single scattering of one light: u = 1; exact for every moment
+ * when the scattered light's lobe is HG-shaped about its mean). The fields
+ * hold per voxel (index space) aniso = {g F0 / Y0, u} and
+ * aniso_s = {g (F − F0) / (Y(L̄) − Y0), 0} (baker/view_volume.c), so toward
+ * the camera, i.e. along −d for a ray of direction d,
+ *   S → S · (u P(aniso) + (1 − u) P(aniso_s)),
  *   P(A) = 4π p_HG(|A|, Â·(−d)) = (1 − |A|²) / (1 + |A|² + 2 A·d)^(3/2). */
 #ifndef BAKER_VIEW_MARCH_H
 #define BAKER_VIEW_MARCH_H
@@ -95,8 +97,8 @@ typedef struct view_fields {
   BK_GLOBAL const float *ng;              /* 4 per voxel: ∇n (per voxel length), n >= 1 */
   BK_GLOBAL const bk_uchar *npyr;         /* refraction: constant-block pyramid of n */
   BK_GLOBAL const bk_uchar *mpyr;         /* constant-block pyramid of S, σt (and A) */
-  BK_GLOBAL const float *aniso;           /* 4 per voxel: {g F̂, u}, when fl.aniso */
-  BK_GLOBAL const float *aniso_s;         /* 4 per voxel: {g m_s F̂, 0}, when fl.aniso */
+  BK_GLOBAL const float *aniso;           /* 4 per voxel: {g F0 / Y0, u}, when fl.aniso */
+  BK_GLOBAL const float *aniso_s;         /* 4 per voxel: {g m_s F̂_s, 0}, when fl.aniso */
 } view_fields;
 
 /* P(A) = 4π p_HG(|A|, Â·(−d)): a lobe's factor toward a camera looking along d. */

@@ -21,7 +21,8 @@ set_tests_properties(${SCATTER_TESTS} PROPERTIES
   ENVIRONMENT "BAKER_CACHE_DIR=${CMAKE_CURRENT_BINARY_DIR}/march_kernel_cache" TIMEOUT 120)
 
 # Against Mitsuba 3 (scripts/bench_mitsuba --quick: small fog scenes, g 0 and
-# 0.3 all orders, g 0.8 single scattering, totals within 2%); skipped when mitsuba is not importable
+# 0.3 all orders, g 0.8 single scattering and all orders looking into the
+# light, totals within 2%); skipped when mitsuba is not importable
 # (scripts/setup_mitsuba.sh installs it into build/mitsuba-venv).
 add_test(NAME mitsuba_small
          COMMAND ${CMAKE_SOURCE_DIR}/scripts/bench_mitsuba --quick --baker $<TARGET_FILE:baker>

@@ -289,7 +289,7 @@ static int test_object_g(void) {
  * directional light along dir; RGB absorption when rgb (three channels,
  * the flux weighted in the kernel), else grey (one). The raw sums, with
  * radiance and flux (3 floats per voxel each) and the uncollided luminance
- * (1) filled from them. */
+ * (1), then its flux (3), filled from them. */
 static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3], float *rad,
                            float *flux, float *unc) {
   volume_t v;
@@ -360,7 +360,7 @@ static int test_flux(clh_context_t *cl) {
   const float dir[3] = {0.3f, 0.2f, 1.0f};
   const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
   float *rad = calloc(3 * n, sizeof(float)), *flux = calloc(3 * n, sizeof(float));
-  float *unc = calloc(n, sizeof(float));
+  float *unc = calloc(4 * n, sizeof(float)); /* Y0, then the uncollided flux F0 */
   REQUIRE(rad && flux && unc, "out of memory");
   for (int rgb = 0; rgb < 2; rgb++) {
     uint64_t *acc = flux_bake(cl, 0, rgb, dir, rad, flux, unc);
@@ -370,11 +370,14 @@ static int test_flux(clh_context_t *cl) {
       double y = lum3(rad + 3 * i);
       if (!(y > 0.0)) continue;
       lit++;
-      for (int a = 0; a < 3; a++) worst = fmax(worst, fabs(flux[3 * i + a] / y - w0[a]));
+      for (int a = 0; a < 3; a++) {
+        worst = fmax(worst, fabs(flux[3 * i + a] / y - w0[a]));
+        worst_u = fmax(worst_u, fabs(unc[n + 3 * i + a] - flux[3 * i + a]) / y); /* F0 = F */
+      }
       worst_u = fmax(worst_u, fabs(unc[i] / y - 1.0));
     }
     printf("flux, single scattering (%s): %zu lit voxels, |F/Y(L) - w0| at most %.2e, "
-           "|uncollided/Y(L) - 1| at most %.2e (limits 1e-4)\n", rgb ? "RGB" : "grey", lit,
+           "|uncollided/Y(L) - 1| and |F0 - F|/Y(L) at most %.2e (limits 1e-4)\n", rgb ? "RGB" : "grey", lit,
            worst, worst_u);
     REQUIRE(lit > n / 2 && worst < 1e-4, "beam flux off by %.3e", worst);
     REQUIRE(worst_u < 1e-4, "uncollided share off by %.3e", worst_u);
@@ -382,6 +385,7 @@ static int test_flux(clh_context_t *cl) {
   }
   uint64_t *acc = flux_bake(cl, 8, 0, dir, rad, flux, unc);
   double along = 0.0, ysum = 0.0, over = -1.0, ymax = 0.0, usum = 0.0, umin = 1.0, uover = -1.0;
+  double beam = 0.0;
   for (size_t i = 0; i < n; i++) ymax = fmax(ymax, lum3(rad + 3 * i));
   for (size_t i = 0; i < n; i++) {
     const float *F = flux + 3 * i;
@@ -391,12 +395,17 @@ static int test_flux(clh_context_t *cl) {
     ysum += y;
     usum += unc[i];
     uover = fmax(uover, (unc[i] - y) / ymax);
+    for (int a = 0; a < 3; a++) /* the uncollided light is the beam: F0 = Y0 w0 */
+      beam = fmax(beam, fabs(unc[n + 3 * i + a] - unc[i] * w0[a]) / ymax);
     if (y > 1e-3 * ymax) umin = fmin(umin, unc[i] / y);
   }
   printf("uncollided, multiple scattering: %.3f of Y(L) in all, at least %.3f in a voxel, "
          "max (uncollided - Y(L)) / max Y(L) = %.2e\n", usum / ysum, umin, uover);
   REQUIRE(uover < 1e-6 && umin >= 0.0 && umin < 0.5 && usum / ysum > 0.2 && usum / ysum < 0.9,
           "uncollided share %.3f (voxel minimum %.3f, above Y by %.2e)", usum / ysum, umin, uover);
+  printf("uncollided flux, multiple scattering: max |F0 - Y0 w0| / max Y(L) = %.2e (limit 1e-5)\n",
+         beam);
+  REQUIRE(beam < 1e-5, "the uncollided flux leaves the beam by %.3e of the largest Y(L)", beam);
   printf("flux, multiple scattering (g 0.5, 3 mean free paths): mean cosine along the beam "
          "%.3f, max (|F| - Y(L)) / max Y(L) = %.2e (limit 1e-6)\n", along / ysum, over);
   REQUIRE(over < 1e-6, "|F| exceeds Y(L) by %.3e of the largest Y(L)", over);

@@ -15,8 +15,8 @@
  *             and no output file
  *  range      shard_range: contiguous, disjoint, complete, balanced
  *  anisotropic medium.g 0.6: 2 shards merged against the single bake,
- *             radiance_flux, radiance_uncollided and phase_g too, bit for
- *             bit */
+ *             radiance_flux, radiance_uncollided, radiance_flux_uncollided
+ *             and phase_g too, bit for bit */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
 #include <stdlib.h>
@@ -159,6 +159,7 @@ static int test_anisotropic(void) {
   compare(merged, single, "radiance", 3, 0.0);
   compare(merged, single, "radiance_flux", 3, 0.0);
   compare(merged, single, "radiance_uncollided", 1, 0.0);
+  compare(merged, single, "radiance_flux_uncollided", 3, 0.0);
   compare(merged, single, "phase_g", 1, 0.0);
   return tu_failures ? 1 : 0;
 }
