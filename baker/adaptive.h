@@ -57,6 +57,7 @@
 
 #include <stdint.h>
 
+#include "batches.h"
 #include "clhost.h"
 #include "base/grid.h"
 #include "kernels/adaptive_filter.h"
@@ -181,6 +182,13 @@ int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const fl
                  const float *count, const float *mean_weight, float alpha, float noise_k,
                  int levels, float *out_radiance, float *out_radius, bk_error_t *err);
 
+/* The filter's means at given radii (radius: voxels per voxel, as the
+ * filter's out_radius; level round(2 r), at most `levels`) of one channel
+ * `in` into out: a linear map, so the error estimate can filter the two
+ * halves of the batches exactly as the whole was (ad_bake). On the host. */
+int ad_filter_fixed(const grid_dims_t *d, const float *in, const float *radius, int levels,
+                    float *out, bk_error_t *err);
+
 /* --- the whole stage --------------------------------------------------------- */
 
 typedef struct ad_bake_opts {
@@ -198,6 +206,9 @@ typedef struct ad_bake_opts {
    * radiance: ad_finish does that after the shards are added up. */
   pm_sums_t *sums;
   uint64_t first, last;
+  int shard_index, shard_count; /* the shard's share of every batch (batches.h) */
+  int error_grid;       /* --error-grid: stats.error.error_grid, the raw estimate's standard error */
+  double t_start;       /* bk_now_ms() when the bake began, for photons.time_budget_s (0: ad_bake's start) */
   /* the march's fields kept from the frame before (march.h); NULL: built */
   pm_field_cache_t *fields;
 } ad_bake_opts_t;
@@ -212,6 +223,12 @@ typedef struct ad_stats {
   int filtered;
   float max_radius;          /* voxels, 0 when not filtered */
   double ms_octree, ms_pilot, ms_distribution, ms_generate, ms_march, ms_filter;
+  /* the weighted march's batches and the error (error_est.h): with the
+   * filter, terms.noise is the filtered estimate's and terms.filter its
+   * bias; error.error_grid (opts.error_grid) belongs to the caller; its
+   * `full` tracker is freed */
+  bt_result_t error;
+  double ms_error;           /* the filter's error terms (two more filters) */
 } ad_stats_t;
 
 /* The adaptive pipeline in place of pm_bake: scene (photons.count phase-2

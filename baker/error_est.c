@@ -36,6 +36,7 @@ void ee_tracker_free(ee_tracker_t *t) {
   free(t->dsum);
   free(t->dsumsq);
   free(t->twin_tmp);
+  free(t->even);
   memset(t, 0, sizeof *t);
 }
 
@@ -48,8 +49,9 @@ static size_t voxel_of(const ee_tracker_t *t, const pm_setup_t *s, size_t k) {
 }
 
 static float lum_at(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, size_t v) {
-  if (s->channels == 1) return (float)((double)acc[v] * t->lum[0]);
-  const uint64_t *a = acc + 3 * v;
+  /* sampling tables add a count/weight counter per voxel */
+  const uint64_t *a = acc + (size_t)pm_acc_stride((int)s->params.mode, s->channels) * v;
+  if (s->channels == 1) return (float)((double)a[0] * t->lum[0]);
   return (float)((double)a[0] * t->lum[0] + (double)a[1] * t->lum[1] + (double)a[2] * t->lum[2]);
 }
 
@@ -69,12 +71,19 @@ static void after_batch_range(void *arg, size_t lo, size_t hi) {
     float b = cur - t->prev[k];
     t->sumsq[k] += b * b;
     t->prev[k] = cur;
+    if (t->even && !(t->seen & 1)) t->even[k] += b;
   }
 }
 
 void ee_after_batch(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc) {
   ee_ctx_t x = {t, s, acc, NULL, NULL};
   bk_parallel(t->count, BK_GRAIN, after_batch_range, &x);
+  t->seen++;
+}
+
+int ee_keep_halves(ee_tracker_t *t, bk_error_t *err) {
+  t->even = bk_calloc(t->count, sizeof(float), "error estimate: even batches", err);
+  return t->even ? BK_OK : BK_ERR_RUNTIME;
 }
 
 static void read_range(void *arg, size_t lo, size_t hi) {
@@ -150,6 +159,7 @@ void ee_terms(const ee_tracker_t *t, int batches, int step_exact, ee_terms_t *ou
   out->batches = batches;
   out->twin_batches = step_exact ? 0 : t->twins;
   out->noise = out->step = out->estimate = EE_UNKNOWN;
+  out->filter = 0.0;
   float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
   if (!mean || batches < 1) {
     free(mean);
@@ -227,6 +237,50 @@ void ee_twin_reset(ee_tracker_t *t) {
 void ee_batches_reset(ee_tracker_t *t) {
   memset(t->prev, 0, t->count * sizeof(float));
   memset(t->sumsq, 0, t->count * sizeof(float));
+  if (t->even) memset(t->even, 0, t->count * sizeof(float));
+  t->seen = 0;
+}
+
+void ee_halves(const ee_tracker_t *t, int batches, float *a, float *b) {
+  const double na = (batches + 1) / 2, nb = batches / 2;
+  for (size_t k = 0; k < t->count; k++) {
+    a[k] = (float)(t->even[k] / na);
+    b[k] = nb > 0 ? (float)((t->prev[k] - t->even[k]) / nb) : a[k];
+  }
+}
+
+void ee_filter_terms(const ee_tracker_t *t, int batches, const float *f, const float *fa,
+                     const float *fb, double *noise, double *bias) {
+  const double B = batches, na = (batches + 1) / 2, nb = batches / 2;
+  /* var(mean of B) / var(difference of the halves' means) */
+  const double kappa = (1.0 / B) / (1.0 / na + 1.0 / nb);
+  *noise = *bias = EE_UNKNOWN;
+  float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
+  if (!mean || batches < 2 || !t->even) {
+    free(mean);
+    return;
+  }
+  for (size_t k = 0; k < t->count; k++) mean[k] = (float)(t->prev[k] / B);
+  double thr = lit_threshold(mean, t->count), sum_m = 0.0, sum_n = 0.0, sum_b = 0.0;
+  size_t lit = 0;
+  for (size_t k = 0; k < t->count; k++) {
+    double m = mean[k];
+    if (!(thr > 0.0) || m < thr) continue;
+    double dx = t->even[k] / na - (t->prev[k] - t->even[k]) / nb, df = (double)fa[k] - fb[k];
+    double d = f[k] - m; /* filtered minus raw: the filter's bias plus a noise of its own */
+    sum_n += kappa * df * df;
+    sum_b += d * d - kappa * (df - dx) * (df - dx);
+    sum_m += m;
+    lit++;
+  }
+  free(mean);
+  if (!lit || !(sum_m > 0.0)) {
+    *noise = *bias = 0.0;
+    return;
+  }
+  double mm = sum_m / (double)lit;
+  *noise = sqrt(sum_n / (double)lit) / mm;
+  *bias = sqrt(fmax(0.0, sum_b / (double)lit)) / mm;
 }
 
 double ee_twin_step(const ee_tracker_t *t, const float *fine) {

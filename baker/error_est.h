@@ -49,6 +49,9 @@ extern "C" {
 
 typedef struct ee_terms {
   double estimate, noise, step; /* ε̂, ε_noise, ε_step; EE_UNKNOWN when not measured */
+  /* adaptive mode with its filter: the filter's bias (then noise is the
+   * filtered estimate's); 0 without a filter */
+  double filter;
   int batches;                  /* B behind the noise term */
   int twin_batches;             /* T behind the step term (0: exact, no twin needed) */
   uint64_t twin_photons;        /* photons per twin batch */
@@ -64,6 +67,8 @@ typedef struct ee_tracker {
   float *dsum, *dsumsq; /* twin: sums of d_t and d_t² (NULL until a twin runs) */
   float *twin_tmp;    /* twin: the truth integrator's luminance of the twin in flight */
   double lum[3];      /* luminance per accumulator quantum, per channel (one batch) */
+  float *even;        /* ee_keep_halves: the luminance sum of the even-numbered batches */
+  int seen;           /* batches recorded */
 } ee_tracker_t;
 
 /* Tracks every voxel (all = 1, for the error grid) or the even lattice. */
@@ -82,6 +87,21 @@ void ee_twin_reset(ee_tracker_t *t);
 /* Forget the batches recorded (target mode drops its pilot batches and
  * starts over with larger ones); the twins are kept. */
 void ee_batches_reset(ee_tracker_t *t);
+/* Keep the sum of the even-numbered batches too (0, 2, 4, ...: half A;
+ * the odd ones are half B), for the filter's terms. */
+int ee_keep_halves(ee_tracker_t *t, bk_error_t *err);
+/* Half A's and half B's mean luminance per tracked voxel (A has the extra
+ * batch when B is odd). */
+void ee_halves(const ee_tracker_t *t, int batches, float *a, float *b);
+/* The terms of a filtered estimate (adaptive mode), from a tracker that kept
+ * its halves: f is the filtered mean's luminance, fa and fb the halves'
+ * means filtered the same way, per tracked voxel. With x̄ the raw mean,
+ * d = f − x̄ is the filter's bias plus noise; the halves measure the noise:
+ * var(f) ≈ κ (fa − fb)², var(d) ≈ κ ((fa − xa) − (fb − xb))², κ =
+ * (1/B) / (1/nA + 1/nB). noise² = mean_lit κ (fa − fb)² / mean_lit(x̄)²,
+ * bias² = max(0, mean_lit(d² − var d)) / mean_lit(x̄)² (docs/error.md). */
+void ee_filter_terms(const ee_tracker_t *t, int batches, const float *f, const float *fa,
+                     const float *fb, double *noise, double *bias);
 /* The step term of the twins recorded, on the lit set and mean of the truth
  * integrator's luminance `fine` (one array of count per twin): for choosing
  * an integrator before the bake's own batches exist. */
