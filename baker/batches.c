@@ -301,7 +301,7 @@ static void warn_stop(const bt_run_t *x, bt_result_t *res) {
     bk_warn("%s: photons.time_budget_s %g s is shorter than two batches of %llu photons (%.3g s "
             "each): wrote %d batch(es) with no noise estimate; raise the budget or lower "
             "photons.count to make batches smaller",
-            path, x->budget_ms / 1000.0, (unsigned long long)x->photons,
+            path, (double)x->scene->time_budget_s, (unsigned long long)x->photons,
             (bk_now_ms() - x->t_main) / 1000.0 / (res->batches ? res->batches : 1), res->batches);
   }
   if (x->target > 0.0 && x->stop_reason != 1) {
