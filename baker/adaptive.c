@@ -321,6 +321,19 @@ static int unpack_phase(ad_run_t *r, const uint64_t *acc, float *radiance, float
   return BK_OK;
 }
 
+/* The allocation loop over the pilot's origin data: each main light's
+ * pilot light, as light_pdf finds it. */
+static int start_loop(ad_run_t *r, ad_loop_t *loop, bk_error_t *err) {
+  int pilot_of[SCENE_MAX_LIGHTS];
+  for (int l = 0; l < r->main.lights.count && l < SCENE_MAX_LIGHTS; l++) {
+    pilot_of[l] = -1;
+    for (int q = 0; q < r->pilot.lights.count; q++)
+      if (r->pilot.lights.scene_index[q] == r->main.lights.scene_index[l]) pilot_of[l] = q;
+  }
+  return ad_loop_init(loop, r->vol, &r->main, r->shift, &r->cd, r->masks, pilot_of, r->tables,
+                      r->opt->floor_fraction, err);
+}
+
 /* Phase 2: warped Hammersley photons of weight 1/pdf in independent
  * batches (batches.h: each a rotated Hammersley set, a whole estimate), then
  * unpack_phase; a shard marches its share of every batch and keeps the
@@ -337,16 +350,25 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
   bo.photon_limit = PM_TABLES_MAX_PHOTONS;
   bo.t_start = r->opt->t_start;
   double t0 = bk_now_ms();
+  ad_loop_t loop;
+  memset(&loop, 0, sizeof loop);
   int rc = pm_derive(&r->base, r->scene, (uint64_t)r->scene->photon_count, &r->main, err);
   if (rc != BK_OK) return rc;
+  if (r->opt->retable && r->have_pilot && !shard) {
+    bo.w_max = 1.0 / r->opt->floor_fraction; /* every table keeps the floor */
+    bo.retable = ad_loop_retable, bo.retable_ctx = &loop;
+  }
   rc = pm_sample_tables(&r->main, r->tables, bo.w_max, bt_photons_at_most(r->scene, &bo), err);
+  if (rc == BK_OK && bo.retable) rc = start_loop(r, &loop, err);
   if (rc != BK_OK) return rc;
   stats->ms_generate += bk_now_ms() - t0;
   t0 = bk_now_ms();
   uint64_t *acc = bk_calloc(pm_acc_count(&r->main), sizeof(uint64_t), "adaptive accumulator", err);
-  if (!acc) return BK_ERR_RUNTIME;
+  rc = BK_ERR_RUNTIME;
+  if (!acc) goto error;
   if (r->main.lights.count > 0) {
     rc = bt_march(r->cl, r->scene, &r->main, &bo, acc, &stats->error, &stats->march, err);
+    stats->retabled = loop.rebuilt;
     if (rc != BK_OK) goto error;
   }
   if (shard) {
@@ -358,6 +380,7 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
   /* the twins are the error estimate's row */
   stats->ms_march = bk_now_ms() - t0 - stats->error.ms_twin;
 error:
+  ad_loop_free(&loop);
   free(acc);
   return rc;
 }
@@ -490,8 +513,8 @@ static void report(const ad_run_t *r, bk_timings_t *timings) {
                    "%d pilot photons, origin data on %dx%dx%d cells of %d^3 voxels", pilot,
                    r->cd.nx, r->cd.ny, r->cd.nz, 1 << r->shift);
     bk_timings_add(timings, "photon distribution", stats->ms_distribution,
-                   "%zu cells selected, pdf %.2f..%.2f", stats->select.selected, r->pdf_min,
-                   r->pdf_max);
+                   "%zu cells selected, pdf %.2f..%.2f%s", stats->select.selected, r->pdf_min,
+                   r->pdf_max, stats->retabled ? ", then rebuilt after each batch" : "");
     bk_timings_add(timings, "photon generation", stats->ms_generate,
                    "%d light(s), in-kernel Hammersley warped by the PDF", r->base.lights.count);
     double sec = stats->ms_march > 0.0 ? stats->ms_march / 1000.0 : 1e-9;

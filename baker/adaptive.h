@@ -189,6 +189,33 @@ int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const fl
 int ad_filter_fixed(const grid_dims_t *d, const float *in, const float *radius, int levels,
                     float *out, bk_error_t *err);
 
+/* --- the allocation loop (adaptive_loop.c) --------------------------------- */
+
+/* The sampling tables rebuilt after every batch from the measured noise:
+ * density moves toward the light-domain cells whose photons reach the
+ * voxels with the most remaining error per unit of march work (the method
+ * is at the top of adaptive_loop.c). */
+typedef struct ad_loop {
+  int shift;              /* pilot cells of 2^shift voxels */
+  grid_dims_t cd;         /* the pilot's coarse grid */
+  size_t cv;
+  const uint64_t *masks;  /* the pilot's origin masks, per pilot light */
+  int lights;             /* the main march's */
+  int pilot_of[SCENE_MAX_LIGHTS]; /* each light's pilot light (-1: none) */
+  float *tables;          /* the march's tables, rewritten in place */
+  float floor;
+  float pdf[SCENE_MAX_LIGHTS][LD_CELLS]; /* the densities in use */
+  float *cost;            /* per pilot cell: a photon's work crossing it */
+  double *cellvar;        /* per pilot cell: the lit voxels' spread */
+  int rebuilt;            /* tables rebuilt so far */
+} ad_loop_t;
+int ad_loop_init(ad_loop_t *L, const volume_t *vol, const pm_setup_t *main_setup, int shift,
+                 const grid_dims_t *cd, const uint64_t *masks, const int *pilot_of, float *tables,
+                 float floor_fraction, bk_error_t *err);
+/* bt_options_t.retable: after `done` batches, from the tracker t. */
+int ad_loop_retable(void *ctx, int done, const ee_tracker_t *t, bk_error_t *err);
+void ad_loop_free(ad_loop_t *L);
+
 /* --- the whole stage --------------------------------------------------------- */
 
 typedef struct ad_bake_opts {
@@ -209,6 +236,7 @@ typedef struct ad_bake_opts {
   int shard_index, shard_count; /* the shard's share of every batch (batches.h) */
   int error_grid;       /* --error-grid: stats.error.error_grid, the raw estimate's standard error */
   double t_start;       /* bk_now_ms() when the bake began, for photons.time_budget_s (0: ad_bake's start) */
+  int retable;          /* rebuild the tables after every batch (ad_loop_t); not with shards */
   /* the march's fields kept from the frame before (march.h); NULL: built */
   pm_field_cache_t *fields;
 } ad_bake_opts_t;
@@ -229,6 +257,7 @@ typedef struct ad_stats {
    * `full` tracker is freed */
   bt_result_t error;
   double ms_error;           /* the filter's error terms (two more filters) */
+  int retabled;              /* opts.retable: tables rebuilt between batches */
 } ad_stats_t;
 
 /* The adaptive pipeline in place of pm_bake: scene (photons.count phase-2

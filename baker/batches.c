@@ -233,6 +233,7 @@ static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_erro
     show_progress(x, done);
   }
   if (!keep_going(x, done)) return 0;
+  if (x->o->retable && x->o->retable(x->o->retable_ctx, done, x->tr, err)) return -1;
   uint64_t n = x->batches ? ph_batch_photons(x->photons, x->batches, done) : x->photons;
   x->traced += n;
   return load_batch(x, x->first_id + all, n, run, err);

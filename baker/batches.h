@@ -70,6 +70,12 @@ typedef struct bt_options {
   double w_max;           /* the largest photon weight (0: 1), for the fixed-point scale */
   uint64_t photon_limit;  /* the most photons of all batches together (0: no limit) */
   double t_start;         /* bk_now_ms() when the bake's time budget began (0: at the march) */
+  /* Called after every main batch but the last, before the next is loaded,
+   * with the batches so far (`done`) and the lattice tracker: may rewrite
+   * the sampling tables the setup points to (the next batch uploads them).
+   * NULL: none. */
+  int (*retable)(void *ctx, int done, const ee_tracker_t *t, bk_error_t *err);
+  void *retable_ctx;
 } bt_options_t;
 
 typedef struct bt_result {

@@ -308,3 +308,15 @@ double ee_twin_step(const ee_tracker_t *t, const float *fine) {
   free(mean);
   return lit && sum_m > 0.0 ? sqrt(fmax(0.0, sum_b2 / (double)lit)) / (sum_m / (double)lit) : 0.0;
 }
+
+void ee_lit_spread(const ee_tracker_t *t, int batches, float *out) {
+  const double B = batches;
+  for (size_t k = 0; k < t->count; k++) out[k] = (float)(t->prev[k] / B);
+  double thr = lit_threshold(out, t->count);
+  for (size_t k = 0; k < t->count; k++) {
+    double m = t->prev[k] / B;
+    out[k] = thr > 0.0 && m >= thr && batches > 1
+                 ? (float)fmax(0.0, (t->sumsq[k] - B * m * m) / (B - 1.0))
+                 : 0.0f;
+  }
+}

@@ -87,6 +87,9 @@ void ee_twin_reset(ee_tracker_t *t);
 /* Forget the batches recorded (target mode drops its pilot batches and
  * starts over with larger ones); the twins are kept. */
 void ee_batches_reset(ee_tracker_t *t);
+/* Per tracked voxel the spread s² between the `batches` batches where the
+ * voxel is lit, 0 elsewhere (the adaptive loop's allocation). */
+void ee_lit_spread(const ee_tracker_t *t, int batches, float *out);
 /* Keep the sum of the even-numbered batches too (0, 2, 4, ...: half A;
  * the odd ones are half B), for the filter's terms. */
 int ee_keep_halves(ee_tracker_t *t, bk_error_t *err);

@@ -13,7 +13,8 @@
  *
  * Usage: test_adaptive_pipeline SCENE_DIR OUT_DIR TEST, TEST one of
  *  unbiased        filter off, 300 000 photons each in 2 batches: adaptive
- *                  within 1% of the reference, with a PDF far from uniform
+ *                  within 1% of the reference, with a PDF far from uniform;
+ *                  the same with the tables rebuilt between the batches
  *  lights          a faint light the pilot gives no photon, listed first:
  *                  each light keeps its own PDF, the estimate its bias-free
  *                  agreement
@@ -93,6 +94,8 @@ static float *reference(clh_context_t *c, long long photons, double *ms) {
   return r;
 }
 
+static int retable; /* the allocation loop (ad_loop_t) */
+
 static float *adaptive(clh_context_t *c, long long photons, int filter, float *count,
                        float *weight, float *radius, ad_stats_t *st) {
   bk_error_t err;
@@ -100,6 +103,7 @@ static float *adaptive(clh_context_t *c, long long photons, int filter, float *c
   memset(&err, 0, sizeof err);
   ad_bake_defaults(&o);
   o.filter = filter;
+  o.retable = retable;
   float *r = grid3();
   scene.photon_count = photons;
   REQUIRE(ad_bake(c, &scene, &vol, &o, r, count, weight, radius, st, NULL, &err) == BK_OK,
@@ -144,6 +148,20 @@ static int test_unbiased(void) {
   REQUIRE(wmax / wmin > 1.5, "photon weights %.2f..%.2f: nearly uniform", wmin, wmax);
   REQUIRE(e < 0.01, "adaptive (no filter) differs from the reference by %.4f (limit 0.01)", e);
   REQUIRE(fabs(sum_a / sum_r - 1.0) < 0.003, "total radiance off by %.4f", sum_a / sum_r - 1.0);
+  /* the tables rebuilt between the batches (after the second, which is
+   * when a spread exists): still unbiased */
+  retable = 1, scene.batches = 3;
+  float *loop = adaptive(&cl, N, 0, count, weight, NULL, &st);
+  retable = 0, scene.batches = 2;
+  double el = tu_rel_l2(loop, ref, 3 * V), sum_l = 0.0;
+  for (size_t v = 0; v < V; v++) sum_l += loop[3 * v];
+  printf("unbiased, tables rebuilt after each batch (%d times): relative L2 vs reference %.4f\n",
+         st.retabled, el);
+  REQUIRE(st.retabled >= 1, "the loop rebuilt no table");
+  REQUIRE(el < 0.01, "adaptive with the loop differs from the reference by %.4f", el);
+  REQUIRE(fabs(sum_l / sum_r - 1.0) < 0.003, "loop: total radiance off by %.4f",
+          sum_l / sum_r - 1.0);
+  free(loop);
   free(count);
   free(weight);
   free(ref);
