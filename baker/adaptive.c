@@ -398,28 +398,28 @@ static void luminance_range(void *arg, size_t lo, size_t hi) {
 static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
                         bk_error_t *err) {
   bt_result_t *res = &r->stats->error;
-  ee_tracker_t *t = &res->full;
-  const size_t V = t->count;
+  const size_t V = r->base.voxels;
   const int B = res->batches;
-  float *a = bk_calloc(V, sizeof(float), "adaptive error: half A", err);
-  float *b = bk_calloc(V, sizeof(float), "adaptive error: half B", err);
+  const float na = (float)((B + 1) / 2), nb = (float)(B / 2);
+  float *a = bk_calloc(V, sizeof(float), "adaptive error: half", err);
   float *fa = bk_calloc(V, sizeof(float), "adaptive error: half A filtered", err);
+  float *fb = bk_calloc(V, sizeof(float), "adaptive error: half B filtered", err);
   int rc = BK_ERR_RUNTIME;
-  if (!a || !b || !fa) goto done;
-  ee_halves(t, B, a, b);
-  if ((rc = ad_filter_fixed(&r->base.dims, a, radius, r->levels, fa, err)) != BK_OK ||
-      (rc = ad_filter_fixed(&r->base.dims, b, radius, r->levels, a, err)) != BK_OK)
-    goto done; /* half B's filtered mean is in a now */
-  scale_job_t job = {NULL, radiance, b, {(float)EE_LUM_R, (float)EE_LUM_G, (float)EE_LUM_B}};
+  if (!a || !fa || !fb) goto done;
+  for (size_t v = 0; v < V; v++) a[v] = res->half_a[v] / na;
+  if ((rc = ad_filter_fixed(&r->base.dims, a, radius, r->levels, fa, err)) != BK_OK) goto done;
+  for (size_t v = 0; v < V; v++) a[v] = (res->all[v] - res->half_a[v]) / nb;
+  if ((rc = ad_filter_fixed(&r->base.dims, a, radius, r->levels, fb, err)) != BK_OK) goto done;
+  scale_job_t job = {NULL, radiance, a, {(float)EE_LUM_R, (float)EE_LUM_G, (float)EE_LUM_B}};
   bk_parallel(V, BK_GRAIN, luminance_range, &job);
-  ee_filter_terms(t, B, b, fa, a, &res->terms.noise, &res->terms.filter);
+  ee_filter_terms(V, B, res->all, res->half_a, a, fa, fb, &res->terms.noise, &res->terms.filter);
   ee_terms_t *e = &res->terms;
   if (e->noise >= 0.0 && e->step >= 0.0)
     e->estimate = sqrt(e->noise * e->noise + e->filter * e->filter + e->step * e->step);
 done:
   free(a);
-  free(b);
   free(fa);
+  free(fb);
   return rc;
 }
 
@@ -430,11 +430,13 @@ static int error_phase(ad_run_t *r, const float *radiance, const float *radius,
   bt_result_t *res = &r->stats->error;
   double t0 = bk_now_ms();
   int rc = BK_OK;
-  if (r->filter_on && res->full.even && res->batches > 1)
+  if (r->filter_on && res->half_a && res->batches > 1)
     rc = filter_error(r, radiance, radius, err);
   if (rc == BK_OK && r->opt->error_grid)
     res->error_grid = ee_take_error_grid(&res->full, res->batches);
   ee_tracker_free(&res->full);
+  free(res->all), free(res->half_a);
+  res->all = res->half_a = NULL;
   r->stats->ms_error = bk_now_ms() - t0;
   return rc;
 }
@@ -588,6 +590,8 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   rc = BK_OK;
 error:
   ee_tracker_free(&stats->error.full);
+  free(stats->error.all), free(stats->error.half_a);
+  stats->error.all = stats->error.half_a = NULL;
   if (rc != BK_OK) {
     free(stats->error.error_grid);
     stats->error.error_grid = NULL;

@@ -32,7 +32,9 @@
  *     the Hammersley points converge about as 1/N, so a region sampled at
  *     density p has 1/p times the error; 1/4 cost more in the sparse fog
  *     than it gained at the edges).
- *  4. Main march: photon k of N takes its Hammersley point u, warps it with
+ *  4. Main march, in the batches of the reference mode (bt_march,
+ *     batches.h; each batch a rotated Hammersley set, a whole estimate, so
+ *     the error is measured as there): photon k of N takes its Hammersley point u, warps it with
  *     ld_pdf_warp(table, 8, 8, u) -> (x, pdf), generates the photon from x and
  *     multiplies its power (light power / N) by w = 1/pdf. Per voxel it keeps
  *     the photon count and the sum of w over the photons that entered it; the
@@ -41,15 +43,21 @@
  *     for uniform sampling, < 1 where the PDF concentrated photons.
  *     One packed atomic per voxel entry (kernels/photon_march.h) makes this march
  *     about 1.2x the reference's cost per photon (bench_adaptive).
+ *     With opts.retable the tables are rebuilt after every batch from the
+ *     measured spread (ad_loop_t, adaptive_loop.c).
  *  5. The filter (ad_filter_host / ad_filter_cl) on the radiance with count
  *     and w_mean: radius min(alpha * w_mean, centre-surround radius) in half
  *     voxels, capped at AD_DEFAULT_MAX_RADIUS, see kernels/adaptive_filter.h. A grey
  *     march (one channel) is filtered as one channel and coloured after. The
  *     radius grid is a debug output.
+ *  6. The error (docs/error.md "Adaptive mode"): the batches' noise and
+ *     step terms, and with the filter its noise and bias from the two
+ *     halves of the batches filtered at the filter's radii (ad_filter_fixed).
  * Timing rows: "octree", "pilot marching", "photon distribution" (selection
  * and PDFs), "photon generation" (light set-up; the photons themselves are
  * made in the kernel), "photon marching" (with the unpacking of the
- * accumulators), "filtering".
+ * accumulators), "filtering", "error estimate" (twins, batch statistics,
+ * the filter's terms).
  *
  * Arrays are dense, x-fastest (grid.h); the caller allocates outputs. */
 #ifndef BAKER_ADAPTIVE_H

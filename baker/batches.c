@@ -35,6 +35,7 @@ typedef struct bt_run {
   uint64_t traced;        /* main photons traced, pilot included */
   uint64_t photon_cap;    /* open modes: photons traced at most */
   double cost;            /* twin_cost of the last twin run */
+  float *half;            /* opts.halves: half A's luminance sum per voxel */
 } bt_run_t;
 
 /* Batch `id`'s lights into run. */
@@ -210,11 +211,25 @@ static int plan_batches(bt_run_t *x, uint64_t *acc) {
   memset(acc, 0, pm_acc_count(x->s) * sizeof *acc);
   ee_batches_reset(x->tr);
   if (x->grid) ee_batches_reset(x->grid);
+  if (x->half) memset(x->half, 0, x->s->voxels * sizeof(float));
   x->pilot = x->done;
   x->done = 0;
   x->photons = (uint64_t)n;
   x->terms.noise = x->terms.estimate = EE_UNKNOWN;
   return 1;
+}
+
+/* Half A's luminance sum: in fixed mode the sums after its ceil(B/2)
+ * batches (one pass); in the open modes, whose B is not known, the
+ * even-numbered batches: + the sums after an odd count, − after an even
+ * one (undone at the end when the count is even: finish). */
+static void track_half(bt_run_t *x, int done, const uint64_t *acc) {
+  if (!x->half) return;
+  if (x->batches) {
+    if (done == (x->batches + 1) / 2) ee_add_lum(x->tr, x->s, acc, 1.0f, x->half);
+  } else {
+    ee_add_lum(x->tr, x->s, acc, done & 1 ? 1.0f : -1.0f, x->half);
+  }
 }
 
 /* pm_run_batches' callback; `all` counts the pilot batches too. */
@@ -225,6 +240,7 @@ static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_erro
     double t = bk_now_ms();
     ee_after_batch(x->tr, x->s, acc);
     if (x->grid) ee_after_batch(x->grid, x->s, acc);
+    track_half(x, done, acc);
     if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
     if (!x->planned && x->pilot_split && done >= BT_MIN_BATCHES &&
         x->terms.estimate > x->target && plan_batches(x, acc))
@@ -366,7 +382,8 @@ static int check_options(const bt_run_t *x, const bt_options_t *o, bk_error_t *e
 }
 
 /* What the batches leave in res; s->to_radiance becomes the mean's. */
-static void finish(bt_run_t *x, pm_setup_t *s, bt_result_t *res, const bt_options_t *o) {
+static void finish(bt_run_t *x, pm_setup_t *s, const uint64_t *acc, bt_result_t *res,
+                   const bt_options_t *o) {
   res->batches = x->done;
   res->integrator = x->scene->integrator;
   for (int k = 0; k < INTEGRATOR_KIND_COUNT; k++)
@@ -374,6 +391,9 @@ static void finish(bt_run_t *x, pm_setup_t *s, bt_result_t *res, const bt_option
   res->step = s->params.step;
   res->step_exact = x->step_exact;
   res->batch_photons = x->batches ? ph_batch_photons(x->photons, x->batches, 0) : x->photons;
+  if (x->half && !x->batches && x->done > 0 && !(x->done & 1))
+    ee_add_lum(x->tr, s, acc, 1.0f, x->half); /* the last batch was B's, not A's */
+  if (res->all) ee_add_lum(x->tr, s, acc, 1.0f, res->all);
   for (int c = 0; c < 3 && x->done > 1; c++) s->to_radiance[c] /= (double)x->done;
   ee_terms(x->tr, x->done, x->step_exact, &res->terms);
   res->terms.twin_photons = x->step_exact ? 0 : res->terms.twin_photons;
@@ -397,19 +417,27 @@ int bt_march(clh_context_t *cl, const scene_t *scene, pm_setup_t *s, const bt_op
   pm_scale_batches(s, (double)x.cap * (o->w_max > 1.0 ? o->w_max : 1.0));
   x.step_exact = step_is_exact(s);
   rc = ee_tracker_init(&tr, s, 0, err);
-  if (!rc && (o->error_grid || o->halves) && !(rc = ee_tracker_init(&res->full, s, 1, err)))
+  if (!rc && o->error_grid && !(rc = ee_tracker_init(&res->full, s, 1, err)))
     x.grid = &res->full;
-  if (!rc && o->halves) rc = ee_keep_halves(&res->full, err);
+  if (!rc && o->halves) {
+    res->all = bk_calloc(s->voxels, sizeof(float), "error estimate: luminance sums", err);
+    x.half = res->half_a = bk_calloc(s->voxels, sizeof(float), "error estimate: half A", err);
+    if (!res->all || !res->half_a) rc = BK_ERR_RUNTIME;
+  }
   if (!rc) rc = run_all(cl, &x, res, acc, stats, &res->ms_march, err);
   if (!rc) {
     double t = bk_now_ms();
-    finish(&x, s, res, o);
+    finish(&x, s, acc, res, o);
     res->ms_track = x.ms_track + bk_now_ms() - t;
     stats->ms_march = res->ms_march;
     warn_stop(&x, res);
   }
   ee_tracker_free(&tr);
-  if (rc) ee_tracker_free(&res->full);
+  if (rc) {
+    ee_tracker_free(&res->full);
+    free(res->all), free(res->half_a);
+    res->all = res->half_a = NULL;
+  }
   return rc;
 }
 

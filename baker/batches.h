@@ -66,7 +66,7 @@ typedef struct bt_options {
   /* the march's fields kept from the frame before (march.h); NULL: built */
   pm_field_cache_t *fields;
   /* bt_march on a setup with sampling tables (the adaptive pipeline): */
-  int halves;             /* keep every voxel's statistics and the halves (ee_keep_halves) */
+  int halves;             /* keep the halves' luminance sums (res.half_a, res.all) */
   double w_max;           /* the largest photon weight (0: 1), for the fixed-point scale */
   uint64_t photon_limit;  /* the most photons of all batches together (0: no limit) */
   double t_start;         /* bk_now_ms() when the bake's time budget began (0: at the march) */
@@ -91,9 +91,13 @@ typedef struct bt_result {
   float step;
   int step_exact;          /* the step needs no twin */
   double ms_march;         /* the batches, twins included */
-  /* bt_march with opts.error_grid or opts.halves: every voxel's statistics
-   * (the caller frees them with ee_tracker_free) */
+  /* bt_march with opts.error_grid: every voxel's statistics (the caller
+   * frees them with ee_tracker_free) */
   ee_tracker_t full;
+  /* opts.halves: per voxel the luminance sum (one batch's units) of all
+   * batches and of half A (ceil(B/2) of them: the first in fixed mode, the
+   * even-numbered in the open ones); the caller frees them */
+  float *all, *half_a;
 } bt_result_t;
 
 /* The march stage in batches (pm_bake's place in the pipeline): radiance as

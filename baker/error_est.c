@@ -36,7 +36,6 @@ void ee_tracker_free(ee_tracker_t *t) {
   free(t->dsum);
   free(t->dsumsq);
   free(t->twin_tmp);
-  free(t->even);
   memset(t, 0, sizeof *t);
 }
 
@@ -71,19 +70,30 @@ static void after_batch_range(void *arg, size_t lo, size_t hi) {
     float b = cur - t->prev[k];
     t->sumsq[k] += b * b;
     t->prev[k] = cur;
-    if (t->even && !(t->seen & 1)) t->even[k] += b;
   }
 }
 
 void ee_after_batch(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc) {
   ee_ctx_t x = {t, s, acc, NULL, NULL};
   bk_parallel(t->count, BK_GRAIN, after_batch_range, &x);
-  t->seen++;
 }
 
-int ee_keep_halves(ee_tracker_t *t, bk_error_t *err) {
-  t->even = bk_calloc(t->count, sizeof(float), "error estimate: even batches", err);
-  return t->even ? BK_OK : BK_ERR_RUNTIME;
+typedef struct lum_ctx {
+  const ee_tracker_t *t;
+  const pm_setup_t *s;
+  const uint64_t *acc;
+  float sign, *out;
+} lum_ctx_t;
+
+static void add_lum_range(void *arg, size_t lo, size_t hi) {
+  const lum_ctx_t *x = arg;
+  for (size_t v = lo; v < hi; v++) x->out[v] += x->sign * lum_at(x->t, x->s, x->acc, v);
+}
+
+void ee_add_lum(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, float sign,
+                float *out) {
+  lum_ctx_t x = {t, s, acc, sign, out};
+  bk_parallel(s->voxels, BK_GRAIN, add_lum_range, &x);
 }
 
 static void read_range(void *arg, size_t lo, size_t hi) {
@@ -237,36 +247,27 @@ void ee_twin_reset(ee_tracker_t *t) {
 void ee_batches_reset(ee_tracker_t *t) {
   memset(t->prev, 0, t->count * sizeof(float));
   memset(t->sumsq, 0, t->count * sizeof(float));
-  if (t->even) memset(t->even, 0, t->count * sizeof(float));
-  t->seen = 0;
 }
 
-void ee_halves(const ee_tracker_t *t, int batches, float *a, float *b) {
-  const double na = (batches + 1) / 2, nb = batches / 2;
-  for (size_t k = 0; k < t->count; k++) {
-    a[k] = (float)(t->even[k] / na);
-    b[k] = nb > 0 ? (float)((t->prev[k] - t->even[k]) / nb) : a[k];
-  }
-}
-
-void ee_filter_terms(const ee_tracker_t *t, int batches, const float *f, const float *fa,
-                     const float *fb, double *noise, double *bias) {
+void ee_filter_terms(size_t n, int batches, const float *all, const float *half_a,
+                     const float *f, const float *fa, const float *fb, double *noise,
+                     double *bias) {
   const double B = batches, na = (batches + 1) / 2, nb = batches / 2;
   /* var(mean of B) / var(difference of the halves' means) */
   const double kappa = (1.0 / B) / (1.0 / na + 1.0 / nb);
   *noise = *bias = EE_UNKNOWN;
-  float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
-  if (!mean || batches < 2 || !t->even) {
+  float *mean = calloc(n ? n : 1, sizeof *mean);
+  if (!mean || batches < 2) {
     free(mean);
     return;
   }
-  for (size_t k = 0; k < t->count; k++) mean[k] = (float)(t->prev[k] / B);
-  double thr = lit_threshold(mean, t->count), sum_m = 0.0, sum_n = 0.0, sum_b = 0.0;
+  for (size_t k = 0; k < n; k++) mean[k] = (float)(all[k] / B);
+  double thr = lit_threshold(mean, n), sum_m = 0.0, sum_n = 0.0, sum_b = 0.0;
   size_t lit = 0;
-  for (size_t k = 0; k < t->count; k++) {
+  for (size_t k = 0; k < n; k++) {
     double m = mean[k];
     if (!(thr > 0.0) || m < thr) continue;
-    double dx = t->even[k] / na - (t->prev[k] - t->even[k]) / nb, df = (double)fa[k] - fb[k];
+    double dx = half_a[k] / na - (all[k] - half_a[k]) / nb, df = (double)fa[k] - fb[k];
     double d = f[k] - m; /* filtered minus raw: the filter's bias plus a noise of its own */
     sum_n += kappa * df * df;
     sum_b += d * d - kappa * (df - dx) * (df - dx);

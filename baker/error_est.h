@@ -67,8 +67,6 @@ typedef struct ee_tracker {
   float *dsum, *dsumsq; /* twin: sums of d_t and d_t² (NULL until a twin runs) */
   float *twin_tmp;    /* twin: the truth integrator's luminance of the twin in flight */
   double lum[3];      /* luminance per accumulator quantum, per channel (one batch) */
-  float *even;        /* ee_keep_halves: the luminance sum of the even-numbered batches */
-  int seen;           /* batches recorded */
 } ee_tracker_t;
 
 /* Tracks every voxel (all = 1, for the error grid) or the even lattice. */
@@ -90,21 +88,21 @@ void ee_batches_reset(ee_tracker_t *t);
 /* Per tracked voxel the spread s² between the `batches` batches where the
  * voxel is lit, 0 elsewhere (the adaptive loop's allocation). */
 void ee_lit_spread(const ee_tracker_t *t, int batches, float *out);
-/* Keep the sum of the even-numbered batches too (0, 2, 4, ...: half A;
- * the odd ones are half B), for the filter's terms. */
-int ee_keep_halves(ee_tracker_t *t, bk_error_t *err);
-/* Half A's and half B's mean luminance per tracked voxel (A has the extra
- * batch when B is odd). */
-void ee_halves(const ee_tracker_t *t, int batches, float *a, float *b);
-/* The terms of a filtered estimate (adaptive mode), from a tracker that kept
- * its halves: f is the filtered mean's luminance, fa and fb the halves'
- * means filtered the same way, per tracked voxel. With x̄ the raw mean,
+/* Adds sign times the luminance of acc (sums of batches, in one batch's
+ * units) of every voxel of the grid to out (s->voxels floats). */
+void ee_add_lum(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, float sign,
+                float *out);
+/* The terms of a filtered estimate (adaptive mode), per voxel of n: all is
+ * the luminance sum of the B batches, half_a that of half A (ceil(B/2) of
+ * them, nA; half B the rest, nB), f the filtered mean's luminance, fa and
+ * fb the halves' means filtered the same way. With x̄ the raw mean,
  * d = f − x̄ is the filter's bias plus noise; the halves measure the noise:
  * var(f) ≈ κ (fa − fb)², var(d) ≈ κ ((fa − xa) − (fb − xb))², κ =
  * (1/B) / (1/nA + 1/nB). noise² = mean_lit κ (fa − fb)² / mean_lit(x̄)²,
  * bias² = max(0, mean_lit(d² − var d)) / mean_lit(x̄)² (docs/error.md). */
-void ee_filter_terms(const ee_tracker_t *t, int batches, const float *f, const float *fa,
-                     const float *fb, double *noise, double *bias);
+void ee_filter_terms(size_t n, int batches, const float *all, const float *half_a,
+                     const float *f, const float *fa, const float *fb, double *noise,
+                     double *bias);
 /* The step term of the twins recorded, on the lit set and mean of the truth
  * integrator's luminance `fine` (one array of count per twin): for choosing
  * an integrator before the bake's own batches exist. */

@@ -171,6 +171,8 @@ static int test_cli(void) {
 }
 
 /* ad_bake on the test scene; the error terms in *res. */
+static float strong; /* > 0: a strong filter, alpha and largest radius this */
+
 static float *bake_adaptive(integrator_t integ, float step, long long photons, int filter,
                             bt_result_t *res) {
   bk_error_t err;
@@ -179,12 +181,15 @@ static float *bake_adaptive(integrator_t integ, float step, long long photons, i
   memset(&err, 0, sizeof err);
   ad_bake_defaults(&o);
   o.filter = filter;
+  float alpha = scene.alpha;
+  if (strong > 0.0f) o.max_radius = strong, o.noise_k = -1.0f, scene.alpha = strong;
   float *r = calloc(3 * V, sizeof(float));
   REQUIRE(r, "out of memory");
   scene.integrator = integ, scene.step = step, scene.photon_count = photons, scene.seed = 1;
   REQUIRE(ad_bake(&cl, &scene, &vol, &o, r, NULL, NULL, NULL, &st, NULL, &err) == BK_OK,
           "ad_bake: %s", err.msg);
   *res = st.error;
+  scene.alpha = alpha;
   return r;
 }
 
@@ -206,6 +211,9 @@ static int test_adaptive(void) {
   adaptive_case(truth, INTEGRATOR_EULER, 0.5f, 40000, 1);
   adaptive_case(truth, INTEGRATOR_RK4, 0.25f, 20000, 1);
   adaptive_case(truth, INTEGRATOR_RK4, 0.25f, 20000, 0);
+  strong = 4.0f; /* radius up to 4 voxels, no noise test: a filter with a bias to measure */
+  adaptive_case(truth, INTEGRATOR_RK4, 0.25f, 80000, 1);
+  strong = 0.0f;
   bt_result_t r1, r2;
   float *a = bake_adaptive(INTEGRATOR_RK4, 0.25f, 20000, 1, &r1);
   float *b = bake_adaptive(INTEGRATOR_RK4, 0.25f, 20000, 1, &r2);
