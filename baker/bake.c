@@ -165,6 +165,7 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   ao.filter = !opt->no_filter;
   ao.fields = j->reuse->keep_fields ? &j->reuse->fields : NULL;
   ao.error_grid = opt->error_grid;
+  ao.retable = j->scene.retable;
   ao.t_start = bk_now_ms(); /* a time budget counts the pilot and the distribution */
   if (j->scene.medium_g != 0.0f || j->vol->g)
     bk_warn("%s: adaptive mode writes no radiance_flux: `baker view` shows the anisotropic "

@@ -54,6 +54,11 @@ int shard_march(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
     bt_result_t res;
     return bt_bake(cl, scene, vol, &bo, NULL, &res, stats, timings, err);
   }
+  if (scene->retable)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: --shard: adaptive.tables \"measured\" rebuilds the tables from every "
+                   "batch's spread, which a shard does not see; use \"pilot\" to shard",
+                   scene->path);
   ad_bake_opts_t ao;
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
