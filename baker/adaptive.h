@@ -236,11 +236,11 @@ typedef struct ad_bake_opts {
   int importance;       /* AD_IMPORTANCE_*: what a selected cell spreads over its origins */
   /* A photon shard (baker/shard.h): when sums is not NULL the pilot and the
    * PDF are made as always (they are deterministic, so every shard gets the
-   * same tables), the weighted march traces only photons [first, last) of
-   * photons.count, and its raw sums go to *sums instead of becoming
-   * radiance: ad_finish does that after the shards are added up. */
+   * same tables), the weighted march traces share shard_index of
+   * shard_count of every batch (batches.h), and its raw sums go to *sums
+   * instead of becoming radiance: ad_finish does that after the shards are
+   * added up. */
   pm_sums_t *sums;
-  uint64_t first, last;
   int shard_index, shard_count; /* the shard's share of every batch (batches.h) */
   int error_grid;       /* --error-grid: stats.error.error_grid, the raw estimate's standard error */
   double t_start;       /* bk_now_ms() when the bake began, for photons.time_budget_s (0: ad_bake's start) */

@@ -63,8 +63,6 @@ int shard_march(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
   ao.sums = &sh->sums;
-  ao.first = sh->first;
-  ao.last = sh->last;
   ao.shard_index = opt->shard_index;
   ao.shard_count = opt->shard_count;
   snprintf(sh->filter, sizeof sh->filter,
