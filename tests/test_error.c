@@ -17,7 +17,8 @@
  *           [0.67, 1.5] x the true ε with the filter on and off; seeded bits
  *           reproducible; photons.target_error met (ε̂ <= E, true ε <= 1.3 E);
  *           photons.time_budget_s ends with >= 2 batches and an estimate;
- *           the command's error metadata, radiance_error and JSON */
+ *           the command's error metadata, radiance_error and JSON;
+ *           adaptive.tables "measured" (refused with --shard) */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -268,6 +269,17 @@ static int test_adaptive(void) {
   EXPECT(strstr(json, "\"estimate\": 0.") && strstr(json, "\"filter\": "),
          "%s lacks the error terms", stats);
   free(json);
+  /* the tables rebuilt from the measured error: a bake with its estimate;
+   * a bad value and a shard refused */
+  const char *loop[] = {"--mode", "adaptive", "--set", "adaptive.tables=measured"};
+  REQUIRE(run_bake(loop, 4, out) == 0, "adaptive.tables measured failed");
+  meta(out, "error_estimate", got, sizeof got);
+  EXPECT(atof(got) > 0.0 && atof(got) < 1.0, "measured tables: error_estimate = %s", got);
+  const char *bogus[] = {"--mode", "adaptive", "--set", "adaptive.tables=bogus"};
+  EXPECT(run_bake(bogus, 4, out) == BK_ERR_INPUT, "adaptive.tables bogus accepted");
+  const char *shard[] = {"--mode", "adaptive", "--set", "adaptive.tables=measured",
+                         "--shard", "1/2"};
+  EXPECT(run_bake(shard, 6, out) == BK_ERR_INPUT, "adaptive.tables measured sharded");
   return tu_failures ? 1 : 0;
 }
 
