@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "base/parallel.h"
+#include "error_est.h"
 
 void ad_bake_defaults(ad_bake_opts_t *o) {
   memset(o, 0, sizeof *o);
@@ -320,24 +321,54 @@ static int unpack_phase(ad_run_t *r, const uint64_t *acc, float *radiance, float
   return BK_OK;
 }
 
-/* Phase 2: warped Hammersley photons of weight 1/pdf, then unpack_phase;
- * a shard (r->opt->sums) marches its range and keeps the sums instead. */
+/* The allocation loop over the pilot's origin data: each main light's
+ * pilot light, as light_pdf finds it. */
+static int start_loop(ad_run_t *r, ad_loop_t *loop, bk_error_t *err) {
+  int pilot_of[SCENE_MAX_LIGHTS];
+  for (int l = 0; l < r->main.lights.count && l < SCENE_MAX_LIGHTS; l++) {
+    pilot_of[l] = -1;
+    for (int q = 0; q < r->pilot.lights.count; q++)
+      if (r->pilot.lights.scene_index[q] == r->main.lights.scene_index[l]) pilot_of[l] = q;
+  }
+  return ad_loop_init(loop, r->vol, &r->main, r->shift, &r->cd, r->masks, pilot_of, r->tables,
+                      r->opt->floor_fraction, err);
+}
+
+/* Phase 2: warped Hammersley photons of weight 1/pdf in independent
+ * batches (batches.h: each a rotated Hammersley set, a whole estimate), then
+ * unpack_phase; a shard marches its share of every batch and keeps the
+ * sums instead. */
 static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *weight,
                           bk_error_t *err) {
   ad_stats_t *stats = r->stats;
   pm_sums_t *shard = r->opt->sums;
+  bt_options_t bo = {0};
+  bo.shard_index = r->opt->shard_index, bo.shard_count = r->opt->shard_count, bo.sums = shard;
+  bo.error_grid = r->opt->error_grid;
+  bo.halves = r->filter_on && !shard && r->scene->batches != 1;
+  bo.w_max = 1.0 / r->pdf_min;
+  bo.photon_limit = PM_TABLES_MAX_PHOTONS;
+  bo.t_start = r->opt->t_start;
   double t0 = bk_now_ms();
+  ad_loop_t loop;
+  memset(&loop, 0, sizeof loop);
   int rc = pm_derive(&r->base, r->scene, (uint64_t)r->scene->photon_count, &r->main, err);
   if (rc != BK_OK) return rc;
-  rc = pm_sample_tables(&r->main, r->tables, 1.0 / r->pdf_min, err);
+  if (r->opt->retable && r->have_pilot && !shard) {
+    bo.w_max = 1.0 / r->opt->floor_fraction; /* every table keeps the floor */
+    bo.retable = ad_loop_retable, bo.retable_ctx = &loop;
+  }
+  rc = pm_sample_tables(&r->main, r->tables, bo.w_max, bt_photons_at_most(r->scene, &bo), err);
+  if (rc == BK_OK && bo.retable) rc = start_loop(r, &loop, err);
   if (rc != BK_OK) return rc;
-  if (shard) pm_set_range(&r->main, r->opt->first, r->opt->last);
   stats->ms_generate += bk_now_ms() - t0;
   t0 = bk_now_ms();
   uint64_t *acc = bk_calloc(pm_acc_count(&r->main), sizeof(uint64_t), "adaptive accumulator", err);
-  if (!acc) return BK_ERR_RUNTIME;
+  rc = BK_ERR_RUNTIME;
+  if (!acc) goto error;
   if (r->main.lights.count > 0) {
-    rc = run_march(r->cl, &r->main, acc, &stats->march, err);
+    rc = bt_march(r->cl, r->scene, &r->main, &bo, acc, &stats->error, &stats->march, err);
+    stats->retabled = loop.rebuilt;
     if (rc != BK_OK) goto error;
   }
   if (shard) {
@@ -346,9 +377,67 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
   } else {
     rc = unpack_phase(r, acc, radiance, count, weight, err);
   }
-  stats->ms_march = bk_now_ms() - t0;
+  /* the twins are the error estimate's row */
+  stats->ms_march = bk_now_ms() - t0 - stats->error.ms_twin;
 error:
+  ad_loop_free(&loop);
   free(acc);
+  return rc;
+}
+
+/* Luminance per voxel of an RGB grid. */
+static void luminance_range(void *arg, size_t lo, size_t hi) {
+  const scale_job_t *j = arg;
+  for (size_t v = lo; v < hi; v++)
+    j->out[v] = j->in[3 * v] * j->k[0] + j->in[3 * v + 1] * j->k[1] + j->in[3 * v + 2] * j->k[2];
+}
+
+/* The two halves of the batches filtered as the whole was (at its radii:
+ * a linear map, ad_filter_fixed), and the filter's terms (ee_filter_terms)
+ * from them and the filtered radiance. */
+static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
+                        bk_error_t *err) {
+  bt_result_t *res = &r->stats->error;
+  const size_t V = r->base.voxels;
+  const int B = res->batches;
+  const float na = (float)((B + 1) / 2), nb = (float)(B / 2);
+  float *a = bk_calloc(V, sizeof(float), "adaptive error: half", err);
+  float *fa = bk_calloc(V, sizeof(float), "adaptive error: half A filtered", err);
+  float *fb = bk_calloc(V, sizeof(float), "adaptive error: half B filtered", err);
+  int rc = BK_ERR_RUNTIME;
+  if (!a || !fa || !fb) goto done;
+  for (size_t v = 0; v < V; v++) a[v] = res->half_a[v] / na;
+  if ((rc = ad_filter_fixed(&r->base.dims, a, radius, r->levels, fa, err)) != BK_OK) goto done;
+  for (size_t v = 0; v < V; v++) a[v] = (res->all[v] - res->half_a[v]) / nb;
+  if ((rc = ad_filter_fixed(&r->base.dims, a, radius, r->levels, fb, err)) != BK_OK) goto done;
+  scale_job_t job = {NULL, radiance, a, {(float)EE_LUM_R, (float)EE_LUM_G, (float)EE_LUM_B}};
+  bk_parallel(V, BK_GRAIN, luminance_range, &job);
+  ee_filter_terms(V, B, res->all, res->half_a, a, fa, fb, &res->terms.noise, &res->terms.filter);
+  ee_terms_t *e = &res->terms;
+  if (e->noise >= 0.0 && e->step >= 0.0)
+    e->estimate = sqrt(e->noise * e->noise + e->filter * e->filter + e->step * e->step);
+done:
+  free(a);
+  free(fa);
+  free(fb);
+  return rc;
+}
+
+/* After the filter: its terms in the estimate when it ran, the error grid
+ * (the raw estimate's standard error), and the tracker freed. */
+static int error_phase(ad_run_t *r, const float *radiance, const float *radius,
+                       bk_error_t *err) {
+  bt_result_t *res = &r->stats->error;
+  double t0 = bk_now_ms();
+  int rc = BK_OK;
+  if (r->filter_on && res->half_a && res->batches > 1)
+    rc = filter_error(r, radiance, radius, err);
+  if (rc == BK_OK && r->opt->error_grid)
+    res->error_grid = ee_take_error_grid(&res->full, res->batches);
+  ee_tracker_free(&res->full);
+  free(res->all), free(res->half_a);
+  res->all = res->half_a = NULL;
+  r->stats->ms_error = bk_now_ms() - t0;
   return rc;
 }
 
@@ -386,6 +475,27 @@ static int filter_phase(ad_run_t *r, float *radiance, const float *count, const 
   return rc;
 }
 
+/* The "error estimate" row: the batches' noise (of the filtered estimate
+ * when the filter ran), the filter's bias and the step term. */
+static void report_error(const ad_stats_t *stats, bk_timings_t *timings) {
+  const bt_result_t *res = &stats->error;
+  const ee_terms_t *t = &res->terms;
+  double ms = res->ms_twin + res->ms_track + stats->ms_error;
+  char step[48];
+  if (res->step_exact) snprintf(step, sizeof step, "step 0 (exact)");
+  else snprintf(step, sizeof step, "step %.4f (%d twins)", t->step, t->twin_batches);
+  if (t->estimate < 0.0)
+    bk_timings_add(timings, "error estimate", ms,
+                   "unknown: %d batch(es), noise needs 2 (photons.batches)", t->batches);
+  else if (stats->filtered)
+    bk_timings_add(timings, "error estimate", ms,
+                   "error %.4f = filtered noise %.4f (%d batches) + filter bias %.4f + %s",
+                   t->estimate, t->noise, t->batches, t->filter, step);
+  else
+    bk_timings_add(timings, "error estimate", ms, "error %.4f = noise %.4f (%d batches) + %s",
+                   t->estimate, t->noise, t->batches, step);
+}
+
 /* The timing rows and the summary line. */
 static void report(const ad_run_t *r, bk_timings_t *timings) {
   const ad_stats_t *stats = r->stats;
@@ -405,19 +515,22 @@ static void report(const ad_run_t *r, bk_timings_t *timings) {
                    "%d pilot photons, origin data on %dx%dx%d cells of %d^3 voxels", pilot,
                    r->cd.nx, r->cd.ny, r->cd.nz, 1 << r->shift);
     bk_timings_add(timings, "photon distribution", stats->ms_distribution,
-                   "%zu cells selected, pdf %.2f..%.2f", stats->select.selected, r->pdf_min,
-                   r->pdf_max);
+                   "%zu cells selected, pdf %.2f..%.2f%s", stats->select.selected, r->pdf_min,
+                   r->pdf_max, stats->retabled ? ", then rebuilt after each batch" : "");
     bk_timings_add(timings, "photon generation", stats->ms_generate,
                    "%d light(s), in-kernel Hammersley warped by the PDF", r->base.lights.count);
     double sec = stats->ms_march > 0.0 ? stats->ms_march / 1000.0 : 1e-9;
     bk_timings_add(timings, "photon marching", stats->ms_march,
-                   "%llu photons, %.0f M voxels/s%s", (unsigned long long)stats->march.photons,
+                   "%llu photons in %d batches of %llu, %.0f M voxels/s%s",
+                   (unsigned long long)stats->march.photons, stats->error.batches,
+                   (unsigned long long)stats->error.batch_photons,
                    stats->march.voxels / sec * 1e-6, where);
     if (r->filter_on)
       bk_timings_add(timings, "filtering", stats->ms_filter, "alpha %g, radius <= %g voxels%s",
                      (double)r->alpha, 0.5 * r->levels, where);
     else
       bk_timings_add(timings, "filtering", stats->ms_filter, "off");
+    report_error(stats, timings);
   }
   bk_log(2,
          "adaptive: pilot %d photons on %dx%dx%d cells, thresholds gradient %g /m, luminance %g; "
@@ -434,7 +547,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   ad_run_t r;
   ad_stats_t local;
   ad_bake_opts_t defaults;
-  float *count = NULL, *weight = NULL;
+  float *count = NULL, *weight = NULL, *radius = NULL;
   if (!stats) stats = &local;
   memset(stats, 0, sizeof *stats);
   if (!opt) {
@@ -445,6 +558,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   if (rc != BK_OK) return rc;
   r = (ad_run_t){.cl = cl, .scene = scene, .vol = vol, .opt = opt, .stats = stats,
                  .alpha = scene->alpha, .levels = (int)(2.0f * opt->max_radius + 0.5f)};
+  r.filter_on = opt->filter && r.alpha > 0.0f && r.levels > 0;
   rc = pm_prepare_kept(scene, vol, opt->fields, &r.base, NULL, &stats->march, err);
   if (rc != BK_OK) return rc;
   stats->ms_octree = stats->march.ms_octree;
@@ -462,18 +576,33 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
     weight = photon_weight ? photon_weight : bk_calloc(V, sizeof(float), "photon weight grid", err);
     if (!count || !weight) goto error;
   }
+  /* the error estimate filters at the filter's radii: kept here when the
+   * caller does not want them */
+  if (!opt->sums && r.filter_on && !filter_radius &&
+      !(radius = bk_calloc(V, sizeof(float), "adaptive filter radius", err)))
+    goto error;
+  if (!radius) radius = filter_radius;
   if ((rc = weighted_phase(&r, radiance, count, weight, err)) != BK_OK ||
-      (!opt->sums && (rc = filter_phase(&r, radiance, count, weight, filter_radius, err)) != BK_OK))
+      (!opt->sums && (rc = filter_phase(&r, radiance, count, weight, radius, err)) != BK_OK) ||
+      (!opt->sums && (rc = error_phase(&r, radiance, radius, err)) != BK_OK))
     goto error;
   report(&r, timings);
   rc = BK_OK;
 error:
+  ee_tracker_free(&stats->error.full);
+  free(stats->error.all), free(stats->error.half_a);
+  stats->error.all = stats->error.half_a = NULL;
+  if (rc != BK_OK) {
+    free(stats->error.error_grid);
+    stats->error.error_grid = NULL;
+  }
   free(r.pacc);
   free(r.masks);
   free(r.tables);
   free(r.raw);
   if (count != photon_count) free(count);
   if (weight != photon_weight) free(weight);
+  if (radius != filter_radius) free(radius);
   pm_setup_free(&r.base);
   return rc;
 }

@@ -32,7 +32,9 @@
  *     the Hammersley points converge about as 1/N, so a region sampled at
  *     density p has 1/p times the error; 1/4 cost more in the sparse fog
  *     than it gained at the edges).
- *  4. Main march: photon k of N takes its Hammersley point u, warps it with
+ *  4. Main march, in the batches of the reference mode (bt_march,
+ *     batches.h; each batch a rotated Hammersley set, a whole estimate, so
+ *     the error is measured as there): photon k of N takes its Hammersley point u, warps it with
  *     ld_pdf_warp(table, 8, 8, u) -> (x, pdf), generates the photon from x and
  *     multiplies its power (light power / N) by w = 1/pdf. Per voxel it keeps
  *     the photon count and the sum of w over the photons that entered it; the
@@ -41,15 +43,21 @@
  *     for uniform sampling, < 1 where the PDF concentrated photons.
  *     One packed atomic per voxel entry (kernels/photon_march.h) makes this march
  *     about 1.2x the reference's cost per photon (bench_adaptive).
+ *     With opts.retable the tables are rebuilt after every batch from the
+ *     measured spread (ad_loop_t, adaptive_loop.c).
  *  5. The filter (ad_filter_host / ad_filter_cl) on the radiance with count
  *     and w_mean: radius min(alpha * w_mean, centre-surround radius) in half
  *     voxels, capped at AD_DEFAULT_MAX_RADIUS, see kernels/adaptive_filter.h. A grey
  *     march (one channel) is filtered as one channel and coloured after. The
  *     radius grid is a debug output.
+ *  6. The error (docs/error.md "Adaptive mode"): the batches' noise and
+ *     step terms, and with the filter its noise and bias from the two
+ *     halves of the batches filtered at the filter's radii (ad_filter_fixed).
  * Timing rows: "octree", "pilot marching", "photon distribution" (selection
  * and PDFs), "photon generation" (light set-up; the photons themselves are
  * made in the kernel), "photon marching" (with the unpacking of the
- * accumulators), "filtering".
+ * accumulators), "filtering", "error estimate" (twins, batch statistics,
+ * the filter's terms).
  *
  * Arrays are dense, x-fastest (grid.h); the caller allocates outputs. */
 #ifndef BAKER_ADAPTIVE_H
@@ -57,6 +65,7 @@
 
 #include <stdint.h>
 
+#include "batches.h"
 #include "clhost.h"
 #include "base/grid.h"
 #include "kernels/adaptive_filter.h"
@@ -181,6 +190,40 @@ int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const fl
                  const float *count, const float *mean_weight, float alpha, float noise_k,
                  int levels, float *out_radiance, float *out_radius, bk_error_t *err);
 
+/* The filter's means at given radii (radius: voxels per voxel, as the
+ * filter's out_radius; level round(2 r), at most `levels`) of one channel
+ * `in` into out: a linear map, so the error estimate can filter the two
+ * halves of the batches exactly as the whole was (ad_bake). On the host. */
+int ad_filter_fixed(const grid_dims_t *d, const float *in, const float *radius, int levels,
+                    float *out, bk_error_t *err);
+
+/* --- the allocation loop (adaptive_loop.c) --------------------------------- */
+
+/* The sampling tables rebuilt after every batch from the measured noise:
+ * density moves toward the light-domain cells whose photons reach the
+ * voxels with the most remaining error per unit of march work (the method
+ * is at the top of adaptive_loop.c). */
+typedef struct ad_loop {
+  int shift;              /* pilot cells of 2^shift voxels */
+  grid_dims_t cd;         /* the pilot's coarse grid */
+  size_t cv;
+  const uint64_t *masks;  /* the pilot's origin masks, per pilot light */
+  int lights;             /* the main march's */
+  int pilot_of[SCENE_MAX_LIGHTS]; /* each light's pilot light (-1: none) */
+  float *tables;          /* the march's tables, rewritten in place */
+  float floor;
+  float pdf[SCENE_MAX_LIGHTS][LD_CELLS]; /* the densities in use */
+  float *cost;            /* per pilot cell: a photon's work crossing it */
+  double *cellvar;        /* per pilot cell: the lit voxels' spread */
+  int rebuilt;            /* tables rebuilt so far */
+} ad_loop_t;
+int ad_loop_init(ad_loop_t *L, const volume_t *vol, const pm_setup_t *main_setup, int shift,
+                 const grid_dims_t *cd, const uint64_t *masks, const int *pilot_of, float *tables,
+                 float floor_fraction, bk_error_t *err);
+/* bt_options_t.retable: after `done` batches, from the tracker t. */
+int ad_loop_retable(void *ctx, int done, const ee_tracker_t *t, bk_error_t *err);
+void ad_loop_free(ad_loop_t *L);
+
 /* --- the whole stage --------------------------------------------------------- */
 
 typedef struct ad_bake_opts {
@@ -193,11 +236,15 @@ typedef struct ad_bake_opts {
   int importance;       /* AD_IMPORTANCE_*: what a selected cell spreads over its origins */
   /* A photon shard (baker/shard.h): when sums is not NULL the pilot and the
    * PDF are made as always (they are deterministic, so every shard gets the
-   * same tables), the weighted march traces only photons [first, last) of
-   * photons.count, and its raw sums go to *sums instead of becoming
-   * radiance: ad_finish does that after the shards are added up. */
+   * same tables), the weighted march traces share shard_index of
+   * shard_count of every batch (batches.h), and its raw sums go to *sums
+   * instead of becoming radiance: ad_finish does that after the shards are
+   * added up. */
   pm_sums_t *sums;
-  uint64_t first, last;
+  int shard_index, shard_count; /* the shard's share of every batch (batches.h) */
+  int error_grid;       /* --error-grid: stats.error.error_grid, the raw estimate's standard error */
+  double t_start;       /* bk_now_ms() when the bake began, for photons.time_budget_s (0: ad_bake's start) */
+  int retable;          /* rebuild the tables after every batch (ad_loop_t); not with shards */
   /* the march's fields kept from the frame before (march.h); NULL: built */
   pm_field_cache_t *fields;
 } ad_bake_opts_t;
@@ -212,6 +259,13 @@ typedef struct ad_stats {
   int filtered;
   float max_radius;          /* voxels, 0 when not filtered */
   double ms_octree, ms_pilot, ms_distribution, ms_generate, ms_march, ms_filter;
+  /* the weighted march's batches and the error (error_est.h): with the
+   * filter, terms.noise is the filtered estimate's and terms.filter its
+   * bias; error.error_grid (opts.error_grid) belongs to the caller; its
+   * `full` tracker is freed */
+  bt_result_t error;
+  double ms_error;           /* the filter's error terms (two more filters) */
+  int retabled;              /* opts.retable: tables rebuilt between batches */
 } ad_stats_t;
 
 /* The adaptive pipeline in place of pm_bake: scene (photons.count phase-2

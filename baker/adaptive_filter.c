@@ -264,3 +264,87 @@ error:
   if (rad) clReleaseMemObject(rad);
   return rc;
 }
+
+/* --- the filter at given radii (the error estimate's halves) --------------- */
+
+typedef struct fixed_job {
+  const grid_dims_t *d;
+  int axis, q;
+  const float *in, *w;
+  float *out;
+} fixed_job_t;
+
+/* Slices [lo, hi) of one axis of the level-q Gaussian, its weights
+ * renormalised over the taps inside the grid (the filter's own): along x
+ * per row, along y and z as weighted sums of whole rows and slices (so
+ * every inner loop runs over contiguous voxels). */
+static void fixed_slices(void *arg, size_t lo, size_t hi) {
+  const fixed_job_t *j = arg;
+  const int nx = j->d->nx, ny = j->d->ny, nz = j->d->nz, q = j->q;
+  const size_t nxy = (size_t)nx * ny;
+  const float *w = j->w + q * AD_WROW;
+  for (size_t k = lo; k < hi; k++) {
+    const float *in = j->in + k * nxy;
+    float *out = j->out + k * nxy;
+    if (j->axis == 0) {
+      for (int y = 0; y < ny; y++)
+        for (int i = 0; i < nx; i++) {
+          float s = 0.0f, ws = 0.0f;
+          for (int t = i - q < 0 ? 0 : i - q; t <= i + q && t < nx; t++) {
+            float wt = w[t > i ? t - i : i - t];
+            s += wt * in[(size_t)y * nx + t], ws += wt;
+          }
+          out[(size_t)y * nx + i] = s / ws;
+        }
+      continue;
+    }
+    const int n = j->axis == 1 ? ny : nz, rows = j->axis == 1 ? ny : 1;
+    const size_t len = j->axis == 1 ? (size_t)nx : nxy, stride = j->axis == 1 ? (size_t)nx : nxy;
+    for (int r = 0; r < rows; r++) {
+      const int c = j->axis == 1 ? r : (int)k; /* the position along the axis */
+      const float *src = j->axis == 1 ? in + (size_t)r * nx : j->in;
+      float *dst = out + (j->axis == 1 ? (size_t)r * nx : 0);
+      float ws = 0.0f;
+      for (int t = c - q < 0 ? 0 : c - q; t <= c + q && t < n; t++) ws += w[t > c ? t - c : c - t];
+      for (size_t v = 0; v < len; v++) dst[v] = 0.0f;
+      for (int t = c - q < 0 ? 0 : c - q; t <= c + q && t < n; t++) {
+        const float wt = w[t > c ? t - c : c - t] / ws;
+        const float *row = j->axis == 1 ? src + (ptrdiff_t)(t - c) * (ptrdiff_t)stride
+                                        : src + (size_t)t * stride;
+        for (size_t v = 0; v < len; v++) dst[v] += wt * row[v];
+      }
+    }
+  }
+}
+
+int ad_filter_fixed(const grid_dims_t *d, const float *in, const float *radius, int levels,
+                    float *out, bk_error_t *err) {
+  const size_t V = grid_count(d);
+  float w[AD_WEIGHT_COUNT];
+  filter_weights(w);
+  float *a = bk_calloc(V, sizeof(float), "filter at given radii", err);
+  float *b = bk_calloc(V, sizeof(float), "filter at given radii", err);
+  if (!a || !b) {
+    free(a), free(b);
+    return BK_ERR_RUNTIME;
+  }
+  int used[AD_FILTER_MAX_LEVEL + 1] = {0};
+  for (size_t v = 0; v < V; v++) {
+    int q = (int)(2.0f * radius[v] + 0.5f);
+    used[q < 0 ? 0 : q > AD_FILTER_MAX_LEVEL ? AD_FILTER_MAX_LEVEL : q] = 1;
+    out[v] = in[v];
+  }
+  for (int q = 1; q <= levels && q <= AD_FILTER_MAX_LEVEL; q++) {
+    if (!used[q]) continue;
+    fixed_job_t j = {d, 0, q, in, w, a};
+    bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
+    j.axis = 1, j.in = a, j.out = b;
+    bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
+    j.axis = 2, j.in = b, j.out = a;
+    bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
+    for (size_t v = 0; v < V; v++)
+      if ((int)(2.0f * radius[v] + 0.5f) == q) out[v] = a[v];
+  }
+  free(a), free(b);
+  return BK_OK;
+}

@@ -164,9 +164,9 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
   ao.fields = j->reuse->keep_fields ? &j->reuse->fields : NULL;
-  if (opt->error_grid)
-    return bk_fail(err, BK_ERR_INPUT, "%s: --error-grid: adaptive mode does not measure "
-                   "per-voxel errors yet (use photons.mode \"reference\")", j->scene.path);
+  ao.error_grid = opt->error_grid;
+  ao.retable = j->scene.retable;
+  ao.t_start = bk_now_ms(); /* a time budget counts the pilot and the distribution */
   if (j->scene.medium_g != 0.0f || j->vol->g)
     bk_warn("%s: adaptive mode writes no radiance_flux: `baker view` shows the anisotropic "
             "medium's in-scattering as isotropic (photons.mode \"reference\" keeps it)",
@@ -181,7 +181,8 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
                    j->photon_count, j->photon_weight, j->filter_radius, &j->astats, &j->timings,
                    err);
   j->stats = j->astats.march;
-  j->error.terms.estimate = j->error.terms.noise = j->error.terms.step = EE_UNKNOWN;
+  j->error = j->astats.error; /* the error grid moves to j->error */
+  j->astats.error.error_grid = NULL;
   return rc;
 }
 
@@ -204,8 +205,9 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
     return shard_march(opt->host_only ? NULL : j->cl, &j->scene, j->vol, opt, &j->shard,
                        &j->stats, &j->astats, &j->timings, err);
   if (j->scene.mode == MODE_ADAPTIVE) return bake_adaptive(j, opt, err);
-  bt_options_t bo = {opt->error_grid, 0, 0, NULL,
-                     j->reuse->keep_fields ? &j->reuse->fields : NULL};
+  bt_options_t bo = {0};
+  bo.error_grid = opt->error_grid;
+  bo.fields = j->reuse->keep_fields ? &j->reuse->fields : NULL;
   return bt_bake(opt->host_only ? NULL : j->cl, &j->scene, j->vol, &bo, j->radiance, &j->error,
                  &j->stats, &j->timings, err);
 }
@@ -334,9 +336,10 @@ static const char *error_note(const scene_t *s, const bake_options_t *opt, const
   if (opt->shard_count)
     return "not measured for photon shards and their merge (the spread needs every shard's "
            "batches; error_* are -1)";
-  if (s->mode == MODE_ADAPTIVE)
-    return "not measured: adaptive mode has no independent batches yet (error_* are -1)";
   if (e->noise < 0.0) return "noise not measured: one batch (photons.batches >= 2 measures it)";
+  if (s->mode == MODE_ADAPTIVE && e->filter > 0.0)
+    return "relative RMS luminance error over lit voxels vs RK4 1/8-voxel truth: noise of the "
+           "filtered estimate, the filter's bias (error_filter) and the step (docs/error.md)";
   return "relative RMS luminance error over lit voxels vs RK4 1/8-voxel truth (docs/error.md)";
 }
 
@@ -349,7 +352,7 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
   const ad_stats_t *as = &j->astats;
   const ee_terms_t *e = &j->error.terms;
   /* what marched: target mode chooses its own integrator and step */
-  const int chosen = s->mode != MODE_ADAPTIVE && j->error.step > 0.0f;
+  const int chosen = j->error.step > 0.0f;
   const integrator_t integ = chosen ? j->error.integrator : s->integrator;
   const float step = chosen ? j->error.step : s->step;
   char hash[32], bounds[160], settings[512];
@@ -384,6 +387,8 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
       {"error_estimate", VDBIO_META_FLOAT, NULL, 0, (float)e->estimate},
       {"error_noise", VDBIO_META_FLOAT, NULL, 0, (float)e->noise},
       {"error_step", VDBIO_META_FLOAT, NULL, 0, (float)e->step},
+      /* adaptive with its filter: the filter's bias (0: no filter) */
+      {"error_filter", VDBIO_META_FLOAT, NULL, 0, e->noise >= 0.0 ? (float)e->filter : -1.0f},
       {"error_batches", VDBIO_META_INT, NULL, e->batches, 0},
       {"error_note", VDBIO_META_STRING, error_note(s, opt, e), 0, 0},
       /* adaptive only (the count below leaves them out otherwise) */
@@ -431,7 +436,7 @@ static int bake_stats(const bake_job_t *j, const bake_options_t *opt, const char
   int rc = frames_expand(opt->stats_path, frame, path, sizeof path, err);
   if (rc) return rc;
   sj_frame_t f = {scene_path, out_path, frame, &j->scene, &j->timings, &j->stats,
-                  j->scene.mode == MODE_ADAPTIVE ? NULL : &j->error};
+                  &j->error};
   return sj_write(path, &f, err);
 }
 

@@ -35,6 +35,7 @@ typedef struct bt_run {
   uint64_t traced;        /* main photons traced, pilot included */
   uint64_t photon_cap;    /* open modes: photons traced at most */
   double cost;            /* twin_cost of the last twin run */
+  float *half;            /* opts.halves: half A's luminance sum per voxel */
 } bt_run_t;
 
 /* Batch `id`'s lights into run. */
@@ -210,11 +211,25 @@ static int plan_batches(bt_run_t *x, uint64_t *acc) {
   memset(acc, 0, pm_acc_count(x->s) * sizeof *acc);
   ee_batches_reset(x->tr);
   if (x->grid) ee_batches_reset(x->grid);
+  if (x->half) memset(x->half, 0, x->s->voxels * sizeof(float));
   x->pilot = x->done;
   x->done = 0;
   x->photons = (uint64_t)n;
   x->terms.noise = x->terms.estimate = EE_UNKNOWN;
   return 1;
+}
+
+/* Half A's luminance sum: in fixed mode the sums after its ceil(B/2)
+ * batches (one pass); in the open modes, whose B is not known, the
+ * even-numbered batches: + the sums after an odd count, − after an even
+ * one (undone at the end when the count is even: finish). */
+static void track_half(bt_run_t *x, int done, const uint64_t *acc) {
+  if (!x->half) return;
+  if (x->batches) {
+    if (done == (x->batches + 1) / 2) ee_add_lum(x->tr, x->s, acc, 1.0f, x->half);
+  } else {
+    ee_add_lum(x->tr, x->s, acc, done & 1 ? 1.0f : -1.0f, x->half);
+  }
 }
 
 /* pm_run_batches' callback; `all` counts the pilot batches too. */
@@ -225,6 +240,7 @@ static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_erro
     double t = bk_now_ms();
     ee_after_batch(x->tr, x->s, acc);
     if (x->grid) ee_after_batch(x->grid, x->s, acc);
+    track_half(x, done, acc);
     if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
     if (!x->planned && x->pilot_split && done >= BT_MIN_BATCHES &&
         x->terms.estimate > x->target && plan_batches(x, acc))
@@ -233,6 +249,7 @@ static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_erro
     show_progress(x, done);
   }
   if (!keep_going(x, done)) return 0;
+  if (x->o->retable && x->o->retable(x->o->retable_ctx, done, x->tr, err)) return -1;
   uint64_t n = x->batches ? ph_batch_photons(x->photons, x->batches, done) : x->photons;
   x->traced += n;
   return load_batch(x, x->first_id + all, n, run, err);
@@ -245,33 +262,44 @@ static int step_is_exact(const pm_setup_t *s) {
                                 s->params.step <= BT_TRUTH_STEP);
 }
 
-static void set_mode(bt_run_t *x, const scene_t *scene) {
+/* The batches of a bake: fixed (B of the count's share) or open (target,
+ * budget: batches of count / B up to the cap); limit > 0 caps the photons
+ * of all batches together (sampling tables count them in bounded sums). */
+static void set_mode(bt_run_t *x, const scene_t *scene, uint64_t limit) {
   uint64_t n = (uint64_t)scene->photon_count;
   int b = scene->batches > 0 ? scene->batches : 1;
   x->target = scene->target_error;
   x->budget_ms = scene->time_budget_s * 1000.0;
   if (x->target > 0.0 || x->budget_ms > 0.0) {
     x->photons = n / (uint64_t)b > 0 ? n / (uint64_t)b : 1;
-    double cap = floor((double)PH_MAX_PHOTONS / (double)x->photons);
-    x->cap = cap > BT_MAX_OPEN_BATCHES ? BT_MAX_OPEN_BATCHES : (int)cap;
+    double most = limit ? (double)limit : (double)PH_MAX_PHOTONS;
+    double cap = floor(most / (double)x->photons);
+    x->cap = cap > BT_MAX_OPEN_BATCHES ? BT_MAX_OPEN_BATCHES : cap < 1.0 ? 1 : (int)cap;
     x->photon_cap = (uint64_t)x->cap * x->photons;
   } else {
     x->photons = n;
     x->batches = (uint64_t)b > n && n > 0 ? (int)n : b;
     x->cap = x->batches;
+    x->photon_cap = n;
   }
 }
 
-static void report(const bt_run_t *x, const bt_result_t *res, const pm_stats_t *st,
-                   bk_timings_t *timings, double ms_march) {
-  double sec = ms_march > 0.0 ? ms_march / 1000.0 : 1e-9;
+uint64_t bt_photons_at_most(const scene_t *scene, const bt_options_t *o) {
+  bt_run_t x;
+  memset(&x, 0, sizeof x);
+  set_mode(&x, scene, o->photon_limit);
+  return x.photon_cap;
+}
+
+void bt_report(const bt_result_t *res, const pm_stats_t *st, bk_timings_t *timings) {
+  const double ms_march = res->ms_march, sec = ms_march > 0.0 ? ms_march / 1000.0 : 1e-9;
   bk_timings_add(timings, "photon marching", ms_march,
                  "%d batches of %llu, %.1f M photon-steps/s, %.0f M voxels/s", res->batches,
                  (unsigned long long)res->batch_photons, st->steps / sec * 1e-6,
                  st->voxels / sec * 1e-6);
   const ee_terms_t *t = &res->terms;
   char step[48];
-  if (x->step_exact) snprintf(step, sizeof step, "step 0 (exact)");
+  if (res->step_exact) snprintf(step, sizeof step, "step 0 (exact)");
   else snprintf(step, sizeof step, "step %.4f (%d twins)", t->step, t->twin_batches);
   if (t->estimate >= 0.0)
     bk_timings_add(timings, "error estimate", res->ms_twin + res->ms_track,
@@ -290,7 +318,7 @@ static void warn_stop(const bt_run_t *x, bt_result_t *res) {
     bk_warn("%s: photons.time_budget_s %g s is shorter than two batches of %llu photons (%.3g s "
             "each): wrote %d batch(es) with no noise estimate; raise the budget or lower "
             "photons.count to make batches smaller",
-            path, x->budget_ms / 1000.0, (unsigned long long)x->photons,
+            path, (double)x->scene->time_budget_s, (unsigned long long)x->photons,
             (bk_now_ms() - x->t_main) / 1000.0 / (res->batches ? res->batches : 1), res->batches);
   }
   if (x->target > 0.0 && x->stop_reason != 1) {
@@ -340,73 +368,106 @@ static int make_flux(const pm_setup_t *s, const uint64_t *acc, bt_result_t *res,
   return BK_OK;
 }
 
+/* The checks of options that cannot go together. */
+static int check_options(const bt_run_t *x, const bt_options_t *o, bk_error_t *err) {
+  const char *path = x->scene->path;
+  if (o->shard_count && (x->target > 0.0 || x->budget_ms > 0.0 || o->error_grid))
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: --shard traces a fixed share of a fixed photon count: it cannot be "
+                   "combined with a target error, a time budget or --error-grid", path);
+  if ((o->error_grid || o->halves) && x->batches == 1)
+    return bk_fail(err, BK_ERR_INPUT, "%s: %s needs at least 2 batches (photons.batches is 1)",
+                   path, o->error_grid ? "--error-grid" : "the adaptive filter's error");
+  return BK_OK;
+}
+
+/* What the batches leave in res; s->to_radiance becomes the mean's. */
+static void finish(bt_run_t *x, pm_setup_t *s, const uint64_t *acc, bt_result_t *res,
+                   const bt_options_t *o) {
+  res->batches = x->done;
+  res->integrator = x->scene->integrator;
+  for (int k = 0; k < INTEGRATOR_KIND_COUNT; k++)
+    if (integrator_kinds[k].device == s->params.integrator) res->integrator = integrator_kinds[k].id;
+  res->step = s->params.step;
+  res->step_exact = x->step_exact;
+  res->batch_photons = x->batches ? ph_batch_photons(x->photons, x->batches, 0) : x->photons;
+  if (x->half && !x->batches && x->done > 0 && !(x->done & 1))
+    ee_add_lum(x->tr, s, acc, 1.0f, x->half); /* the last batch was B's, not A's */
+  if (res->all) ee_add_lum(x->tr, s, acc, 1.0f, res->all);
+  for (int c = 0; c < 3 && x->done > 1; c++) s->to_radiance[c] /= (double)x->done;
+  ee_terms(x->tr, x->done, x->step_exact, &res->terms);
+  res->terms.twin_photons = x->step_exact ? 0 : res->terms.twin_photons;
+  if (o->sums) res->terms.estimate = res->terms.noise = res->terms.step = -1.0;
+}
+
+int bt_march(clh_context_t *cl, const scene_t *scene, pm_setup_t *s, const bt_options_t *o,
+             uint64_t *acc, bt_result_t *res, pm_stats_t *stats, bk_error_t *err) {
+  ee_tracker_t tr;
+  bt_run_t x;
+  memset(res, 0, sizeof *res);
+  memset(&x, 0, sizeof x);
+  memset(&tr, 0, sizeof tr);
+  x.scene = scene, x.o = o, x.s = s, x.tr = &tr;
+  snprintf(x.label, sizeof x.label, "photon marching");
+  set_mode(&x, scene, o->photon_limit);
+  int rc = check_options(&x, o, err);
+  if (rc) return rc;
+  if (o->t_start > 0.0 && x.budget_ms > 0.0) /* the stages before the march spent some */
+    x.budget_ms = fmax(1e-3, x.budget_ms - (bk_now_ms() - o->t_start));
+  pm_scale_batches(s, (double)x.cap * (o->w_max > 1.0 ? o->w_max : 1.0));
+  x.step_exact = step_is_exact(s);
+  rc = ee_tracker_init(&tr, s, 0, err);
+  if (!rc && o->error_grid && !(rc = ee_tracker_init(&res->full, s, 1, err)))
+    x.grid = &res->full;
+  if (!rc && o->halves) {
+    res->all = bk_calloc(s->voxels, sizeof(float), "error estimate: luminance sums", err);
+    x.half = res->half_a = bk_calloc(s->voxels, sizeof(float), "error estimate: half A", err);
+    if (!res->all || !res->half_a) rc = BK_ERR_RUNTIME;
+  }
+  if (!rc) rc = run_all(cl, &x, res, acc, stats, &res->ms_march, err);
+  if (!rc) {
+    double t = bk_now_ms();
+    finish(&x, s, acc, res, o);
+    res->ms_track = x.ms_track + bk_now_ms() - t;
+    stats->ms_march = res->ms_march;
+    warn_stop(&x, res);
+  }
+  ee_tracker_free(&tr);
+  if (rc) {
+    ee_tracker_free(&res->full);
+    free(res->all), free(res->half_a);
+    res->all = res->half_a = NULL;
+  }
+  return rc;
+}
+
 int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const bt_options_t *o,
             float *radiance, bt_result_t *res, pm_stats_t *stats, bk_timings_t *timings,
             bk_error_t *err) {
   pm_setup_t s;
-  ee_tracker_t tr, grid;
   uint64_t *acc = NULL;
-  bt_run_t x;
   memset(res, 0, sizeof *res);
   memset(stats, 0, sizeof *stats);
-  memset(&x, 0, sizeof x);
-  memset(&tr, 0, sizeof tr);
-  memset(&grid, 0, sizeof grid);
   int rc = pm_prepare_kept(scene, vol, o->fields, &s, timings, stats, err);
   if (rc != BK_OK) return rc;
-  x.scene = scene, x.o = o, x.s = &s, x.tr = &tr;
-  snprintf(x.label, sizeof x.label, "photon marching");
-  set_mode(&x, scene);
-  if (o->shard_count && (x.target > 0.0 || x.budget_ms > 0.0 || o->error_grid)) {
-    pm_setup_free(&s);
-    return bk_fail(err, BK_ERR_INPUT,
-                   "%s: --shard traces a fixed share of a fixed photon count: it cannot be "
-                   "combined with a target error, a time budget or --error-grid", scene->path);
-  }
-  if (o->error_grid && x.batches == 1) {
-    pm_setup_free(&s);
-    return bk_fail(err, BK_ERR_INPUT,
-                   "%s: --error-grid needs at least 2 batches (photons.batches is 1)", scene->path);
-  }
-  pm_scale_batches(&s, (double)x.cap);
-  x.step_exact = step_is_exact(&s);
-  double ms_march = 0.0;
-  rc = ee_tracker_init(&tr, &s, 0, err);
-  if (!rc && o->error_grid && !(rc = ee_tracker_init(&grid, &s, 1, err))) x.grid = &grid;
-  if (!rc) {
-    rc = BK_ERR_RUNTIME;
-    acc = bk_calloc(pm_acc_count(&s), sizeof(uint64_t), "march: radiance accumulator", err);
-  }
-  if (acc) rc = run_all(cl, &x, res, acc, stats, &ms_march, err);
+  acc = bk_calloc(pm_acc_count(&s), sizeof(uint64_t), "march: radiance accumulator", err);
+  rc = acc ? bt_march(cl, scene, &s, o, acc, res, stats, err) : BK_ERR_RUNTIME;
   if (rc) goto done;
-  res->batches = x.done;
-  res->integrator = scene->integrator;
-  for (int k = 0; k < INTEGRATOR_KIND_COUNT; k++)
-    if (integrator_kinds[k].device == s.params.integrator) res->integrator = integrator_kinds[k].id;
-  res->step = s.params.step;
-  res->batch_photons = x.batches ? ph_batch_photons(x.photons, x.batches, 0) : x.photons;
   double t = bk_now_ms();
-  for (int c = 0; c < 3 && x.done > 1; c++) s.to_radiance[c] /= (double)x.done;
-  ee_terms(&tr, x.done, x.step_exact, &res->terms);
   if (o->sums) { /* a shard: the sums, scaled for the whole bake's batches */
     pm_sums_keep(&s, acc, o->sums);
     acc = NULL;
-    res->terms.estimate = res->terms.noise = res->terms.step = -1.0;
   } else {
     pm_to_radiance(&s, acc, radiance);
     if ((rc = make_flux(&s, acc, res, err))) goto done;
   }
-  res->terms.twin_photons = x.step_exact ? 0 : res->terms.twin_photons;
-  if (x.grid) res->error_grid = ee_take_error_grid(&grid, x.done);
-  res->ms_track = x.ms_track + bk_now_ms() - t;
-  stats->ms_march = ms_march;
-  if (timings) report(&x, res, stats, timings, ms_march);
+  if (o->error_grid) res->error_grid = ee_take_error_grid(&res->full, res->batches);
+  ee_tracker_free(&res->full);
+  res->ms_track += bk_now_ms() - t;
+  if (timings) bt_report(res, stats, timings);
   pm_report_scattering(&s, stats, timings);
-  warn_stop(&x, res);
 done:
   free(acc);
-  ee_tracker_free(&tr);
-  ee_tracker_free(&grid);
   pm_setup_free(&s);
   return rc;
 }

@@ -65,6 +65,17 @@ typedef struct bt_options {
   pm_sums_t *sums;
   /* the march's fields kept from the frame before (march.h); NULL: built */
   pm_field_cache_t *fields;
+  /* bt_march on a setup with sampling tables (the adaptive pipeline): */
+  int halves;             /* keep the halves' luminance sums (res.half_a, res.all) */
+  double w_max;           /* the largest photon weight (0: 1), for the fixed-point scale */
+  uint64_t photon_limit;  /* the most photons of all batches together (0: no limit) */
+  double t_start;         /* bk_now_ms() when the bake's time budget began (0: at the march) */
+  /* Called after every main batch but the last, before the next is loaded,
+   * with the batches so far (`done`) and the lattice tracker: may rewrite
+   * the sampling tables the setup points to (the next batch uploads them).
+   * NULL: none. */
+  int (*retable)(void *ctx, int done, const ee_tracker_t *t, bk_error_t *err);
+  void *retable_ctx;
 } bt_options_t;
 
 typedef struct bt_result {
@@ -78,6 +89,15 @@ typedef struct bt_result {
   int target_missed;   /* the target was not reached (batch cap or budget) */
   integrator_t integrator; /* what marched: the scene's, or target mode's choice */
   float step;
+  int step_exact;          /* the step needs no twin */
+  double ms_march;         /* the batches, twins included */
+  /* bt_march with opts.error_grid: every voxel's statistics (the caller
+   * frees them with ee_tracker_free) */
+  ee_tracker_t full;
+  /* opts.halves: per voxel the luminance sum (one batch's units) of all
+   * batches and of half A (ceil(B/2) of them: the first in fixed mode, the
+   * even-numbered in the open ones); the caller frees them */
+  float *all, *half_a;
 } bt_result_t;
 
 /* The march stage in batches (pm_bake's place in the pipeline): radiance as
@@ -86,6 +106,19 @@ typedef struct bt_result {
 int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const bt_options_t *o,
             float *radiance, bt_result_t *res, pm_stats_t *stats, bk_timings_t *timings,
             bk_error_t *err);
+
+/* The batches on a setup already prepared (reference mode, or sampling
+ * tables: pm_sample_tables with total bt_photons_at_most): sets its
+ * fixed-point scale for the batches, marches into acc (pm_acc_count(s)
+ * counters, zeroed) and divides s->to_radiance by the batches traced, so
+ * that pm_to_radiance and pm_unpack_weights of acc give the mean. No
+ * timing rows (bt_report makes bt_bake's). */
+int bt_march(clh_context_t *cl, const scene_t *scene, pm_setup_t *s, const bt_options_t *o,
+             uint64_t *acc, bt_result_t *res, pm_stats_t *stats, bk_error_t *err);
+/* The most photons the batches of a bake may trace, all together. */
+uint64_t bt_photons_at_most(const scene_t *scene, const bt_options_t *o);
+/* The "photon marching" and "error estimate" rows of a reference bake. */
+void bt_report(const bt_result_t *res, const pm_stats_t *st, bk_timings_t *timings);
 
 #ifdef __cplusplus
 }

@@ -48,8 +48,9 @@ static size_t voxel_of(const ee_tracker_t *t, const pm_setup_t *s, size_t k) {
 }
 
 static float lum_at(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, size_t v) {
-  if (s->channels == 1) return (float)((double)acc[v] * t->lum[0]);
-  const uint64_t *a = acc + 3 * v;
+  /* sampling tables add a count/weight counter per voxel */
+  const uint64_t *a = acc + (size_t)pm_acc_stride((int)s->params.mode, s->channels) * v;
+  if (s->channels == 1) return (float)((double)a[0] * t->lum[0]);
   return (float)((double)a[0] * t->lum[0] + (double)a[1] * t->lum[1] + (double)a[2] * t->lum[2]);
 }
 
@@ -75,6 +76,24 @@ static void after_batch_range(void *arg, size_t lo, size_t hi) {
 void ee_after_batch(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc) {
   ee_ctx_t x = {t, s, acc, NULL, NULL};
   bk_parallel(t->count, BK_GRAIN, after_batch_range, &x);
+}
+
+typedef struct lum_ctx {
+  const ee_tracker_t *t;
+  const pm_setup_t *s;
+  const uint64_t *acc;
+  float sign, *out;
+} lum_ctx_t;
+
+static void add_lum_range(void *arg, size_t lo, size_t hi) {
+  const lum_ctx_t *x = arg;
+  for (size_t v = lo; v < hi; v++) x->out[v] += x->sign * lum_at(x->t, x->s, x->acc, v);
+}
+
+void ee_add_lum(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, float sign,
+                float *out) {
+  lum_ctx_t x = {t, s, acc, sign, out};
+  bk_parallel(s->voxels, BK_GRAIN, add_lum_range, &x);
 }
 
 static void read_range(void *arg, size_t lo, size_t hi) {
@@ -150,6 +169,7 @@ void ee_terms(const ee_tracker_t *t, int batches, int step_exact, ee_terms_t *ou
   out->batches = batches;
   out->twin_batches = step_exact ? 0 : t->twins;
   out->noise = out->step = out->estimate = EE_UNKNOWN;
+  out->filter = 0.0;
   float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
   if (!mean || batches < 1) {
     free(mean);
@@ -229,6 +249,41 @@ void ee_batches_reset(ee_tracker_t *t) {
   memset(t->sumsq, 0, t->count * sizeof(float));
 }
 
+void ee_filter_terms(size_t n, int batches, const float *all, const float *half_a,
+                     const float *f, const float *fa, const float *fb, double *noise,
+                     double *bias) {
+  const double B = batches, na = (batches + 1) / 2, nb = batches / 2;
+  /* var(mean of B) / var(difference of the halves' means) */
+  const double kappa = (1.0 / B) / (1.0 / na + 1.0 / nb);
+  *noise = *bias = EE_UNKNOWN;
+  float *mean = calloc(n ? n : 1, sizeof *mean);
+  if (!mean || batches < 2) {
+    free(mean);
+    return;
+  }
+  for (size_t k = 0; k < n; k++) mean[k] = (float)(all[k] / B);
+  double thr = lit_threshold(mean, n), sum_m = 0.0, sum_n = 0.0, sum_b = 0.0;
+  size_t lit = 0;
+  for (size_t k = 0; k < n; k++) {
+    double m = mean[k];
+    if (!(thr > 0.0) || m < thr) continue;
+    double dx = half_a[k] / na - (all[k] - half_a[k]) / nb, df = (double)fa[k] - fb[k];
+    double d = f[k] - m; /* filtered minus raw: the filter's bias plus a noise of its own */
+    sum_n += kappa * df * df;
+    sum_b += d * d - kappa * (df - dx) * (df - dx);
+    sum_m += m;
+    lit++;
+  }
+  free(mean);
+  if (!lit || !(sum_m > 0.0)) {
+    *noise = *bias = 0.0;
+    return;
+  }
+  double mm = sum_m / (double)lit;
+  *noise = sqrt(sum_n / (double)lit) / mm;
+  *bias = sqrt(fmax(0.0, sum_b / (double)lit)) / mm;
+}
+
 double ee_twin_step(const ee_tracker_t *t, const float *fine) {
   const double T = t->twins;
   float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
@@ -253,4 +308,16 @@ double ee_twin_step(const ee_tracker_t *t, const float *fine) {
   }
   free(mean);
   return lit && sum_m > 0.0 ? sqrt(fmax(0.0, sum_b2 / (double)lit)) / (sum_m / (double)lit) : 0.0;
+}
+
+void ee_lit_spread(const ee_tracker_t *t, int batches, float *out) {
+  const double B = batches;
+  for (size_t k = 0; k < t->count; k++) out[k] = (float)(t->prev[k] / B);
+  double thr = lit_threshold(out, t->count);
+  for (size_t k = 0; k < t->count; k++) {
+    double m = t->prev[k] / B;
+    out[k] = thr > 0.0 && m >= thr && batches > 1
+                 ? (float)fmax(0.0, (t->sumsq[k] - B * m * m) / (B - 1.0))
+                 : 0.0f;
+  }
 }

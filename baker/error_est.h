@@ -49,6 +49,9 @@ extern "C" {
 
 typedef struct ee_terms {
   double estimate, noise, step; /* ε̂, ε_noise, ε_step; EE_UNKNOWN when not measured */
+  /* adaptive mode with its filter: the filter's bias (then noise is the
+   * filtered estimate's); 0 without a filter */
+  double filter;
   int batches;                  /* B behind the noise term */
   int twin_batches;             /* T behind the step term (0: exact, no twin needed) */
   uint64_t twin_photons;        /* photons per twin batch */
@@ -82,6 +85,24 @@ void ee_twin_reset(ee_tracker_t *t);
 /* Forget the batches recorded (target mode drops its pilot batches and
  * starts over with larger ones); the twins are kept. */
 void ee_batches_reset(ee_tracker_t *t);
+/* Per tracked voxel the spread s² between the `batches` batches where the
+ * voxel is lit, 0 elsewhere (the adaptive loop's allocation). */
+void ee_lit_spread(const ee_tracker_t *t, int batches, float *out);
+/* Adds sign times the luminance of acc (sums of batches, in one batch's
+ * units) of every voxel of the grid to out (s->voxels floats). */
+void ee_add_lum(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, float sign,
+                float *out);
+/* The terms of a filtered estimate (adaptive mode), per voxel of n: all is
+ * the luminance sum of the B batches, half_a that of half A (ceil(B/2) of
+ * them, nA; half B the rest, nB), f the filtered mean's luminance, fa and
+ * fb the halves' means filtered the same way. With x̄ the raw mean,
+ * d = f − x̄ is the filter's bias plus noise; the halves measure the noise:
+ * var(f) ≈ κ (fa − fb)², var(d) ≈ κ ((fa − xa) − (fb − xb))², κ =
+ * (1/B) / (1/nA + 1/nB). noise² = mean_lit κ (fa − fb)² / mean_lit(x̄)²,
+ * bias² = max(0, mean_lit(d² − var d)) / mean_lit(x̄)² (docs/error.md). */
+void ee_filter_terms(size_t n, int batches, const float *all, const float *half_a,
+                     const float *f, const float *fa, const float *fb, double *noise,
+                     double *bias);
 /* The step term of the twins recorded, on the lit set and mean of the truth
  * integrator's luminance `fine` (one array of count per twin): for choosing
  * an integrator before the bake's own batches exist. */

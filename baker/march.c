@@ -278,23 +278,25 @@ void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks) {
   s->masks = masks;
 }
 
-int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err) {
+int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, uint64_t total,
+                     bk_error_t *err) {
   pm_params *P = &s->params;
+  if (total < s->lights.photons) total = s->lights.photons;
   /* count bits: the photons, with room for 4 passages per photon on average
    * (curved paths may re-enter a voxel); the weight sum takes the rest, with
    * the same room, in quanta of 2^-24 to 2^-8 */
   int count_bits = 2;
-  while (count_bits < 64 && (s->lights.photons >> (count_bits - 2)) != 0) count_bits++;
+  while (count_bits < 64 && (total >> (count_bits - 2)) != 0) count_bits++;
   int shift = 64 - count_bits;
   /* quanta per unit weight: a power of 2 with N w_max of them below 2^shift */
-  double room = ldexp(1.0, shift) / (4.0 * (double)(s->lights.photons ? s->lights.photons : 1) *
+  double room = ldexp(1.0, shift) / (4.0 * (double)(total ? total : 1) *
                                      (w_max > 1.0 ? w_max : 1.0) * 1.001);
   if (room < 256.0)
     return bk_fail(err, BK_ERR_INPUT,
                    "adaptive: %llu photons are too many for the per-voxel photon count and "
                    "weight sums (%d bits); use at most about 4e7 photons, or photons.mode "
                    "\"reference\"",
-                   (unsigned long long)s->lights.photons, count_bits);
+                   (unsigned long long)total, count_bits);
   P->mode = PM_MODE_TABLES;
   P->flux = 0; /* the adaptive pipeline makes no radiance_flux (yet) */
   P->count_shift = (bk_uint)shift;

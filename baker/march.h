@@ -158,13 +158,17 @@ void pm_disable_octree(pm_setup_t *s);
  * the photons that reached it (masks: pm_mask_count entries, zeroed);
  * pm_sample_tables draws each light's photons from its sampling table (one
  * per light, in the order of lights.lights) with weight 1/pdf, w_max the
- * largest, and keeps per voxel the photon count and weight sum; it refuses
- * photon counts whose packed count and weight sums could overflow (about
- * 4e7). */
+ * largest, and keeps per voxel the photon count and weight sum over all
+ * the photons the bake may trace (total: its batches together, at least
+ * lights.photons); it refuses totals whose packed count and weight sums
+ * could overflow (PM_TABLES_MAX_PHOTONS holds with weights <= 2). The tables may change
+ * between batches (pm_run_batches uploads run->tables before each). */
+#define PM_TABLES_MAX_PHOTONS ((1ull << 25) - 1ull)
 int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm_setup_t *out,
               bk_error_t *err);
 void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks);
-int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, bk_error_t *err);
+int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, uint64_t total,
+                     bk_error_t *err);
 /* Marches only photons [first, last) (first <= last <= lights.photons). */
 /* Share `index` (1-based) of `count` of photons: [floor(photons (index-1) / count),
  * floor(photons index / count)), count < 2^17. Disjoint shares cover all. */
@@ -197,8 +201,9 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
  * fills run->lights and run->params for the next batch and returns 1, or
  * returns 0 to stop (negative: an error, in err). run starts as a copy of s;
  * the callback may change the lights, photon_total and light_count, not the
- * kernel's specialisation (-D flags: integrator, refraction, channels) but
- * may change params.step. */
+ * kernel's specialisation (-D flags: integrator, refraction, channels, mode)
+ * but may change params.step and, with sampling tables, the tables' contents
+ * (not their number: one per light). */
 typedef int (*pm_batch_fn)(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_error_t *err);
 int pm_run_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
                    pm_batch_fn next, void *ctx, bk_error_t *err);

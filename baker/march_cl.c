@@ -120,7 +120,7 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
   }
   if (s->params.mode == PM_MODE_TABLES) {
     if (!s->tables) return bk_fail(err, BK_ERR_RUNTIME, "march: sampling tables missing");
-    /* one table per light of this march (batches are reference-only) */
+    /* one table per light of this march (batches keep the lights' number) */
     size_t bytes = (size_t)L->count * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) * sizeof(float);
     if (!(r->tables = make_buffer(cl, copy, bytes, s->tables, err))) return BK_ERR_RUNTIME;
   }
@@ -277,6 +277,11 @@ static int load_batch(clh_context_t *cl, pm_cl_run_t *r, const pm_setup_t *run, 
     CLH_CHECK(clEnqueueWriteBuffer(cl->queue, r->lights, CL_TRUE, 0, n * sizeof(ph_light),
                                    run->lights.lights, 0, NULL, NULL),
               err, error);
+  if (r->tables && n) /* sampling tables: a batch may bring new ones */
+    CLH_CHECK(clEnqueueWriteBuffer(cl->queue, r->tables, CL_TRUE, 0,
+                                   n * LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y) * sizeof(float),
+                                   run->tables, 0, NULL, NULL),
+              err, error);
   return BK_OK;
 error:
   return BK_ERR_RUNTIME;
@@ -290,8 +295,8 @@ int pm_run_cl_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_
   if (stats) stats->bounces = (int)s->ms.params.max_bounces;
   int rc = check_device(cl, s, r.acc_bytes, err);
   if (rc != BK_OK) return rc;
-  if (s->params.mode != PM_MODE_REFERENCE)
-    return bk_fail(err, BK_ERR_RUNTIME, "march: batches are for the reference march");
+  if (s->params.mode == PM_MODE_ORIGINS)
+    return bk_fail(err, BK_ERR_RUNTIME, "march: batches are not for the origin recorder");
   double t0 = bk_now_ms();
   if ((rc = build_kernel(cl, s, &r, err))) goto done;
   if (stats) stats->ms_build += bk_now_ms() - t0;

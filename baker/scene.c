@@ -338,11 +338,16 @@ static int sc_threshold(const sc_ctx_t *c, const json_value_t *obj, const char *
 
 static int sc_adaptive(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
   static const char *const keys[] = {"pilot", "gradient_threshold", "luminance_threshold",
-                                     "alpha", NULL};
+                                     "alpha", "tables", NULL};
+  static const char *const tables[] = {"pilot", "measured"}; /* scene_t.retable */
+  const json_value_t *e;
   long long pilot = s->pilot;
   int rc;
   if ((rc = sc_object(c, v, "adaptive"))) return rc;
   sc_check_keys(c, v, "adaptive", keys);
+  if ((e = json_object_get(v, "tables")) &&
+      (rc = sc_enum(c, e, "adaptive.tables", tables, 2, &s->retable)))
+    return rc;
   if ((rc = sc_opt_int(c, v, "adaptive", "pilot", &R_COUNT_INT, &pilot)) ||
       (rc = sc_threshold(c, v, "gradient_threshold", &s->gradient_threshold)) ||
       (rc = sc_threshold(c, v, "luminance_threshold", &s->luminance_threshold)) ||

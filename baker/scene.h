@@ -109,6 +109,8 @@ typedef struct scene {
   float gradient_threshold;  /* SCENE_AUTO or >= 0 */
   float luminance_threshold; /* SCENE_AUTO or >= 0 */
   float alpha;               /* default 1 */
+  int retable;               /* adaptive.tables "measured" (1): rebuilt after every batch
+                                from the measured error; "pilot" (0, default) */
 
   scene_camera_t camera;
   float background[3];

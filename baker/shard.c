@@ -49,16 +49,22 @@ int shard_march(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   shard_range(sh->photons, opt->shard_index, opt->shard_count, &sh->first, &sh->last);
   sh->alpha = scene->alpha;
   if (scene->mode != MODE_ADAPTIVE) { /* the same share of every batch (batches.h) */
-    bt_options_t bo = {0, opt->shard_index, opt->shard_count, &sh->sums, NULL};
+    bt_options_t bo = {0};
+    bo.shard_index = opt->shard_index, bo.shard_count = opt->shard_count, bo.sums = &sh->sums;
     bt_result_t res;
     return bt_bake(cl, scene, vol, &bo, NULL, &res, stats, timings, err);
   }
+  if (scene->retable)
+    return bk_fail(err, BK_ERR_INPUT,
+                   "%s: --shard: adaptive.tables \"measured\" rebuilds the tables from every "
+                   "batch's spread, which a shard does not see; use \"pilot\" to shard",
+                   scene->path);
   ad_bake_opts_t ao;
   ad_bake_defaults(&ao);
   ao.filter = !opt->no_filter;
   ao.sums = &sh->sums;
-  ao.first = sh->first;
-  ao.last = sh->last;
+  ao.shard_index = opt->shard_index;
+  ao.shard_count = opt->shard_count;
   snprintf(sh->filter, sizeof sh->filter,
            "filter=%d max_radius=%a noise_k=%a alpha=%a radius_grid=%d",
            ao.filter, (double)ao.max_radius, (double)ao.noise_k, (double)scene->alpha,

@@ -82,6 +82,7 @@ static void put_all(FILE *f, const sj_frame_t *x) {
   put_term(f, "estimate", e ? e->estimate : -1.0, 0);
   put_term(f, "noise", e ? e->noise : -1.0, 0);
   put_term(f, "step", e ? e->step : -1.0, 0);
+  put_term(f, "filter", e && e->noise >= 0.0 ? e->filter : -1.0, 0);
   fprintf(f, "    \"batches\": %d,\n    \"twin_batches\": %d,\n", e ? e->batches : 0,
           e ? e->twin_batches : 0);
   fprintf(f, "    \"target\": %.6g,\n    \"time_budget_s\": %.6g\n  }\n}\n",

@@ -15,7 +15,7 @@ typedef struct sj_frame {
   const scene_t *scene;
   const bk_timings_t *timings;
   const pm_stats_t *stats;
-  const bt_result_t *error; /* reference mode; NULL: not measured */
+  const bt_result_t *error; /* the batches and the error terms; NULL: not measured */
 } sj_frame_t;
 
 /* Peak resident memory of this process so far, bytes (0 when unknown). */

@@ -16,7 +16,16 @@
  * (kernels built first; times the best of 2).
  * The second form makes one bake with photons.target_error E or
  * photons.time_budget_s S (the scene's count and batches) and prints its
- * choice, batches, estimate, true ε and times. */
+ * choice, batches, estimate, true ε and times.
+ *
+ *   bench_error_run SCENE RES TRUTH_PHOTONS pays:N [KEY=VALUE ...]
+ *
+ * The third (scripts/bench_adaptive_pays, issue 12 "Pays"): with RK4 at step
+ * 1/4 voxel (converged), the reference mode with N photons, then the adaptive
+ * mode (filter on, its pilot included) at fractions of N; one JSON line per
+ * bake with the true ε, the relative L2 over all voxels and the wall time of
+ * the whole stage (reference: octree, twins, march; adaptive: octree, pilot,
+ * distribution, twins, march, filter, error terms), kernels built first. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -24,6 +33,7 @@
 
 #include <sys/resource.h>
 
+#include "adaptive.h"
 #include "batches.h"
 #include "integrators.h"
 #include "voxelize.h"
@@ -115,6 +125,49 @@ static void steered(const char *what, const float *T) {
   free(x);
 }
 
+/* "pays:N": the reference with N photons, adaptive at fractions of N. */
+static void pays(const char *what, const float *T) {
+  static const double frac[] = {1.0, 0.75, 0.5, 0.375, 0.25, 0.1875, 0.125};
+  long long n = atoll(what + 5);
+  scene.integrator = INTEGRATOR_RK4, scene.step = 0.25f; /* converged: noise is what is left */
+  bt_result_t r;
+  pm_stats_t st;
+  bk_error_t err = {0, ""};
+  free(bake(scene.integrator, scene.step, 4096, 8, &r, &st)); /* kernels built */
+  double t0 = bk_now_ms(), c0 = cpu_ms();
+  float *x = bake(scene.integrator, scene.step, n, 8, &r, &st);
+  double ms = bk_now_ms() - t0, cpu = cpu_ms() - c0;
+  printf("{\"mode\": \"reference\", \"photons\": %lld, \"true\": %.5f, \"rel_l2\": %.5f, "
+         "\"estimate\": %.5f, \"ms\": %.1f, \"cpu_ms\": %.1f}\n", n, ee_true_error(x, T, V),
+         rel_l2(x, T), r.terms.estimate, ms, cpu);
+  fflush(stdout);
+  free(x);
+  x = calloc(3 * V, sizeof(float));
+  ad_bake_opts_t o;
+  ad_bake_defaults(&o);
+  o.retable = getenv("BENCH_RETABLE") && atoi(getenv("BENCH_RETABLE"));
+  for (int warm = 1, i = 0; i < (int)(sizeof frac / sizeof frac[0]); warm = 0) {
+    ad_stats_t as;
+    long long m = warm ? 4096 : (long long)(frac[i] * (double)n) - scene.pilot;
+    scene.photon_count = m > 1000 ? m : 1000;
+    t0 = bk_now_ms(), c0 = cpu_ms();
+    if (ad_bake(&cl, &scene, &vol, &o, x, NULL, NULL, NULL, &as, NULL, &err) != BK_OK) {
+      fprintf(stderr, "bench_error_run: %s\n", err.msg);
+      exit(1);
+    }
+    ms = bk_now_ms() - t0, cpu = cpu_ms() - c0;
+    free(as.error.error_grid);
+    if (warm) continue;
+    printf("{\"mode\": \"%s\", \"photons\": %lld, \"fraction\": %.4f, \"true\": %.5f, "
+           "\"rel_l2\": %.5f, \"estimate\": %.5f, \"ms\": %.1f, \"cpu_ms\": %.1f, \"march_ms\": %.1f}\n",
+           o.retable ? "adaptive+loop" : "adaptive", scene.photon_count + scene.pilot, frac[i], ee_true_error(x, T, V), rel_l2(x, T),
+           as.error.terms.estimate, ms, cpu, as.ms_march);
+    fflush(stdout);
+    i++;
+  }
+  free(x);
+}
+
 int main(int argc, char **argv) {
   bk_error_t err = {0, ""};
   if (argc < 5) {
@@ -130,6 +183,12 @@ int main(int argc, char **argv) {
   V = grid_count(&vol.dims);
   scene_t loaded = scene;
   float *T = truth(argv[1], scene.resolution, atoll(argv[3]));
+  if (!strncmp(argv[4], "pays:", 5)) {
+    scene = loaded;
+    pays(argv[4], T);
+    free(T);
+    return 0;
+  }
   if (strchr(argv[4], ':')) {
     scene = loaded;
     steered(argv[4], T);

@@ -11,13 +11,21 @@
  *           two runs and added equal the whole (shards)
  *  cli      baker bake: metadata error_estimate/noise/step, radiance_error,
  *           --stats JSON; bad --target-error/--time-budget refused; a budget
- *           shorter than two batches warns and still writes a file */
+ *           shorter than two batches warns and still writes a file
+ *  adaptive the adaptive pipeline in batches (baker/adaptive.h): ε̂ (noise
+ *           of the filtered estimate, the filter's bias, the step) within
+ *           [0.67, 1.5] x the true ε with the filter on and off; seeded bits
+ *           reproducible; photons.target_error met (ε̂ <= E, true ε <= 1.3 E);
+ *           photons.time_budget_s ends with >= 2 batches and an estimate;
+ *           the command's error metadata, radiance_error and JSON;
+ *           adaptive.tables "measured" (refused with --shard) */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "adaptive.h"
 #include "bake.h"
 #include "batches.h"
 #include "vdbio.h"
@@ -163,9 +171,121 @@ static int test_cli(void) {
   return tu_failures ? 1 : 0;
 }
 
+/* ad_bake on the test scene; the error terms in *res. */
+static float strong; /* > 0: a strong filter, alpha and largest radius this */
+
+static float *bake_adaptive(integrator_t integ, float step, long long photons, int filter,
+                            bt_result_t *res) {
+  bk_error_t err;
+  ad_bake_opts_t o;
+  ad_stats_t st;
+  memset(&err, 0, sizeof err);
+  ad_bake_defaults(&o);
+  o.filter = filter;
+  float alpha = scene.alpha;
+  if (strong > 0.0f) o.max_radius = strong, o.noise_k = -1.0f, scene.alpha = strong;
+  float *r = calloc(3 * V, sizeof(float));
+  REQUIRE(r, "out of memory");
+  scene.integrator = integ, scene.step = step, scene.photon_count = photons, scene.seed = 1;
+  REQUIRE(ad_bake(&cl, &scene, &vol, &o, r, NULL, NULL, NULL, &st, NULL, &err) == BK_OK,
+          "ad_bake: %s", err.msg);
+  *res = st.error;
+  scene.alpha = alpha;
+  return r;
+}
+
+static void adaptive_case(const float *truth, integrator_t integ, float step, long long photons,
+                          int filter) {
+  bt_result_t res;
+  float *r = bake_adaptive(integ, step, photons, filter, &res);
+  double eps = ee_true_error(r, truth, V), est = res.terms.estimate;
+  printf("adaptive: %s step %g, %lld photons, filter %s: estimate %.4f (noise %.4f, filter %.4f, "
+         "step %.4f, %d batches), true %.4f, ratio %.2f\n",
+         integ == INTEGRATOR_RK4 ? "rk4" : "euler", (double)step, photons, filter ? "on" : "off",
+         est, res.terms.noise, res.terms.filter, res.terms.step, res.batches, eps, est / eps);
+  EXPECT(est >= 0.67 * eps && est <= 1.5 * eps, "estimate %.4f, true %.4f", est, eps);
+  free(r);
+}
+
+static int test_adaptive(void) {
+  float *truth = bake(INTEGRATOR_RK4, 0.125f, 16 * 40000, 8, 99, NULL);
+  adaptive_case(truth, INTEGRATOR_EULER, 0.5f, 40000, 1);
+  adaptive_case(truth, INTEGRATOR_RK4, 0.25f, 20000, 1);
+  adaptive_case(truth, INTEGRATOR_RK4, 0.25f, 20000, 0);
+  strong = 4.0f; /* radius up to 4 voxels, no noise test: a filter with a bias to measure */
+  adaptive_case(truth, INTEGRATOR_RK4, 0.25f, 80000, 1);
+  strong = 0.0f;
+  bt_result_t r1, r2;
+  float *a = bake_adaptive(INTEGRATOR_RK4, 0.25f, 20000, 1, &r1);
+  float *b = bake_adaptive(INTEGRATOR_RK4, 0.25f, 20000, 1, &r2);
+  EXPECT(memcmp(a, b, 3 * V * sizeof(float)) == 0, "a seeded adaptive bake is not reproducible");
+  EXPECT(r1.terms.estimate == r2.terms.estimate, "its estimate is not: %g, %g",
+         r1.terms.estimate, r2.terms.estimate);
+  free(a), free(b);
+  /* a target: met by the estimate, and by the truth within 1.3x */
+  const double E = 0.05;
+  scene.target_error = (float)E;
+  a = bake_adaptive(INTEGRATOR_RK4, 0.25f, 20000, 1, &r1);
+  scene.target_error = 0.0f;
+  double eps = ee_true_error(a, truth, V);
+  printf("adaptive target %g: estimate %.4f, true %.4f, %d batches of %llu, %s step %g\n", E,
+         r1.terms.estimate, eps, r1.batches, (unsigned long long)r1.batch_photons,
+         r1.integrator == INTEGRATOR_RK4 ? "rk4" : "euler", (double)r1.step);
+  EXPECT(!r1.target_missed && r1.terms.estimate <= E, "target %g: estimate %.4f", E,
+         r1.terms.estimate);
+  EXPECT(eps <= 1.3 * E, "target %g: true error %.4f", E, eps);
+  free(a);
+  /* a budget: batches added until it ends, each with its estimate */
+  scene.time_budget_s = 1.0f;
+  a = bake_adaptive(INTEGRATOR_RK4, 0.25f, 20000, 1, &r1);
+  scene.time_budget_s = 0.0f;
+  printf("adaptive budget 1 s: %d batches of %llu, estimate %.4f\n", r1.batches,
+         (unsigned long long)r1.batch_photons, r1.terms.estimate);
+  EXPECT(r1.batches >= 2 && r1.terms.estimate > 0.0, "budget: %d batches, estimate %g",
+         r1.batches, r1.terms.estimate);
+  free(a);
+  free(truth);
+  /* the command: metadata, the error grid, the JSON */
+  char out[1024], stats[1024], got[256];
+  snprintf(out, sizeof out, "%s/error_adaptive.vdb", out_dir);
+  snprintf(stats, sizeof stats, "%s/error_adaptive.json", out_dir);
+  const char *args[] = {"--mode", "adaptive", "--error-grid", "--stats", stats};
+  REQUIRE(run_bake(args, 5, out) == 0, "adaptive bake --error-grid --stats failed");
+  const char *keys[] = {"error_estimate", "error_noise", "error_step"};
+  for (int k = 0; k < 3; k++) {
+    meta(out, keys[k], got, sizeof got);
+    EXPECT(atof(got) > 0.0 && atof(got) < 1.0, "%s = %s", keys[k], got);
+  }
+  meta(out, "error_filter", got, sizeof got);
+  EXPECT(atof(got) >= 0.0 && atof(got) < 1.0, "error_filter = %s", got);
+  bk_error_t err;
+  vdbio_dense_t g;
+  memset(&err, 0, sizeof err);
+  REQUIRE(vdbio_read_dense(out, "radiance_error", 0, &g, &err) == BK_OK, "%s", err.msg);
+  vdbio_dense_free(&g);
+  char *json = NULL;
+  size_t len = 0;
+  REQUIRE(bk_read_file(stats, &json, &len, &err) == BK_OK, "%s", err.msg);
+  EXPECT(strstr(json, "\"estimate\": 0.") && strstr(json, "\"filter\": "),
+         "%s lacks the error terms", stats);
+  free(json);
+  /* the tables rebuilt from the measured error: a bake with its estimate;
+   * a bad value and a shard refused */
+  const char *loop[] = {"--mode", "adaptive", "--set", "adaptive.tables=measured"};
+  REQUIRE(run_bake(loop, 4, out) == 0, "adaptive.tables measured failed");
+  meta(out, "error_estimate", got, sizeof got);
+  EXPECT(atof(got) > 0.0 && atof(got) < 1.0, "measured tables: error_estimate = %s", got);
+  const char *bogus[] = {"--mode", "adaptive", "--set", "adaptive.tables=bogus"};
+  EXPECT(run_bake(bogus, 4, out) == BK_ERR_INPUT, "adaptive.tables bogus accepted");
+  const char *shard[] = {"--mode", "adaptive", "--set", "adaptive.tables=measured",
+                         "--shard", "1/2"};
+  EXPECT(run_bake(shard, 6, out) == BK_ERR_INPUT, "adaptive.tables measured sharded");
+  return tu_failures ? 1 : 0;
+}
+
 int main(int argc, char **argv) {
   if (argc != 4) {
-    fprintf(stderr, "usage: %s SCENE_DIR OUT_DIR honest|bits|cli\n", argv[0]);
+    fprintf(stderr, "usage: %s SCENE_DIR OUT_DIR honest|bits|cli|adaptive\n", argv[0]);
     return 2;
   }
   scene_dir = argv[1], out_dir = argv[2];
@@ -174,6 +294,7 @@ int main(int argc, char **argv) {
   setup();
   if (!strcmp(t, "honest")) return test_honest();
   if (!strcmp(t, "bits")) return test_bits();
+  if (!strcmp(t, "adaptive")) return test_adaptive();
   fprintf(stderr, "unknown test %s\n", t);
   return 2;
 }
