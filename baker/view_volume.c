@@ -488,11 +488,14 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
                                 "radiance_uncollided"};
   memcpy(L.gname, gname, sizeof gname);
 
+  double t0 = bk_now_ms(), t1, t2;
   int rc = vdbio_list_grids(path, &L.names, &L.types, &L.count, err);
   if (rc) return rc;
+  t1 = bk_now_ms();
   if ((rc = load_select(&L, err)) || (rc = load_read_own(&L, err)) ||
       (rc = load_box(&L, v, err)) || (rc = load_place(&L, v, err)))
     goto error;
+  t2 = bk_now_ms();
   load_describe(&L, v);
   if (v->empty) goto done;
 
@@ -507,7 +510,11 @@ int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
     goto error;
   /* the grids as read are packed now: free them before padding (peak memory) */
   for (int g = 0; g < G_COUNT; g++) free(L.arr[g]), L.arr[g] = NULL;
+  double t3 = bk_now_ms();
   if ((rc = view_fields_build(v, err))) goto error;
+  /* where the read stage goes (bench_view's profile) */
+  bk_log(2, "view: read %s: list %.0f ms, grids %.0f ms, check and pack %.0f ms, fields and "
+            "pyramids %.0f ms", path, t1 - t0, t2 - t1, t3 - t2, bk_now_ms() - t3);
 
 done:
   rc = BK_OK;
