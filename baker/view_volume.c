@@ -224,13 +224,17 @@ static int load_select(view_load_t *L, bk_error_t *err) {
  * records one (a corrupt grid is refused, naming it; a file without
  * checksums is warned about once); the radiance transform sets the voxel. */
 static int load_read_own(view_load_t *L, bk_error_t *err) {
-  int rc, unchecked = 0;
-  for (int g = 0; g < G_COUNT; g++) {
-    if (!L->present[g]) continue;
-    int checked = 0;
-    if ((rc = vdbio_read_dense_verified(L->path, L->gname[g], 0, &L->own[g], &checked, err)))
-      return rc;
-    unchecked += !checked;
+  int rc, unchecked = 0, count = 0, which[G_COUNT], checked[G_COUNT];
+  const char *names[G_COUNT];
+  vdbio_dense_t own[G_COUNT];
+  for (int g = 0; g < G_COUNT; g++)
+    if (L->present[g]) which[count] = g, names[count++] = L->gname[g];
+  /* the grids side by side, one reader per core */
+  if ((rc = vdbio_read_dense_verified_all(L->path, count, names, own, checked, err))) return rc;
+  for (int i = 0; i < count; i++) {
+    const int g = which[i];
+    L->own[g] = own[i];
+    unchecked += !checked[i];
     L->ch[g] = L->own[g].channels;
     L->empty[g] = dense_is_empty(&L->own[g]);
   }
