@@ -11,7 +11,10 @@
  * absurd allocation fails at the child's RLIMIT_AS, a loop ends at its
  * alarm, and this process only ever sees a status, a message and arrays it
  * checks before allocating. The cost is one fork and one copy of the
- * result through a pipe per read (1-2 ms for a 32^3 grid).
+ * result through a pipe per read (1-2 ms for a 32^3 grid). Several grids of
+ * one file may be read side by side (iso_run_all, one child per core); a
+ * child that dies then is read again alone before the file is called
+ * corrupt, since the children together may have held more than the machine.
  *
  * Limits. Memory: what this process can still hold (MemAvailable, at least
  * ISO_MIN_MEMORY) plus ISO_AS_SLACK for address space that is reserved but
