@@ -2,16 +2,20 @@
 #include "octree.h"
 
 #include <stdlib.h>
+#include <stdatomic.h>
 #include <string.h>
 
 #include "base/parallel.h"
 
 /* A block is constant when its voxels' windows (the block grown by the halo
  * H, clipped to the grid) hold one value. A box holds one value exactly when
- * no two face-adjacent voxels in it differ, so each differing adjacent pair
- * clears the blocks whose grown box holds both of its voxels, and a voxel
- * costs three comparisons: the scan runs at memory speed. The exact
- * comparison (!=) is the one the march relies on (-0 == 0). */
+ * no two face-adjacent voxels in it differ, so a block is cleared when its
+ * grown box holds both voxels of a differing pair. A voxel costs three
+ * comparisons per channel; the pairs are then reduced per row (per block of
+ * the row), per slice (per block column) and per block row, each a few
+ * byte ORs per block, not a clear of every block a pair touches (that cost
+ * ~25 instructions per voxel where the whole field varies: the view's lit
+ * fog). The exact comparison (!=) is the one the march relies on (-0 == 0). */
 
 /* Blocks b along one axis (block size B, n voxels, `last` the last block)
  * whose grown box [bB - H, min(bB + B - 1, n - 1) + H] holds [a0, a1]. */
@@ -25,68 +29,111 @@ static void pair_blocks(int a0, int a1, int H, int last, int *b0, int *b1) {
 }
 
 /* What one thread of the scan needs: the grid, the source, the halo and the
- * finest blocks' flags. */
+ * finest blocks' flags; `failed` is set when a thread's scratch could not be
+ * allocated. */
 typedef struct oct_scan {
   int nx, ny, nz, H, bx, by;
   const oct_source_t *src;
   int nsrc;
   unsigned char *c0;
+  atomic_int failed;
 } oct_scan_t;
 
-static inline float src_at(const oct_source_t *s, int ch, size_t v) {
-  return s->values[(size_t)s->stride * v + (size_t)ch];
-}
-
-/* Clears the blocks of rows [kb0, kb1] whose grown box holds the voxel box
- * [x0,x1] x [y0,y1] x [z0,z1]. */
-static void clear_pair(const oct_scan_t *w, int kb0, int kb1, int x0, int x1, int y0, int y1,
-                       int z0, int z1) {
-  int i0, i1, j0, j1, k0, k1;
-  pair_blocks(x0, x1, w->H, w->bx - 1, &i0, &i1);
-  pair_blocks(y0, y1, w->H, w->by - 1, &j0, &j1);
-  pair_blocks(z0, z1, w->H, kb1, &k0, &k1);
-  if (k0 < kb0) k0 = kb0;
-  for (int k = k0; k <= k1; k++)
-    for (int j = j0; j <= j1; j++)
-      memset(w->c0 + (size_t)i0 + (size_t)w->bx * ((size_t)j + (size_t)w->by * k), 0,
-             (size_t)(i1 - i0 + 1));
-}
-
-/* Whether voxel (i, row) differs from its +x, +y (when `dy`) or +z (when
- * `dz`) neighbour in any channel: bit 0, 1, 2. */
-static int voxel_differs(const oct_scan_t *w, size_t v, int i, int dy, int dz) {
-  const size_t sy = (size_t)w->nx, sz = sy * (size_t)w->ny;
-  int bits = 0;
+/* Row `row` (its first voxel's index): f[i] gets bit 0, 1, 2 when voxel i
+ * differs from its +x, +y (when `dy`) or +z (when `dz`) neighbour in any
+ * channel; returns the OR of all. Channel by channel along the row, so the
+ * loop is branch-free. */
+static unsigned row_pairs(const oct_scan_t *w, size_t row, int dy, int dz, unsigned char *f) {
+  const int n = w->nx;
+  memset(f, 0, (size_t)n);
   for (int s = 0; s < w->nsrc; s++)
     for (int ch = 0; ch < w->src[s].channels; ch++) {
-      float a = src_at(&w->src[s], ch, v);
-      if (i + 1 < w->nx && src_at(&w->src[s], ch, v + 1) != a) bits |= 1;
-      if (dy && src_at(&w->src[s], ch, v + sy) != a) bits |= 2;
-      if (dz && src_at(&w->src[s], ch, v + sz) != a) bits |= 4;
+      const size_t st = (size_t)w->src[s].stride;
+      const float *p = w->src[s].values + st * row + (size_t)ch;
+      /* without a neighbour, the voxel itself: masked off below */
+      const size_t oy = dy ? st * (size_t)n : 0, oz = dz ? st * (size_t)n * (size_t)w->ny : 0;
+      for (int i = 0; i < n; i++) {
+        const float *q = p + st * (size_t)i;
+        const float a = q[0], x = i + 1 < n ? q[st] : a;
+        f[i] |= (unsigned char)((x != a) | (q[oy] != a) << 1 | (q[oz] != a) << 2);
+      }
     }
-  return bits;
+  const unsigned mask = 1u | (dy ? 2u : 0u) | (dz ? 4u : 0u);
+  unsigned any = 0;
+  for (int i = 0; i < n; i++) any |= f[i] &= (unsigned char)mask;
+  return any;
+}
+
+/* One row's pair bits f[0..nx) reduced per block of the row (r[0..bx)):
+ * bit 0 when an x pair lies inside the block's grown x range, bits 1, 2 when
+ * a y or z pair starts in it (its other voxel is in the next row or slice). */
+static void row_blocks(const oct_scan_t *w, const unsigned char *f, unsigned char *r) {
+  const int B = 1 << OCT_BLOCK_SHIFT, H = w->H, n = w->nx;
+  for (int b = 0; b < w->bx; b++) {
+    int g0 = b * B - H, g1 = (b * B + B - 1 < n - 1 ? b * B + B - 1 : n - 1) + H;
+    g0 = g0 < 0 ? 0 : g0;
+    g1 = g1 > n - 1 ? n - 1 : g1;
+    unsigned acc = f[g1] & 6u; /* the last voxel's x pair leaves the box */
+    for (int i = g0; i < g1; i++) acc |= f[i];
+    r[b] = (unsigned char)acc;
+  }
+}
+
+/* Slice k reduced per block column (s[bi + bx bj]): bit 0 when an x or y
+ * pair lies inside the block's grown box in x and y, bit 1 when a z pair
+ * starts there (`dz`: the slab holds slice k + 1). f, r: nx and bx bytes of
+ * scratch. */
+static void slice_blocks(const oct_scan_t *w, int k, int dz, unsigned char *f, unsigned char *r,
+                         unsigned char *s) {
+  const size_t bx = (size_t)w->bx;
+  memset(s, 0, bx * (size_t)w->by);
+  for (int j = 0; j < w->ny; j++) {
+    const size_t row = (size_t)w->nx * ((size_t)j + (size_t)w->ny * k);
+    if (!row_pairs(w, row, j + 1 < w->ny, dz, f)) continue;
+    row_blocks(w, f, r);
+    int a0, a1, p0, p1; /* block rows whose grown y range holds j; and j + 1 too */
+    pair_blocks(j, j, w->H, w->by - 1, &a0, &a1);
+    pair_blocks(j, j + 1, w->H, w->by - 1, &p0, &p1);
+    for (int bj = a0; bj <= a1; bj++) {
+      const unsigned keep = bj >= p0 && bj <= p1 ? 7u : 5u; /* a y pair needs j + 1 inside */
+      unsigned char *sr = s + bx * (size_t)bj;
+      for (size_t bi = 0; bi < bx; bi++) {
+        const unsigned v = r[bi] & keep;
+        sr[bi] |= (unsigned char)((v & 3u ? 1u : 0u) | (v & 4u ? 2u : 0u));
+      }
+    }
+  }
 }
 
 /* Block rows [kb0, kb1): the slices their grown boxes reach, every voxel's
- * three forward pairs. Only these rows' flags are written, so threads on
- * other rows never touch the same byte. */
+ * three forward pairs, reduced per row, then per slice, then cleared in the
+ * blocks whose grown box holds the slice. Only these rows' flags are
+ * written, so threads on other rows never touch the same byte. */
 static void scan_rows(void *ctx, size_t kb0, size_t kb1) {
-  const oct_scan_t *w = ctx;
+  oct_scan_t *w = ctx;
   const int B = 1 << OCT_BLOCK_SHIFT, H = w->H;
   const int lo = (int)kb0 * B - H, hi = (int)kb1 * B - 1 + H;
   const int z0 = lo < 0 ? 0 : lo, z1 = hi > w->nz - 1 ? w->nz - 1 : hi;
-  for (int k = z0; k <= z1; k++)
-    for (int j = 0; j < w->ny; j++) {
-      const size_t row = (size_t)w->nx * ((size_t)j + (size_t)w->ny * k);
-      const int dy = j + 1 < w->ny, dz = k + 1 <= z1;
-      for (int i = 0; i < w->nx; i++) {
-        int bits = voxel_differs(w, row + (size_t)i, i, dy, dz);
-        if (!bits) continue;
-        if (bits & 1) clear_pair(w, (int)kb0, (int)kb1 - 1, i, i + 1, j, j, k, k);
-        if (bits & 2) clear_pair(w, (int)kb0, (int)kb1 - 1, i, i, j, j + 1, k, k);
-        if (bits & 4) clear_pair(w, (int)kb0, (int)kb1 - 1, i, i, j, j, k, k + 1);
-      }
+  const size_t plane = (size_t)w->bx * (size_t)w->by;
+  unsigned char *f = malloc((size_t)w->nx + (size_t)w->bx + plane);
+  if (!f) {
+    atomic_store(&w->failed, 1);
+    return;
+  }
+  unsigned char *r = f + w->nx, *s = r + w->bx;
+  for (int k = z0; k <= z1; k++) {
+    slice_blocks(w, k, k + 1 <= z1, f, r, s);
+    int a0, a1, p0, p1; /* block rows whose grown z range holds k; and k + 1 too */
+    pair_blocks(k, k, H, (int)kb1 - 1, &a0, &a1);
+    pair_blocks(k, k + 1, H, (int)kb1 - 1, &p0, &p1);
+    for (int bk = a0 < (int)kb0 ? (int)kb0 : a0; bk <= a1; bk++) {
+      const unsigned keep = bk >= p0 && bk <= p1 ? 3u : 1u; /* a z pair needs k + 1 inside */
+      unsigned char *c = w->c0 + plane * (size_t)bk;
+      for (size_t b = 0; b < plane; b++)
+        if (s[b] & keep) c[b] = 0;
     }
+  }
+  free(f);
 }
 
 /* AND of the children of each parent block (factor 4 per axis). */
@@ -144,9 +191,13 @@ int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, 
     if (!c[l]) goto error;
   }
   memset(c[0], 1, nb0);
-  oct_scan_t w = {nx, ny, nz, H, out->bx, out->by, src, nsrc, c[0]};
+  oct_scan_t w = {nx, ny, nz, H, out->bx, out->by, src, nsrc, c[0], 0};
   /* a thread's slab re-reads 2H slices: at least 16 block rows each */
   bk_parallel((size_t)out->bz, 16, scan_rows, &w);
+  if (atomic_load(&w.failed)) {
+    bk_fail(err, BK_ERR_RUNTIME, "octree: cannot allocate a slice of block flags");
+    goto error;
+  }
   /* a parent is constant when all its children are: neighbouring constant
    * blocks overlap in their halos, so they share one value */
   for (int l = 1; l < OCT_LEVELS; l++) coarsen(c[l - 1], dims[l - 1], c[l], dims[l]);

@@ -25,7 +25,9 @@
  * build compares every voxel with its three forward neighbours (a box holds
  * one value when no adjacent pair in it differs) and clears the blocks whose
  * halo-grown box holds a differing pair: one parallel pass over the field
- * (bk_parallel, slabs of block rows), no memory beyond the flags. */
+ * (bk_parallel, slabs of block rows), the pairs reduced per row, slice and
+ * block row; memory beyond the flags: one row and one slice of blocks per
+ * thread. */
 #ifndef BAKER_OCTREE_H
 #define BAKER_OCTREE_H
 
