@@ -36,9 +36,8 @@ typedef struct bake_job {
   pm_stats_t stats;
   ad_stats_t astats;
   bt_result_t error;
-  float *extinction, *density, *ext_grey, *sca_grey, *ior_rgb;
-  float *radiance, *photon_count, *photon_weight, *filter_radius, *emission;
-  float *phase_g; /* with error.flux: g where σs > 0 */
+  float *radiance, *photon_count, *photon_weight, *filter_radius;
+  og_source_t derived; /* what the grids made at the write read (out_grids.h) */
   shard_state_t shard;  /* --shard: the raw sums written instead of radiance */
 } bake_job_t;
 
@@ -93,54 +92,6 @@ void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_
     snprintf(out + at, len - at, " shard=%d/%d", opt->shard_index, opt->shard_count);
 }
 
-/* The derived grids' voxels [lo, hi), spread over the cores (bk_parallel):
- * at 256^3 they are hundreds of MiB written for the first time. */
-typedef struct derive_job {
-  const volume_t *v;
-  float *extinction, *density, *grey;
-  const float *rgb;
-} derive_job_t;
-
-/* sigma_t = sigma_s + sigma_a per channel, the grey density (mean of the
- * channels). */
-static void medium_range(void *ctx, size_t lo, size_t hi) {
-  const derive_job_t *d = ctx;
-  for (size_t i = lo; i < hi; i++) {
-    float sum = 0.0f;
-    for (int c = 0; c < 3; c++) {
-      float t = d->v->sigma_s[3 * i + c] + d->v->sigma_a[3 * i + c];
-      d->extinction[3 * i + c] = t;
-      sum += t;
-    }
-    d->density[i] = sum / 3.0f;
-  }
-}
-
-static int derive_medium_grids(const volume_t *v, float **extinction, float **density,
-                               bk_error_t *err) {
-  size_t n = grid_count(&v->dims);
-  *extinction = bk_calloc(n * 3, sizeof(float), "extinction grid", err);
-  *density = bk_calloc(n, sizeof(float), "density grid", err);
-  if (!*extinction || !*density) return err->code;
-  derive_job_t d = {.v = v, .extinction = *extinction, .density = *density};
-  bk_parallel(n, BK_GRAIN, medium_range, &d);
-  return BK_OK;
-}
-
-static void first_channel_range(void *ctx, size_t lo, size_t hi) {
-  const derive_job_t *d = ctx;
-  for (size_t i = lo; i < hi; i++) d->grey[i] = d->rgb[3 * i];
-}
-
-/* For grey media the Vec3 grids collapse to floats (DESIGN §5 allows it, and
- * renderers read a float `extinction` more widely). */
-static float *first_channel(const float *rgb, size_t n, bk_error_t *err) {
-  float *out = bk_calloc(n, sizeof(float), "grey grid", err);
-  derive_job_t d = {.grey = out, .rgb = rgb};
-  if (out) bk_parallel(n, BK_GRAIN, first_channel_range, &d);
-  return out;
-}
-
 /* Stage 1: the scene (with the command's overrides, the frame's keyframed
  * values and paths) and its voxels, kept from the frame before when they
  * were made from the same inputs. */
@@ -193,7 +144,11 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
   if (opt->shard_count && j->scene.light_count == 0)
     return bk_fail(err, BK_ERR_INPUT, "%s: --shard: the scene has no lights, so no photons to "
                    "split; bake it whole", j->scene.path);
-  if (!opt->shard_count && !(j->radiance = bk_calloc(n * 3, sizeof(float), "radiance grid", err)))
+  /* the reference march allocates it itself, after its fields are freed */
+  const int march_allocates = !opt->shard_count && j->scene.light_count > 0 &&
+                              j->scene.mode != MODE_ADAPTIVE;
+  if (!opt->shard_count && !march_allocates &&
+      !(j->radiance = bk_calloc(n * 3, sizeof(float), "radiance grid", err)))
     return err->code;
   if (j->scene.light_count == 0) return BK_OK;
   if (!opt->host_only) {
@@ -208,31 +163,15 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
   bt_options_t bo = {0};
   bo.error_grid = opt->error_grid;
   bo.fields = j->reuse->keep_fields ? &j->reuse->fields : NULL;
+  bo.radiance_out = &j->radiance;
   return bt_bake(opt->host_only ? NULL : j->cl, &j->scene, j->vol, &bo, j->radiance, &j->error,
                  &j->stats, &j->timings, err);
 }
 
-/* The source term of L = ∫ T σs L̄ dt per channel, σs ⊙ L̄ (W·m⁻³·sr⁻¹): a
- * renderer that takes the volume as emissive and absorbing (Blender, Houdini)
- * reads it as emission with `extinction` as absorption and no scattering. */
-typedef struct emission_job {
-  const float *scattering, *radiance;
-  int sca_channels;
-  float *emission;
-} emission_job_t;
-
-static void emission_range(void *ctx, size_t lo, size_t hi) {
-  const emission_job_t *d = ctx;
-  for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < 3; c++)
-      d->emission[3 * i + c] =
-          d->scattering[d->sca_channels == 3 ? 3 * i + c : i] * d->radiance[3 * i + c];
-}
-
-void bake_emission(const float *scattering, int sca_channels, const float *radiance, size_t voxels,
-                   float *emission) {
-  emission_job_t d = {scattering, radiance, sca_channels, emission};
-  bk_parallel(voxels, BK_GRAIN, emission_range, &d);
+/* A grid of the list, dense or made at the write. */
+static vdbio_grid_t made_grid(const char *name, vdbio_type_t type, og_values_t v, int inv,
+                              float background) {
+  return (vdbio_grid_t){name, type, v.data, inv, background, v.fill, v.ctx};
 }
 
 /* Each background is the value outside the grid: the medium's n for `ior`,
@@ -241,91 +180,65 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   int g = 0;
   const vdbio_type_t medium = a->sca_channels == 3 ? VDBIO_VEC3 : VDBIO_FLOAT;
   const int inv = a->sca_channels == 3;
-  grids[g++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, a->ior, 0, a->medium_ior};
-  grids[g++] = (vdbio_grid_t){"extinction", medium, a->extinction, inv, 0.0f};
-  grids[g++] = (vdbio_grid_t){"scattering", medium, a->scattering, inv, 0.0f};
-  grids[g++] = (vdbio_grid_t){"density", VDBIO_FLOAT, a->density, 0, 0.0f};
-  if (a->ior_rgb) grids[g++] = (vdbio_grid_t){"ior_rgb", VDBIO_VEC3, a->ior_rgb, 0, a->medium_ior};
-  if (a->radiance) grids[g++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, a->radiance, 1, 0.0f};
-  if (a->emission) grids[g++] = (vdbio_grid_t){"emission", VDBIO_VEC3, a->emission, 1, 0.0f};
+  grids[g++] = made_grid("ior", VDBIO_FLOAT, og_dense(a->ior), 0, a->medium_ior);
+  grids[g++] = made_grid("extinction", medium, a->extinction, inv, 0.0f);
+  grids[g++] = made_grid("scattering", medium, a->scattering, inv, 0.0f);
+  grids[g++] = made_grid("density", VDBIO_FLOAT, a->density, 0, 0.0f);
+  if (og_present(a->ior_rgb))
+    grids[g++] = made_grid("ior_rgb", VDBIO_VEC3, a->ior_rgb, 0, a->medium_ior);
+  if (a->radiance) grids[g++] = made_grid("radiance", VDBIO_VEC3, og_dense(a->radiance), 1, 0.0f);
+  if (og_present(a->emission))
+    grids[g++] = made_grid("emission", VDBIO_VEC3, a->emission, 1, 0.0f);
   if (a->radiance_flux)
-    grids[g++] = (vdbio_grid_t){"radiance_flux", VDBIO_VEC3, a->radiance_flux, 0, 0.0f};
+    grids[g++] = made_grid("radiance_flux", VDBIO_VEC3, og_dense(a->radiance_flux), 0, 0.0f);
   if (a->radiance_uncollided)
     grids[g++] =
-        (vdbio_grid_t){"radiance_uncollided", VDBIO_FLOAT, a->radiance_uncollided, 0, 0.0f};
+        made_grid("radiance_uncollided", VDBIO_FLOAT, og_dense(a->radiance_uncollided), 0, 0.0f);
   if (a->radiance_flux_uncollided)
-    grids[g++] = (vdbio_grid_t){"radiance_flux_uncollided", VDBIO_VEC3,
-                                a->radiance_flux_uncollided, 0, 0.0f};
-  if (a->phase_g) grids[g++] = (vdbio_grid_t){"phase_g", VDBIO_FLOAT, a->phase_g, 0, 0.0f};
+    grids[g++] = made_grid("radiance_flux_uncollided", VDBIO_VEC3,
+                           og_dense(a->radiance_flux_uncollided), 0, 0.0f);
+  if (og_present(a->phase_g)) grids[g++] = made_grid("phase_g", VDBIO_FLOAT, a->phase_g, 0, 0.0f);
   if (a->photon_count)
-    grids[g++] = (vdbio_grid_t){"photon_count", VDBIO_FLOAT, a->photon_count, 0, 0.0f};
+    grids[g++] = made_grid("photon_count", VDBIO_FLOAT, og_dense(a->photon_count), 0, 0.0f);
   if (a->photon_weight)
-    grids[g++] = (vdbio_grid_t){"photon_weight", VDBIO_FLOAT, a->photon_weight, 0, 0.0f};
+    grids[g++] = made_grid("photon_weight", VDBIO_FLOAT, og_dense(a->photon_weight), 0, 0.0f);
   if (a->filter_radius)
-    grids[g++] = (vdbio_grid_t){"filter_radius", VDBIO_FLOAT, a->filter_radius, 0, 0.0f};
+    grids[g++] = made_grid("filter_radius", VDBIO_FLOAT, og_dense(a->filter_radius), 0, 0.0f);
   return g;
-}
-
-/* Dispersion: the `ior_rgb` grid, n per channel interleaved (R, G, B). */
-static float *ior_interleaved(const volume_t *vol, size_t n, bk_error_t *err) {
-  float *rgb = bk_calloc(n, 3 * sizeof(float), "ior_rgb grid", err);
-  if (!rgb) return NULL;
-  for (size_t i = 0; i < n; i++) {
-    rgb[3 * i] = vol->ior_rb[i];
-    rgb[3 * i + 1] = vol->ior[i];
-    rgb[3 * i + 2] = vol->ior_rb[n + i];
-  }
-  return rgb;
 }
 
 /* Stage 3: the grids of DESIGN.md §5 in file order (bake_grid_list), for a
- * shard the medium grids and the raw sums (shard.h); *count of them. For
- * grey media the Vec3 grids collapse to floats (DESIGN §5 allows it, and
- * renderers read a float `extinction` more widely). */
-/* The Henyey–Greenstein g the view needs with radiance_flux: the object's
- * or the medium's, where anything scatters (0, the background, elsewhere). */
-static float *bake_phase_g(const volume_t *vol, float medium_g, bk_error_t *err) {
-  size_t n = grid_count(&vol->dims);
-  float *g = bk_calloc(n, sizeof(float), "phase_g grid", err);
-  if (!g) return NULL;
-  for (size_t i = 0; i < n; i++) {
-    const float *s = vol->sigma_s + 3 * i;
-    if (s[0] > 0.0f || s[1] > 0.0f || s[2] > 0.0f) g[i] = vol->g ? vol->g[i] : medium_g;
-  }
-  return g;
-}
-
+ * shard the medium grids and the raw sums (shard.h); *count of them. The
+ * derived ones (extinction, density, emission, ...) are made by the writer
+ * a few slices at a time (out_grids.h), never whole. For grey media the Vec3
+ * grids collapse to floats (DESIGN §5 allows it, and renderers read a float
+ * `extinction` more widely). */
 static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], int *count,
                              bk_error_t *err) {
   const volume_t *vol = j->vol;
   size_t n = grid_count(&vol->dims);
-  int rc = derive_medium_grids(vol, &j->extinction, &j->density, err);
-  if (rc) return rc;
-  if (j->radiance) {
-    j->emission = bk_calloc(n * 3, sizeof(float), "emission grid", err);
-    if (!j->emission) return err->code;
-    bake_emission(vol->sigma_s, 3, j->radiance, n, j->emission);
-  }
-  bake_arrays_t a = {vol->ior, j->extinction, vol->sigma_s, j->density, j->radiance, j->emission,
+  og_source_t *src = &j->derived;
+  *src = (og_source_t){vol->sigma_s, vol->sigma_a, vol->sigma_s, 3, j->radiance, vol->ior,
+                       vol->ior_rb, n, vol->g, j->scene.medium_g};
+  bake_arrays_t a = {vol->ior, j->radiance, og_made(og_extinction, src),
+                     og_dense(vol->sigma_s), og_made(og_density, src), og_dense(NULL),
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
-                     j->scene.medium_ior, NULL, j->error.flux, j->error.uncollided, NULL, NULL};
+                     j->scene.medium_ior, og_dense(NULL), j->error.flux, j->error.uncollided,
+                     og_dense(NULL), NULL};
+  if (j->radiance) a.emission = og_made(og_emission, src);
   if (j->error.uncollided) a.radiance_flux_uncollided = j->error.uncollided + n; /* after Y0 */
-  if (vol->ior_rb && !(a.ior_rgb = j->ior_rgb = ior_interleaved(vol, n, err))) return err->code;
-  if (j->error.flux || j->shard.sums.flux) { /* a shard's flux is in its sums */
-    if (!(j->phase_g = bake_phase_g(vol, j->scene.medium_g, err))) return err->code;
-    a.phase_g = j->phase_g;
-  }
+  if (vol->ior_rb) a.ior_rgb = og_made(og_ior_rgb, src);
+  if (j->error.flux || j->shard.sums.flux) /* a shard's flux is in its sums */
+    a.phase_g = og_made(og_phase_g, src);
   if (vol->grey) {
-    j->ext_grey = first_channel(j->extinction, n, err);
-    j->sca_grey = first_channel(vol->sigma_s, n, err);
-    if (!j->ext_grey || !j->sca_grey) return err->code;
-    a.extinction = j->ext_grey;
-    a.scattering = j->sca_grey;
+    a.extinction = og_made(og_extinction_grey, src);
+    a.scattering = og_made(og_scattering_grey, src);
     a.sca_channels = 1;
   }
   *count = bake_grid_list(&a, grids);
   if (j->error.error_grid)
-    grids[(*count)++] = (vdbio_grid_t){"radiance_error", VDBIO_FLOAT, j->error.error_grid, 0, 0.0f};
+    grids[(*count)++] =
+        made_grid("radiance_error", VDBIO_FLOAT, og_dense(j->error.error_grid), 0, 0.0f);
   if (j->shard.sums.acc)
     return shard_grids(&j->shard, &vol->dims, grids, count, BAKE_MAX_GRIDS, err);
   return BK_OK;
@@ -441,21 +354,14 @@ static int bake_stats(const bake_job_t *j, const bake_options_t *opt, const char
 }
 
 static void bake_job_free(bake_job_t *j) {
-  free(j->extinction);
-  free(j->density);
-  free(j->ext_grey);
-  free(j->ior_rgb);
-  free(j->sca_grey);
   free(j->radiance);
   free(j->photon_count);
   free(j->photon_weight);
   free(j->filter_radius);
-  free(j->emission);
   shard_free(&j->shard);
   free(j->error.error_grid);
   free(j->error.flux);
   free(j->error.uncollided);
-  free(j->phase_g);
   if (j->scene_loaded) scene_free(&j->scene);
 }
 

@@ -13,6 +13,7 @@
 #define BAKER_BAKE_H
 
 #include "scene.h"
+#include "out_grids.h"
 #include "vdbio.h"
 
 typedef struct bake_options {
@@ -68,28 +69,28 @@ int bake_load_scene(const bake_options_t *opt, const char *scene_path, int frame
  * compression=C half=H filter=F": recorded in each file's `bake_settings`
  * metadata and compared before a frame is skipped. */
 void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_t len);
-/* The output arrays of one frame (DESIGN.md §5), dense, x fastest; NULL:
- * the grid is not written. scattering has sca_channels floats per voxel
- * (1 when the medium is grey), extinction too; radiance and emission 3. */
+/* The output arrays of one frame (DESIGN.md §5), dense, x fastest, or made
+ * at the write (out_grids.h); NULL or none: the grid is not written.
+ * scattering has sca_channels floats per voxel (1 when the medium is grey),
+ * extinction too; radiance and emission 3. */
 typedef struct bake_arrays {
-  const float *ior, *extinction, *scattering, *density, *radiance, *emission;
+  const float *ior, *radiance;
+  og_values_t extinction, scattering, density, emission; /* made at the write, or dense */
   const float *photon_count, *photon_weight, *filter_radius;
   int sca_channels;
   float medium_ior;  /* the ior grid's background: n outside the box */
-  const float *ior_rgb; /* dispersion: n per channel (R, G, B), 3 per voxel; else NULL */
+  og_values_t ior_rgb; /* dispersion: n per channel (R, G, B), 3 per voxel; else none */
   /* some g != 0: F = ∫ L_Y ω dω / (4π) (3 per voxel) and the uncollided
    * Y(L̄) (1, baker/march.h pm_to_flux), the Henyey–Greenstein g where
    * σs > 0 (1 per voxel); the uncollided light's own F (3 per voxel) */
-  const float *radiance_flux, *radiance_uncollided, *phase_g;
+  const float *radiance_flux, *radiance_uncollided;
+  og_values_t phase_g;
   const float *radiance_flux_uncollided;
 } bake_arrays_t;
 #define BAKE_MAX_GRIDS 15
 /* The grids of a frame in file order, as `baker bake` and `baker merge`
  * write them; returns their count. */
 int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]);
-/* emission = σs ⊙ radiance (3 floats per voxel; scattering sca_channels). */
-void bake_emission(const float *scattering, int sca_channels, const float *radiance, size_t voxels,
-                   float *emission);
 
 /* Bakes one frame; `frame` is recorded in the metadata and picks the
  * scene's keyframed values. reuse (frame_reuse.h; NULL: nothing kept) holds

@@ -458,6 +458,14 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
     pm_sums_keep(&s, acc, o->sums);
     acc = NULL;
   } else {
+    if (o->radiance_out) { /* the fields are done with: their memory goes to radiance */
+      pm_setup_free_fields(&s);
+      radiance = *o->radiance_out = bk_calloc(s.voxels, 3 * sizeof(float), "radiance grid", err);
+      if (!radiance) {
+        rc = err->code;
+        goto done;
+      }
+    }
     pm_to_radiance(&s, acc, radiance);
     if ((rc = make_flux(&s, acc, res, err))) goto done;
   }

@@ -76,6 +76,10 @@ typedef struct bt_options {
    * NULL: none. */
   int (*retable)(void *ctx, int done, const ee_tracker_t *t, bk_error_t *err);
   void *retable_ctx;
+  /* Not NULL: bt_bake allocates the radiance grid here (its radiance
+   * argument unused) after the march, once the march's fields are freed, so
+   * the two never take memory together (docs/memory.md). */
+  float **radiance_out;
 } bt_options_t;
 
 typedef struct bt_result {

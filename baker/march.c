@@ -220,16 +220,20 @@ error:
   return rc;
 }
 
-void pm_setup_free(pm_setup_t *s) {
-  if (!s) return;
+void pm_setup_free_fields(pm_setup_t *s) {
   if (!s->fields_kept) { /* kept fields belong to their pm_field_cache_t */
     free(s->ng);
     free(s->sigma);
     oct_free(&s->pyramid);
   }
-  ms_free(&s->ms);
   s->ng = NULL;
   s->sigma = NULL;
+}
+
+void pm_setup_free(pm_setup_t *s) {
+  if (!s) return;
+  pm_setup_free_fields(s);
+  ms_free(&s->ms);
 }
 
 void pm_disable_octree(pm_setup_t *s) {

@@ -143,6 +143,9 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
 int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t *kept,
                     pm_setup_t *s, bk_timings_t *timings, pm_stats_t *stats, bk_error_t *err);
 void pm_setup_free(pm_setup_t *s);
+/* Frees only the fields ({grad n, n}, sigma_t, the pyramid) unless they are
+ * kept for the next frame: after the march, before the output grids. */
+void pm_setup_free_fields(pm_setup_t *s);
 /* Treat every block as varying (after pm_prepare): the march then steps
  * everywhere, as the paper's reference pipeline without its octree. It
  * writes the pyramid: not for a setup whose fields are kept. */

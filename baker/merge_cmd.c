@@ -202,16 +202,16 @@ typedef struct merge_out {
   grid_dims_t dims;
   int sca_channels;
   float medium_ior;
-  float *ior, *extinction, *scattering, *density, *radiance, *emission, *count, *weight, *radius;
+  float *ior, *extinction, *scattering, *density, *radiance, *count, *weight, *radius;
   float *ior_rgb; /* dispersion: the shards' n per channel */
   float *flux, *uncollided, *phase_g; /* the shards kept the flux (some g != 0) */
   ad_stats_t astats;
 } merge_out_t;
 
 static void merge_out_free(merge_out_t *o) {
-  float *all[] = {o->ior,    o->extinction, o->scattering, o->density, o->radiance,
-                  o->emission, o->count,    o->weight,     o->radius,  o->ior_rgb,
-                  o->flux,   o->uncollided, o->phase_g};
+  float *all[] = {o->ior,   o->extinction, o->scattering, o->density, o->radiance,
+                  o->count, o->weight,     o->radius,     o->ior_rgb, o->flux,
+                  o->uncollided, o->phase_g};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) free(all[i]);
 }
 
@@ -373,13 +373,14 @@ static int merge_run(merge_shard_t *sh, int n, const char *out_path, bk_error_t 
   if (!rc) rc = add_sums(sh, n, &o.dims, &sums, err);
   if (!rc) rc = read_medium(&sh[0], &o, err);
   if (!rc) rc = finish(&sh[0], &sums, &o, err);
-  if (!rc && !(o.emission = bk_calloc(sums.voxels, 3 * sizeof(float), "emission grid", err)))
-    rc = err->code;
   if (!rc) {
-    bake_emission(o.scattering, o.sca_channels, o.radiance, sums.voxels, o.emission);
-    bake_arrays_t a = {o.ior, o.extinction, o.scattering, o.density, o.radiance, o.emission,
-                       o.count, o.weight, o.radius, o.sca_channels, o.medium_ior, o.ior_rgb,
-                       o.flux, o.uncollided, o.phase_g,
+    /* emission = scattering ⊙ radiance, made as the writer builds its tree */
+    og_source_t src = {.scattering = o.scattering, .sca_channels = o.sca_channels,
+                       .radiance = o.radiance, .voxels = sums.voxels};
+    bake_arrays_t a = {o.ior, o.radiance, og_dense(o.extinction), og_dense(o.scattering),
+                       og_dense(o.density), og_made(og_emission, &src),
+                       o.count, o.weight, o.radius, o.sca_channels, o.medium_ior,
+                       og_dense(o.ior_rgb), o.flux, o.uncollided, og_dense(o.phase_g),
                        o.uncollided ? o.uncollided + sums.voxels : NULL}; /* after Y0 */
     int count = bake_grid_list(&a, grids);
     int mc = merged_meta(sh, n, &o, &text, meta);

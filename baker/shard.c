@@ -118,7 +118,7 @@ int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids,
     else shard_encode(k->acc + n * (size_t)k->stride, n, PM_FLUX_SLOTS, f, sh->encoded[s]);
     snprintf(sh->names[s], sizeof sh->names[s], f < 0 ? "shard_sum_%d" : "shard_flux_%d",
              f < 0 ? s : f);
-    grids[(*count)++] = (vdbio_grid_t){sh->names[s], VDBIO_VEC3, sh->encoded[s], 0, 0.0f};
+    grids[(*count)++] = (vdbio_grid_t){sh->names[s], VDBIO_VEC3, sh->encoded[s], 0, 0.0f, NULL, NULL};
   }
   return BK_OK;
 }

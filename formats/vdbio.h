@@ -31,12 +31,21 @@ extern "C" {
 
 typedef enum { VDBIO_FLOAT = 1, VDBIO_VEC3 = 3 } vdbio_type_t;
 
+/* A grid made on the fly instead of read from a dense array: writes voxels
+ * [lo, hi) (x fastest) as (hi - lo) * type floats to out. The writer asks for
+ * a few z slices at a time, from several threads at once, and for each voxel
+ * twice (checksum, then tree), so a derived grid (extinction = σs + σa) never
+ * exists whole. */
+typedef void (*vdbio_fill_fn)(const void *ctx, size_t lo, size_t hi, float *out);
+
 typedef struct vdbio_grid {
   const char *name;
   vdbio_type_t type;
-  const float *data;      /* grid_count(dims) * type floats */
+  const float *data;      /* grid_count(dims) * type floats, or NULL with fill */
   int vector_invariant;   /* Vec3 only: VEC_INVARIANT (radiance, colours) */
   float background;       /* the value outside the grid (every channel); 0 for most */
+  vdbio_fill_fn fill;     /* when data is NULL */
+  const void *fill_ctx;
 } vdbio_grid_t;
 
 typedef enum { VDBIO_META_STRING, VDBIO_META_INT, VDBIO_META_FLOAT } vdbio_meta_kind_t;
@@ -54,7 +63,9 @@ typedef struct vdbio_write_opts {
   int half_float;                  /* save floats as 16-bit */
 } vdbio_write_opts_t;
 
-/* Besides the caller's metadata the file gets "creator", "voxel_centering"
+/* The grids' OpenVDB trees are built and written one at a time, each freed
+ * before the next is built, so the write holds one tree beside the arrays.
+ * Besides the caller's metadata the file gets "creator", "voxel_centering"
  * and "grid_bounds_min"/"grid_bounds_max" (Vec3d: the world box the voxels
  * cover), unless the caller gave its own. */
 int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *grids,

@@ -62,16 +62,21 @@ static std::string ck_hex(uint64_t h) {
 
 void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int count,
                          bool half, vdb::MetaMap &file_meta) {
-  const size_t n = grid_count(dims);
   char box[96];
   std::snprintf(box, sizeof box, "%d %d %d", dims->nx, dims->ny, dims->nz);
   file_meta.insertMeta("checksum_box", vdb::StringMetadata(box));
-  /* one serial hash per grid (the rule is sequential), the grids side by side */
+  /* one serial hash per grid (the rule is sequential), the grids side by
+   * side, a z slice at a time (a grid made by its fill is one slice here) */
   std::vector<uint64_t> h((size_t)count);
+  const size_t plane = (size_t)dims->nx * (size_t)dims->ny;
   tbb::parallel_for(0, count, [&](int g) {
     const int ch = grids[g].type == VDBIO_VEC3 ? 3 : 1;
     const float bg[3] = {grids[g].background, grids[g].background, grids[g].background};
-    h[(size_t)g] = ck_mix_background(ck_hash(grids[g].data, n, ch, half, CK_OFFSET), bg, ch);
+    std::vector<float> buf;
+    uint64_t hg = CK_OFFSET;
+    for (int z = 0; z < dims->nz; z++)
+      hg = ck_hash(vdbio_slices(dims, grids[g], z, 1, buf), plane, ch, half, hg);
+    h[(size_t)g] = ck_mix_background(hg, bg, ch);
   });
   for (int g = 0; g < count; g++)
     file_meta.insertMeta(std::string("checksum_") + grids[g].name,

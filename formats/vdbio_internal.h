@@ -44,6 +44,12 @@ int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
                     openvdb::GridBase::Ptr &grid, int *found, bk_error_t *err,
                     openvdb::MetaMap::Ptr *meta = nullptr);
 
+/* Voxels of z slices [z0, z0 + nz) of a grid to write (x fastest, type
+ * floats each): the dense array's own, or made by its fill into buf (in
+ * parallel). */
+const float *vdbio_slices(const grid_dims_t *dims, const vdbio_grid_t &grid, int z0, int nz,
+                          std::vector<float> &buf);
+
 /* Adds checksum_<grid> for every grid, and checksum_box, to the file
  * metadata (vdbio_checksum.cpp; the rule is in vdbio.h). `half`: the values
  * are stored as 16-bit floats, so the checksum covers the rounded values. */

@@ -7,11 +7,11 @@
 #include "fdstream.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/io/GridDescriptor.h>
 #include <openvdb/tools/ChangeBackground.h>
 #include <openvdb/tools/Prune.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <cmath>
@@ -69,17 +69,18 @@ template <typename LeafT> struct vdbio_block_out {
   typename LeafT::ValueType tile;
 };
 
+/* `slab`: the voxels of z slices z0.. (vdbio_slices), the block's among them. */
 template <typename LeafT>
-static void vdbio_build_block(const grid_dims_t *d, const float *data, const vdb::Coord &lo,
-                              vdbio_block_out<LeafT> &out) {
+static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
+                              const vdb::Coord &lo, vdbio_block_out<LeafT> &out) {
   using ValueT = typename LeafT::ValueType;
   using B = vdbio_block<ValueT>;
   const int C = B::C, D = (int)LeafT::DIM;
   const int ex = std::min(D, d->nx - lo[0]), ey = std::min(D, d->ny - lo[1]),
             ez = std::min(D, d->nz - lo[2]);
   auto row = [&](int y, int z) {
-    return data + (size_t)C * ((size_t)lo[0] + (size_t)d->nx * ((size_t)(lo[1] + y) +
-                                                                (size_t)d->ny * (lo[2] + z)));
+    return slab + (size_t)C * ((size_t)lo[0] + (size_t)d->nx * ((size_t)(lo[1] + y) +
+                                                                (size_t)d->ny * (lo[2] - z0 + z)));
   };
   const float *first = row(0, 0);
   const bool first_bg = B::is_background(first);
@@ -115,31 +116,54 @@ static void vdbio_build_block(const grid_dims_t *d, const float *data, const vdb
   out.leaf = leaf;
 }
 
+const float *vdbio_slices(const grid_dims_t *d, const vdbio_grid_t &g, int z0, int nz,
+                          std::vector<float> &buf) {
+  const size_t C = g.type == VDBIO_VEC3 ? 3 : 1, plane = (size_t)d->nx * (size_t)d->ny;
+  const size_t lo = plane * (size_t)z0, hi = plane * (size_t)(z0 + nz);
+  if (g.data) return g.data + C * lo;
+  buf.resize(C * (hi - lo));
+  tbb::parallel_for(tbb::blocked_range<size_t>(lo, hi, 16384),
+                    [&](const tbb::blocked_range<size_t> &r) {
+                      g.fill(g.fill_ctx, r.begin(), r.end(), buf.data() + C * (r.begin() - lo));
+                    });
+  return buf.data();
+}
+
+/* A slab of 8^3 blocks at a time (its voxels made there for a grid made on
+ * the fly), inserted in copyFromDense's order: x, then y, then z. */
 template <typename GridT>
-static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const float *data, float bg) {
+static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_grid_t &g) {
   using ValueT = typename GridT::ValueType;
   using TreeT = typename GridT::TreeType;
   using LeafT = typename TreeT::LeafNodeType;
   static_assert(sizeof(ValueT) % sizeof(float) == 0, "float or Vec3s");
   const int D = (int)LeafT::DIM;
   const int lx = (d->nx + D - 1) / D, ly = (d->ny + D - 1) / D, lz = (d->nz + D - 1) / D;
-  const size_t blocks = (size_t)lx * (size_t)ly * (size_t)lz;
+  const size_t blocks = (size_t)lx * (size_t)ly;
   std::vector<vdbio_block_out<LeafT>> out(blocks);
-  auto origin = [&](size_t b) {
-    return vdb::Coord(D * (int)(b % lx), D * (int)((b / lx) % ly), D * (int)(b / ((size_t)lx * ly)));
-  };
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks), [&](const tbb::blocked_range<size_t> &r) {
-    for (size_t b = r.begin(); b != r.end(); b++) vdbio_build_block(d, data, origin(b), out[b]);
-  });
+  std::vector<float> buf;
   typename GridT::Ptr grid = GridT::create(vdb::zeroVal<ValueT>());
   vdb::tree::ValueAccessor<TreeT> acc(grid->tree());
-  for (size_t b = 0; b < blocks; b++) {
-    if (out[b].leaf)
-      acc.addLeaf(out[b].leaf);
-    else if (out[b].tile_on)
-      acc.addTile(1, origin(b), out[b].tile, true);
+  for (int bz = 0; bz < lz; bz++) {
+    const int z0 = D * bz;
+    const float *slab = vdbio_slices(d, g, z0, std::min(D, d->nz - z0), buf);
+    auto origin = [&](size_t b) { return vdb::Coord(D * (int)(b % lx), D * (int)(b / lx), z0); };
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks),
+                      [&](const tbb::blocked_range<size_t> &r) {
+                        for (size_t b = r.begin(); b != r.end(); b++) {
+                          out[b] = vdbio_block_out<LeafT>();
+                          vdbio_build_block(d, slab, z0, origin(b), out[b]);
+                        }
+                      });
+    for (size_t b = 0; b < blocks; b++) {
+      if (out[b].leaf)
+        acc.addLeaf(out[b].leaf);
+      else if (out[b].tile_on)
+        acc.addTile(1, origin(b), out[b].tile, true);
+    }
   }
   vdb::tools::pruneTiles(grid->tree(), vdb::zeroVal<ValueT>());
+  const float bg = g.background;
   if (bg != 0.0f)
     vdb::tools::changeBackground(grid->tree(), ValueT(bg));
   return grid;
@@ -159,7 +183,7 @@ static int vdbio_check_write_args(const char *path, const grid_dims_t *dims,
     return bk_fail(err, BK_ERR_RUNTIME, "%s: invalid grid or metadata list for writing", path);
   std::set<std::string> seen;
   for (int g = 0; g < grid_count; g++) {
-    if (!grids[g].name || !grids[g].name[0] || !grids[g].data ||
+    if (!grids[g].name || !grids[g].name[0] || (!grids[g].data && !grids[g].fill) ||
         (grids[g].type != VDBIO_FLOAT && grids[g].type != VDBIO_VEC3))
       return bk_fail(err, BK_ERR_RUNTIME, "%s: grid %d has no name, no data or an unknown type",
                      path, g);
@@ -174,36 +198,30 @@ static int vdbio_check_write_args(const char *path, const grid_dims_t *dims,
   return BK_OK;
 }
 
-/* The dense arrays as sparse grids sharing the cell-centred transform. Only
- * scalar grids are fog volumes: NanoVDB (and so nanovdb_validate, pbrt-v4,
+/* One grid as a sparse grid with the cell-centred transform. Only scalar
+ * grids are fog volumes: NanoVDB (and so nanovdb_validate, pbrt-v4,
  * Blender's NanoVDB path) rejects the fog class on vectors, which get no
  * class and vector_type invariant. Throws what OpenVDB throws (the caller
  * catches). */
-static vdb::GridPtrVec vdbio_make_grids(const grid_dims_t *dims, const vdbio_grid_t *grids,
-                                        int grid_count, bool half) {
-  vdb::math::Transform::Ptr xf = vdbio_cell_centred_transform(dims);
-  vdb::GridPtrVec out;
-  for (int g = 0; g < grid_count; g++) {
-    vdb::GridBase::Ptr base;
-    if (grids[g].type == VDBIO_FLOAT) {
-      base = vdbio_from_dense<vdb::FloatGrid>(dims, grids[g].data, grids[g].background);
-      base->setGridClass(vdb::GRID_FOG_VOLUME);
-    } else {
-      vdb::Vec3SGrid::Ptr v =
-          vdbio_from_dense<vdb::Vec3SGrid>(dims, grids[g].data, grids[g].background);
-      /* unset means the OpenVDB default, which is also invariant; set it
-       * explicitly so readers (Houdini) see the metadata */
-      if (grids[g].vector_invariant)
-        v->setVectorType(vdb::VEC_INVARIANT);
-      v->setGridClass(vdb::GRID_UNKNOWN);
-      base = v;
-    }
-    base->setName(grids[g].name);
-    base->setTransform(xf->copy());
-    base->setSaveFloatAsHalf(half);
-    out.push_back(base);
+static vdb::GridBase::Ptr vdbio_make_grid(const grid_dims_t *dims, const vdbio_grid_t &g,
+                                          bool half) {
+  vdb::GridBase::Ptr base;
+  if (g.type == VDBIO_FLOAT) {
+    base = vdbio_from_dense<vdb::FloatGrid>(dims, g);
+    base->setGridClass(vdb::GRID_FOG_VOLUME);
+  } else {
+    vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, g);
+    /* unset means the OpenVDB default, which is also invariant; set it
+     * explicitly so readers (Houdini) see the metadata */
+    if (g.vector_invariant)
+      v->setVectorType(vdb::VEC_INVARIANT);
+    v->setGridClass(vdb::GRID_UNKNOWN);
+    base = v;
   }
-  return out;
+  base->setName(g.name);
+  base->setTransform(vdbio_cell_centred_transform(dims));
+  base->setSaveFloatAsHalf(half);
+  return base;
 }
 
 /* The file's metadata: the caller's entries, then a creator, the voxel
@@ -246,13 +264,44 @@ static int vdbio_file_meta(const char *path, const grid_dims_t *d, const vdbio_m
 class vdbio_checked_archive : public vdb::io::Archive {
 public:
   /* 0, or the errno of the first failed write or close. */
-  int write_file(const char *tmp, const vdb::GridPtrVec &grids, const vdb::MetaMap &meta) const {
+  int write_file(const char *tmp, const grid_dims_t *dims, const vdbio_grid_t *grids, int count,
+                 bool half, const vdb::MetaMap &meta) const {
     bk_fd_streambuf sb(tmp);
     std::ostream os(&sb);
-    if (!sb.error()) vdb::io::Archive::write(os, grids, /*seekable=*/true, meta);
+    if (!sb.error()) write_grids(os, dims, grids, count, half, meta);
     os.flush();
     int e = sb.close_file();
     return e ? e : (os.fail() ? EIO : 0);
+  }
+
+private:
+  /* Archive::write (OpenVDB 10, seekable), the same bytes, with each grid's
+   * tree built just before it is written and freed after: one tree at a
+   * time instead of all of them. The names are unique and not empty
+   * (vdbio_check_write_args) and no two grids share a tree, so the
+   * descriptors need neither suffixes nor instancing. */
+  void write_grids(std::ostream &os, const grid_dims_t *dims, const vdbio_grid_t *grids,
+                   int count, bool half, const vdb::MetaMap &meta) const {
+    vdb::io::StreamMetadata::Ptr sm = vdb::io::getStreamMetadataPtr(os);
+    if (!sm) {
+      sm.reset(new vdb::io::StreamMetadata);
+      vdb::io::setStreamMetadataPtr(os, sm, /*transfer=*/false);
+    }
+    vdb::io::setDataCompression(os, compression());
+    vdb::io::setWriteGridStatsMetadata(os, isGridStatsMetadataEnabled());
+    writeHeader(os, /*seekable=*/true);
+    meta.writeMeta(os);
+    const int32_t n = count;
+    os.write(reinterpret_cast<const char *>(&n), sizeof n);
+    for (int g = 0; g < count; g++) {
+      double t = bk_now_ms();
+      vdb::GridBase::Ptr grid = vdbio_make_grid(dims, grids[g], half);
+      vdb::io::GridDescriptor gd(grid->getName(), grid->type(), grid->saveFloatAsHalf());
+      writeGrid(gd, grid, os, /*seekable=*/true);
+      /* per-grid compression options (mask compression) reset, as Archive::write does */
+      vdb::io::setDataCompression(os, compression());
+      bk_log(2, "write: grid %s %.0f ms", grids[g].name, bk_now_ms() - t);
+    }
   }
 };
 
@@ -288,23 +337,19 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
     rc = vdbio_file_meta(path, dims, meta, meta_count, file_meta, err);
     if (rc)
       return rc;
-    /* the sparse grids and the checksums both only read the arrays: at once */
     const bool nano = vdbio_is_nano_path(path), half = opts && opts->half_float;
-    double t_make = bk_now_ms();
-    vdb::GridPtrVec out;
-    tbb::parallel_invoke([&] { out = vdbio_make_grids(dims, grids, grid_count, half); },
-                         [&] {
-                           /* NanoVDB files carry no file metadata, so no checksums */
-                           if (!nano) vdbio_add_checksums(dims, grids, grid_count, half, file_meta);
-                         });
-    bk_log(2, "write: sparse grids and checksums %.0f ms", bk_now_ms() - t_make);
-    if (nano) {
+    if (nano) { /* NanoVDB files carry no file metadata, so no checksums */
+      vdb::GridPtrVec out;
+      for (int g = 0; g < grid_count; g++) out.push_back(vdbio_make_grid(dims, grids[g], half));
       nvdbio_write(tmp, out);
     } else {
+      double t_sum = bk_now_ms();
+      vdbio_add_checksums(dims, grids, grid_count, half, file_meta);
+      bk_log(2, "write: checksums %.0f ms", bk_now_ms() - t_sum);
       double t_file = bk_now_ms();
       vdbio_checked_archive archive;
       archive.setCompression(vdbio_compression(path, opts));
-      if (int e = archive.write_file(tmp, out, file_meta)) {
+      if (int e = archive.write_file(tmp, dims, grids, grid_count, half, file_meta)) {
         remove(tmp);
         return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write %s: %s", path, tmp, strerror(e));
       }

@@ -1,0 +1,61 @@
+/* out_grids.c: the derived grids of out_grids.h, voxel run by voxel run. */
+#include "out_grids.h"
+
+/* sigma_t = sigma_s + sigma_a per channel */
+void og_extinction(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  for (size_t i = lo; i < hi; i++)
+    for (int c = 0; c < 3; c++) *out++ = s->sigma_s[3 * i + c] + s->sigma_a[3 * i + c];
+}
+
+/* For grey media the Vec3 grids collapse to floats (DESIGN §5 allows it, and
+ * renderers read a float `extinction` more widely). */
+void og_extinction_grey(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  for (size_t i = lo; i < hi; i++) *out++ = s->sigma_s[3 * i] + s->sigma_a[3 * i];
+}
+
+void og_scattering_grey(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  for (size_t i = lo; i < hi; i++) *out++ = s->sigma_s[3 * i];
+}
+
+/* The grey density: the mean of the channels' sigma_t, summed in order. */
+void og_density(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  for (size_t i = lo; i < hi; i++) {
+    float sum = 0.0f;
+    for (int c = 0; c < 3; c++) sum += s->sigma_s[3 * i + c] + s->sigma_a[3 * i + c];
+    *out++ = sum / 3.0f;
+  }
+}
+
+/* The source term of L = ∫ T σs L̄ dt per channel, σs ⊙ L̄ (W·m⁻³·sr⁻¹): a
+ * renderer that takes the volume as emissive and absorbing (Blender, Houdini)
+ * reads it as emission with `extinction` as absorption and no scattering. */
+void og_emission(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  for (size_t i = lo; i < hi; i++)
+    for (int c = 0; c < 3; c++)
+      *out++ = s->scattering[s->sca_channels == 3 ? 3 * i + c : i] * s->radiance[3 * i + c];
+}
+
+/* Dispersion: n per channel interleaved (R, G, B). */
+void og_ior_rgb(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  for (size_t i = lo; i < hi; i++) {
+    *out++ = s->ior_rb[i];
+    *out++ = s->ior[i];
+    *out++ = s->ior_rb[s->voxels + i];
+  }
+}
+
+/* The Henyey–Greenstein g the view needs with radiance_flux: the object's
+ * or the medium's, where anything scatters (0, the background, elsewhere). */
+void og_phase_g(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  for (size_t i = lo; i < hi; i++) {
+    const float *a = s->sigma_s + 3 * i;
+    *out++ = a[0] > 0.0f || a[1] > 0.0f || a[2] > 0.0f ? (s->g ? s->g[i] : s->medium_g) : 0.0f;
+  }
+}

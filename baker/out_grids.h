@@ -1,0 +1,51 @@
+/* out_grids.h: the grids a bake writes that follow from others (extinction,
+ * density, the grey copies, emission, ior_rgb, phase_g), made a run of voxels
+ * at a time while the writer builds each OpenVDB tree (vdbio_fill_fn) instead
+ * of as whole arrays: at the write, the peak of a bake, they cost a few z
+ * slices instead of 4-12 bytes per voxel each. Each value is computed exactly
+ * as the dense arrays they replace were, so the files are the same. */
+#ifndef BAKER_OUT_GRIDS_H
+#define BAKER_OUT_GRIDS_H
+
+#include <stddef.h>
+
+#include "vdbio.h"
+
+/* What the fills read; each uses only its own fields. */
+typedef struct og_source {
+  const float *sigma_s, *sigma_a; /* 3 per voxel */
+  const float *scattering;        /* emission: sca_channels per voxel */
+  int sca_channels;
+  const float *radiance;          /* emission: 3 per voxel */
+  const float *ior, *ior_rb;      /* ior_rgb: n; n of R then B (2 * voxels) */
+  size_t voxels;
+  const float *g;                 /* phase_g: g per voxel, or NULL: medium_g */
+  float medium_g;
+} og_source_t;
+
+/* A grid's values: a dense array, or a fill over an og_source_t. */
+typedef struct og_values {
+  const float *data;
+  vdbio_fill_fn fill;
+  const void *ctx;
+} og_values_t;
+
+static inline og_values_t og_dense(const float *data) {
+  og_values_t v = {data, NULL, NULL};
+  return v;
+}
+static inline og_values_t og_made(vdbio_fill_fn fill, const og_source_t *src) {
+  og_values_t v = {NULL, fill, src};
+  return v;
+}
+static inline int og_present(og_values_t v) { return v.data || v.fill; }
+
+void og_extinction(const void *src, size_t lo, size_t hi, float *out);      /* σs + σa, RGB */
+void og_extinction_grey(const void *src, size_t lo, size_t hi, float *out); /* its channel 0 */
+void og_scattering_grey(const void *src, size_t lo, size_t hi, float *out); /* σs channel 0 */
+void og_density(const void *src, size_t lo, size_t hi, float *out);  /* mean of σs + σa */
+void og_emission(const void *src, size_t lo, size_t hi, float *out); /* scattering ⊙ radiance */
+void og_ior_rgb(const void *src, size_t lo, size_t hi, float *out);  /* n per channel */
+void og_phase_g(const void *src, size_t lo, size_t hi, float *out);  /* g where σs > 0 */
+
+#endif
