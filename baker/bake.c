@@ -218,8 +218,9 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   const volume_t *vol = j->vol;
   size_t n = grid_count(&vol->dims);
   og_source_t *src = &j->derived;
-  *src = (og_source_t){vol->sigma_s, vol->sigma_a, vol->sigma_s, 3, j->radiance, vol->ior,
-                       vol->ior_rb, n, vol->g, j->scene.medium_g};
+  const int sca_channels = vol->sigma_channels == 1 ? 1 : 3;
+  *src = (og_source_t){vol->sigma_s, vol->sigma_a, vol->sigma_channels, vol->sigma_s, sca_channels,
+                       j->radiance, vol->ior, vol->ior_rb, n, vol->g, j->scene.medium_g};
   bake_arrays_t a = {vol->ior, j->radiance, og_made(og_extinction, src),
                      og_dense(vol->sigma_s), og_made(og_density, src), og_dense(NULL),
                      j->photon_count, j->photon_weight, j->filter_radius, 3,

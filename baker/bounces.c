@@ -14,8 +14,9 @@ double ms_order_ratio(const volume_t *vol) {
   for (size_t i = 0; i < count; i++) {
     double s = 0.0, t = 0.0;
     for (int c = 0; c < 3; c++) {
-      s += vol->sigma_s[3 * i + c];
-      t += vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c];
+      const size_t at = vox_sigma_index(vol, i, c);
+      s += vol->sigma_s[at];
+      t += vol->sigma_s[at] + vol->sigma_a[at];
     }
     ss += s;
     st += t;
@@ -47,10 +48,14 @@ void ms_decide(const scene_t *scene, const volume_t *vol, ms_setup_t *ms, int *g
   int n = ms->auto_chosen ? ms_auto_bounces(ms->ratio) : scene->bounces;
   /* no scattering anywhere: nothing to bounce */
   ms->params.max_bounces = ms->ratio > 0.0 ? (bk_uint)n : 0u;
-  const float *s0 = vol->sigma_s;
+  const float *sg = vol->sigma_s;
   *grey_scatter = 1;
   for (size_t i = 0; i < count; i++) {
-    const float *s = vol->sigma_s + 3 * i;
+    float s[3], s0[3];
+    for (int c = 0; c < 3; c++) {
+      s[c] = sg[vox_sigma_index(vol, i, c)];
+      s0[c] = sg[vox_sigma_index(vol, 0, c)];
+    }
     if (s[0] != s0[0] || s[1] != s0[1] || s[2] != s0[2]) ms->sigma_grid = 1;
     if (s[0] != s[1] || s[0] != s[2]) *grey_scatter = 0;
   }
@@ -73,14 +78,14 @@ int ms_build(const scene_t *scene, const volume_t *vol, int channels, ms_setup_t
   M->grid = (bk_uint)ms->sigma_grid;
   M->g_grid = (bk_uint)ms->g_grid;
   /* one channel carries the sum of RGB, and σs is grey: any channel's */
-  for (int c = 0; c < 3; c++) M->sigma_s[c] = (float)(vol->sigma_s[c] * h);
+  for (int c = 0; c < 3; c++) M->sigma_s[c] = (float)(vol->sigma_s[vox_sigma_index(vol, 0, c)] * h);
   ms->stride = channels + (ms->g_grid ? 1 : 0);
   if (!ms->sigma_grid && !ms->g_grid) return BK_OK;
   ms->scat = bk_calloc(count, ms->stride * sizeof(float), "march: scatter grid", err);
   if (!ms->scat) return BK_ERR_RUNTIME;
   for (size_t i = 0; i < count; i++) {
     float *o = ms->scat + ms->stride * i;
-    for (int c = 0; c < channels; c++) o[c] = (float)(vol->sigma_s[3 * i + c] * h);
+    for (int c = 0; c < channels; c++) o[c] = (float)(vol->sigma_s[vox_sigma_index(vol, i, c)] * h);
     if (ms->g_grid) o[channels] = vol->g[i];
   }
   return BK_OK;

@@ -103,7 +103,7 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
   memset(P, 0, sizeof *P);
   P->grid = pm_kernel_grid(d);
   if (s->homogeneous)
-    for (int c = 0; c < 3; c++) P->sigma_t[c] = (float)((vol->sigma_s[c] + vol->sigma_a[c]) * h);
+    for (int c = 0; c < 3; c++) P->sigma_t[c] = (float)(vol_sigma_t(vol, 0, c) * h);
   for (int c = 0; c < 3; c++)
     if (!(P->sigma_t[c] >= 0.0f))
       return bk_fail(err, BK_ERR_INPUT, "%s: medium: extinction must be >= 0, got %g per unit",

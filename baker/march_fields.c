@@ -20,10 +20,10 @@ static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, 
   *homogeneous = 1;
   *grey = 1;
   float t0[3];
-  for (int c = 0; c < 3; c++) t0[c] = vol->sigma_s[c] + vol->sigma_a[c];
+  for (int c = 0; c < 3; c++) t0[c] = vol_sigma_t(vol, 0, c);
   for (size_t i = 0; i < count && (*homogeneous || *grey); i++) {
     float t[3];
-    for (int c = 0; c < 3; c++) t[c] = vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c];
+    for (int c = 0; c < 3; c++) t[c] = vol_sigma_t(vol, i, c);
     if (t[0] != t0[0] || t[1] != t0[1] || t[2] != t0[2]) *homogeneous = 0;
     if (t[0] != t[1] || t[0] != t[2]) *grey = 0;
   }
@@ -108,7 +108,7 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
   if (!s->sigma) return BK_ERR_RUNTIME;
   for (size_t i = 0; i < s->voxels; i++)
     for (int c = 0; c < s->channels; c++)
-      s->sigma[s->channels * i + c] = (float)((vol->sigma_s[3 * i + c] + vol->sigma_a[3 * i + c]) * h);
+      s->sigma[s->channels * i + c] = (float)(vol_sigma_t(vol, i, c) * h);
   return BK_OK;
 }
 

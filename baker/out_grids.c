@@ -1,23 +1,28 @@
 /* out_grids.c: the derived grids of out_grids.h, voxel run by voxel run. */
 #include "out_grids.h"
 
+/* Where channel c of voxel i lies in sigma_s and sigma_a (vox_sigma_index). */
+static inline size_t at(const og_source_t *s, size_t i, int c) {
+  return s->sigma_channels == 1 ? i : 3 * i + (size_t)c;
+}
+
 /* sigma_t = sigma_s + sigma_a per channel */
 void og_extinction(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
   for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < 3; c++) *out++ = s->sigma_s[3 * i + c] + s->sigma_a[3 * i + c];
+    for (int c = 0; c < 3; c++) *out++ = s->sigma_s[at(s, i, c)] + s->sigma_a[at(s, i, c)];
 }
 
 /* For grey media the Vec3 grids collapse to floats (DESIGN §5 allows it, and
  * renderers read a float `extinction` more widely). */
 void og_extinction_grey(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
-  for (size_t i = lo; i < hi; i++) *out++ = s->sigma_s[3 * i] + s->sigma_a[3 * i];
+  for (size_t i = lo; i < hi; i++) *out++ = s->sigma_s[at(s, i, 0)] + s->sigma_a[at(s, i, 0)];
 }
 
 void og_scattering_grey(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
-  for (size_t i = lo; i < hi; i++) *out++ = s->sigma_s[3 * i];
+  for (size_t i = lo; i < hi; i++) *out++ = s->sigma_s[at(s, i, 0)];
 }
 
 /* The grey density: the mean of the channels' sigma_t, summed in order. */
@@ -25,7 +30,7 @@ void og_density(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
   for (size_t i = lo; i < hi; i++) {
     float sum = 0.0f;
-    for (int c = 0; c < 3; c++) sum += s->sigma_s[3 * i + c] + s->sigma_a[3 * i + c];
+    for (int c = 0; c < 3; c++) sum += s->sigma_s[at(s, i, c)] + s->sigma_a[at(s, i, c)];
     *out++ = sum / 3.0f;
   }
 }
@@ -55,7 +60,8 @@ void og_ior_rgb(const void *src, size_t lo, size_t hi, float *out) {
 void og_phase_g(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
   for (size_t i = lo; i < hi; i++) {
-    const float *a = s->sigma_s + 3 * i;
-    *out++ = a[0] > 0.0f || a[1] > 0.0f || a[2] > 0.0f ? (s->g ? s->g[i] : s->medium_g) : 0.0f;
+    const float *a = s->sigma_s;
+    const int scatters = a[at(s, i, 0)] > 0.0f || a[at(s, i, 1)] > 0.0f || a[at(s, i, 2)] > 0.0f;
+    *out++ = scatters ? (s->g ? s->g[i] : s->medium_g) : 0.0f;
   }
 }

@@ -13,7 +13,8 @@
 
 /* What the fills read; each uses only its own fields. */
 typedef struct og_source {
-  const float *sigma_s, *sigma_a; /* 3 per voxel */
+  const float *sigma_s, *sigma_a; /* sigma_channels per voxel */
+  int sigma_channels;             /* 3, or 1: grey (voxelize.h) */
   const float *scattering;        /* emission: sca_channels per voxel */
   int sca_channels;
   const float *radiance;          /* emission: 3 per voxel */

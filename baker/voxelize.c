@@ -457,6 +457,20 @@ static void vox_summarise(volume_t *v) {
   v->grey = !coloured;
 }
 
+/* A grey medium's coefficients once per voxel (vox_sigma_index), the RGB
+ * arrays shrunk in place: the volume lives through every phase. */
+static void vox_store_grey(volume_t *v) {
+  const size_t n = grid_count(&v->dims);
+  for (size_t i = 0; i < n; i++) {
+    v->sigma_s[i] = v->sigma_s[3 * i];
+    v->sigma_a[i] = v->sigma_a[3 * i];
+  }
+  float *s = realloc(v->sigma_s, n * sizeof(float)), *a = realloc(v->sigma_a, n * sizeof(float));
+  if (s) v->sigma_s = s; /* a failed shrink keeps the larger block: still valid */
+  if (a) v->sigma_a = a;
+  v->sigma_channels = 1;
+}
+
 /* --- the stage ------------------------------------------------------------------- */
 /* Per-object scratch, kept across objects and grown to the largest region. */
 typedef struct vox_scratch {
@@ -495,6 +509,7 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
   out->sigma_s = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_s grid", err);
   out->sigma_a = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_a grid", err);
   if (!out->ior || !out->sigma_s || !out->sigma_a) return BK_ERR_RUNTIME;
+  out->sigma_channels = 3; /* until vox_store_grey */
   if (g_grid) {
     out->g = bk_calloc(count, sizeof(float), "voxelize: g grid", err);
     if (!out->g) return BK_ERR_RUNTIME;
@@ -666,6 +681,7 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
   bk_progress_end(&prog);
   double t_sum = bk_now_ms();
   vox_summarise(out);
+  if (out->grey) vox_store_grey(out);
   bk_log(2, "voxelize: summary %.0f ms", bk_now_ms() - t_sum);
 
   if (scene->object_count > 0)

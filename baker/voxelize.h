@@ -39,8 +39,13 @@ extern "C" {
 typedef struct volume {
   grid_dims_t dims;
   float *ior;      /* n per voxel, >= 1 */
-  float *sigma_s;  /* 3 per voxel (RGB, interleaved), 1/m */
-  float *sigma_a;  /* 3 per voxel */
+  float *sigma_s;  /* sigma_channels per voxel (RGB interleaved, or one), 1/m */
+  float *sigma_a;  /* sigma_channels per voxel */
+  /* 3, or 1 once vox_build found the medium grey (R = G = B for both
+   * coefficients everywhere): its one value stands for every channel, 16
+   * bytes per voxel less through every phase of the bake. 0 reads as 3 (a
+   * volume filled by hand). Read through vox_sigma_index. */
+  int sigma_channels;
   float *g;        /* Henyey–Greenstein g per voxel; NULL: the medium's everywhere */
   /* dispersion (scene_has_dispersion): n of the R channel, then of B, one
    * plane of grid_count floats each, composited like ior (which is G's);
@@ -55,6 +60,17 @@ typedef struct volume {
    * batch of frames to say which volume this is; 0: not known. */
   uint64_t key;
 } volume_t;
+
+/* Where channel c of voxel i lies in sigma_s and sigma_a. */
+static inline size_t vox_sigma_index(const volume_t *v, size_t i, int c) {
+  return v->sigma_channels == 1 ? i : 3 * i + (size_t)c;
+}
+
+/* sigma_s + sigma_a of channel c at voxel i, as a float. */
+static inline float vol_sigma_t(const volume_t *v, size_t i, int c) {
+  const size_t at = vox_sigma_index(v, i, c);
+  return v->sigma_s[at] + v->sigma_a[at];
+}
 
 /* Bytes per voxel the volume needs (for grid_check_memory). */
 #define VOX_BYTES_PER_VOXEL (7 * sizeof(float))

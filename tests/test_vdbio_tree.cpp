@@ -101,9 +101,9 @@ int main(int argc, char **argv) {
   grid_dims_t d = {};
   d.nx = NX, d.ny = NY, d.nz = NZ;
   d.voxel_size = 0.1f;
-  const vdbio_grid_t grids[] = {{"f0", VDBIO_FLOAT, f.data(), 0, 0.0f},
-                                {"f1", VDBIO_FLOAT, f.data(), 0, 1.0f},
-                                {"v0", VDBIO_VEC3, v.data(), 1, 0.0f}};
+  const vdbio_grid_t grids[] = {{"f0", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
+                                {"f1", VDBIO_FLOAT, f.data(), 0, 1.0f, NULL, NULL},
+                                {"v0", VDBIO_VEC3, v.data(), 1, 0.0f, NULL, NULL}};
   vdbio_write_opts_t opts = {};
   opts.compression = VDBIO_COMPRESS_NONE;
   bk_error_t err = {};

@@ -715,11 +715,19 @@ static void case_medium(void) {
     EXPECT(!v.has_refraction && v.homogeneous && v.grey);
     EXPECT_NEAR(v.n_min, 1.33f, 0.0);
     EXPECT_NEAR(v.n_max, 1.33f, 0.0);
+    /* grey: σ stored once per voxel, the same value for every channel */
+    EXPECT(v.sigma_channels == 1);
+    size_t last = grid_count(&v.dims) - 1;
+    for (int ch = 0; ch < 3; ch++) {
+      EXPECT_NEAR(v.sigma_s[vox_sigma_index(&v, last, ch)], 0.5f, 0.0);
+      EXPECT_NEAR(vol_sigma_t(&v, last, ch), 0.52f, 1e-6);
+    }
     vox_free(&v);
   }
   s.medium_sigma_a[1] = 0.03f;
   if (build(&s, &v)) {
-    EXPECT(v.homogeneous && !v.grey);
+    EXPECT(v.homogeneous && !v.grey && v.sigma_channels == 3);
+    EXPECT_NEAR(v.sigma_a[vox_sigma_index(&v, grid_count(&v.dims) - 1, 1)], 0.03f, 0.0);
     vox_free(&v);
   }
 
@@ -739,7 +747,7 @@ static void case_medium(void) {
         ior[idx] = k < 4 ? 0.0f : 1.0f + 0.01f * (float)k;
         rho[idx] = 0.1f * (float)i;
       }
-  vdbio_grid_t g_ior = {"ior", VDBIO_FLOAT, ior, 0, 0.0f}, g_rho = {"density", VDBIO_FLOAT, rho, 0, 0.0f};
+  vdbio_grid_t g_ior = {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL}, g_rho = {"density", VDBIO_FLOAT, rho, 0, 0.0f, NULL, NULL};
   char p_ior[4096], p_rho[4096];
   tu_path(p_ior, sizeof p_ior, "field_ior.vdb");
   tu_path(p_rho, sizeof p_rho, "field_density.vdb");
