@@ -14,14 +14,33 @@ static int budget_anisotropic(const scene_t *s) {
   return any;
 }
 
+/* R = G = B for both coefficients of the medium and of every object: the
+ * volume is grey (a density VDB scales the channels alike), and stores σ
+ * once per voxel (voxelize.h). */
+int budget_grey(const scene_t *s) {
+  int grey = s->medium_sigma_s[0] == s->medium_sigma_s[1] &&
+             s->medium_sigma_s[0] == s->medium_sigma_s[2] &&
+             s->medium_sigma_a[0] == s->medium_sigma_a[1] &&
+             s->medium_sigma_a[0] == s->medium_sigma_a[2];
+  for (int i = 0; i < s->object_count; i++) {
+    const scene_object_t *o = &s->objects[i];
+    grey &= o->sigma_s[0] == o->sigma_s[1] && o->sigma_s[0] == o->sigma_s[2] &&
+            o->sigma_a[0] == o->sigma_a[1] && o->sigma_a[0] == o->sigma_a[2];
+  }
+  return grey;
+}
+
 int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {
   grid_dims_t *d = &b->dims;
   const char *where = s->where_resolution[0] ? s->where_resolution : s->path;
   int rc = grid_dims_from_bounds(s->bounds_min, s->bounds_max, resolution, where, d, err);
   if (rc != BK_OK) return rc;
   b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
-  b->per_voxel = (s->mode == MODE_ADAPTIVE ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES) +
-                 (s->bounces != 0 ? BUDGET_SCATTER_BYTES : 0.0) +
+  const int grey = budget_grey(s), adaptive = s->mode == MODE_ADAPTIVE;
+  b->per_voxel = (grey ? (adaptive ? BUDGET_ADAPTIVE_GREY_BYTES : BUDGET_REFERENCE_GREY_BYTES)
+                       : (adaptive ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES)) +
+                 (s->bounces != 0 ? (grey ? BUDGET_SCATTER_GREY_BYTES : BUDGET_SCATTER_BYTES)
+                                  : 0.0) +
                  (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0) +
                  (s->mode != MODE_ADAPTIVE && budget_anisotropic(s) ? BUDGET_FLUX_BYTES : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;

@@ -3,10 +3,12 @@
  * available (or --max-memory).
  *
  * Model: peak = fixed + per_voxel × voxels. `fixed` covers the OpenCL
- * runtime (PoCL and LLVM compiling a kernel: 120–260 MB measured);
- * per_voxel is the write phase, the largest: the volume (n, σs, σa), the
- * radiance and emission grids, the derived grids and every OpenVDB tree
- * built before the first is written. Both are calibrated against the peak
+ * runtime (PoCL and LLVM compiling a kernel: 120–280 MB measured);
+ * per_voxel is the largest phase, the march: the volume (n, and σs, σa
+ * with one value per voxel for a grey medium, else three), the {∇n, n}
+ * field, σt and the accumulators per march channel, the scatter grid. The
+ * write holds less since it builds one OpenVDB tree at a time from grids
+ * made slab by slab (out_grids.h). Both are calibrated against the peak
  * resident size of real bakes (docs/memory.md): the estimate is meant to be
  * high, never low, so that a bake it accepts is not killed by the kernel's
  * OOM killer minutes later. The march and voxelization keep their own
@@ -24,11 +26,18 @@ extern "C" {
 #endif
 
 #define BUDGET_FIXED_BYTES (320.0 * 1024 * 1024)
-#define BUDGET_REFERENCE_BYTES 100.0 /* per voxel, reference mode (measured 91-97) */
-#define BUDGET_ADAPTIVE_BYTES 118.0  /* per voxel, adaptive mode (measured 113) */
-/* per voxel, the scatter grid of multiple scattering at most (σs RGB and g,
- * baker/bounces.h); counted unless photons.bounces is 0 */
+/* per voxel, reference and adaptive mode, for an RGB medium and a grey one
+ * (budget_grey). With the scatter grid below, 116, 54, 152 and 100 B: above
+ * the slopes measured with multiple scattering on (docs/memory.md: 95, 47,
+ * 144 and 94 B) */
+#define BUDGET_REFERENCE_BYTES 100.0
+#define BUDGET_REFERENCE_GREY_BYTES 46.0
+#define BUDGET_ADAPTIVE_BYTES 136.0
+#define BUDGET_ADAPTIVE_GREY_BYTES 92.0
+/* per voxel, the scatter grid of multiple scattering at most (σs per march
+ * channel and g, baker/bounces.h); counted unless photons.bounces is 0 */
 #define BUDGET_SCATTER_BYTES 16.0
+#define BUDGET_SCATTER_GREY_BYTES 8.0
 /* dispersion: two more fields {∇n, n} (32 bytes), the R and B planes of n
  * and the interleaved ior_rgb grid written (20): counted, not measured */
 #define BUDGET_DISPERSION_BYTES 52.0
@@ -43,6 +52,10 @@ typedef struct budget {
   double per_voxel;
   double peak; /* bytes */
 } budget_t;
+
+/* Whether the scene's volume is grey (R = G = B for σs and σa everywhere),
+ * known from the scene before voxelization. */
+int budget_grey(const scene_t *s);
 
 /* The estimate for the scene's grid at `resolution` voxels along the
  * longest side. BK_ERR_INPUT when the grid itself is invalid. */

@@ -1,4 +1,5 @@
-/* vox_medium.c: the medium under the objects (see vox_medium.h). */
+/* vox_medium.c: the medium under the objects, and the summary of the volume
+ * once they are composited (see vox_medium.h). */
 #include "vox_medium.h"
 
 #include <math.h>
@@ -113,4 +114,87 @@ void vox_blend_dispersion(const scene_object_t *obj, float w, size_t gv, size_t 
     float n = scene_object_n(obj, 2 * p), *x = rb + p * plane + gv;
     *x = w >= 1.0f ? n : *x + w * (n - *x);
   }
+}
+
+/* --- the summary --------------------------------------------------------------- */
+
+/* Pieces of the parallel summary (more than cores, few enough to combine). */
+#define VOX_SUMMARY_CHUNKS 64
+
+/* A grey medium's coefficients once per voxel (vox_sigma_index), the RGB
+ * arrays shrunk in place: the volume lives through every phase. */
+static void vox_store_grey(volume_t *v) {
+  const size_t n = grid_count(&v->dims);
+  for (size_t i = 0; i < n; i++) {
+    v->sigma_s[i] = v->sigma_s[3 * i];
+    v->sigma_a[i] = v->sigma_a[3 * i];
+  }
+  float *s = realloc(v->sigma_s, n * sizeof(float)), *a = realloc(v->sigma_a, n * sizeof(float));
+  if (s) v->sigma_s = s; /* a failed shrink keeps the larger block: still valid */
+  if (a) v->sigma_a = a;
+  v->sigma_channels = 1;
+}
+
+/* The summary in VOX_SUMMARY_CHUNKS chunks of the grid, each with its own
+ * slot: n's range and whether σs, σa vary or differ between channels.
+ * Combining min, max and OR is exact in any order. */
+typedef struct vox_summary {
+  const volume_t *v;
+  size_t count;
+  float n_min[VOX_SUMMARY_CHUNKS], n_max[VOX_SUMMARY_CHUNKS];
+  int varies[VOX_SUMMARY_CHUNKS], coloured[VOX_SUMMARY_CHUNKS];
+} vox_summary_t;
+
+static void summarise_chunk(vox_summary_t *S, size_t slot) {
+  const volume_t *v = S->v;
+  const size_t lo = S->count * slot / VOX_SUMMARY_CHUNKS;
+  const size_t hi = S->count * (slot + 1) / VOX_SUMMARY_CHUNKS;
+  if (lo >= hi) return;
+  float n_min = v->ior[lo], n_max = v->ior[lo];
+  const float *s0 = v->sigma_s, *a0 = v->sigma_a;
+  /* branch-free accumulation: this runs over every voxel of the grid */
+  int varies = 0, coloured = 0;
+  for (size_t i = lo; i < hi; i++) {
+    float n = v->ior[i];
+    n_min = n < n_min ? n : n_min;
+    n_max = n > n_max ? n : n_max;
+    const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
+    varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
+              (a[1] != a0[1]) | (a[2] != a0[2]);
+    coloured |= (s[0] != s[1]) | (s[1] != s[2]) | (a[0] != a[1]) | (a[1] != a[2]);
+  }
+  S->n_min[slot] = n_min;
+  S->n_max[slot] = n_max;
+  S->varies[slot] = varies;
+  S->coloured[slot] = coloured;
+}
+
+static void summarise_chunks(void *ctx, size_t c0, size_t c1) {
+  for (size_t c = c0; c < c1; c++) summarise_chunk(ctx, c);
+}
+
+void vox_summarise(volume_t *v) {
+  vox_summary_t S;
+  S.v = v;
+  S.count = grid_count(&v->dims);
+  /* an empty chunk (a grid of fewer voxels) reads as the first voxel */
+  for (int t = 0; t < VOX_SUMMARY_CHUNKS; t++) {
+    S.n_min[t] = S.n_max[t] = v->ior[0];
+    S.varies[t] = S.coloured[t] = 0;
+  }
+  bk_parallel(VOX_SUMMARY_CHUNKS, 1, summarise_chunks, &S);
+  float n_min = v->ior[0], n_max = v->ior[0];
+  int varies = 0, coloured = 0;
+  for (int t = 0; t < VOX_SUMMARY_CHUNKS; t++) {
+    n_min = S.n_min[t] < n_min ? S.n_min[t] : n_min;
+    n_max = S.n_max[t] > n_max ? S.n_max[t] : n_max;
+    varies |= S.varies[t];
+    coloured |= S.coloured[t];
+  }
+  v->n_min = n_min;
+  v->n_max = n_max;
+  v->has_refraction = (n_max - n_min) > 1e-6f;
+  v->homogeneous = !varies;
+  v->grey = !coloured;
+  if (v->grey) vox_store_grey(v);
 }

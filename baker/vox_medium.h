@@ -19,4 +19,9 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err);
  * over the planes rb (plane floats apart), as voxelize composites n. */
 void vox_blend_dispersion(const scene_object_t *obj, float w, size_t gv, size_t plane, float *rb);
 
+/* What the kernels may specialise on (DESIGN §3), once the objects are
+ * composited: n's range, whether σs and σa vary and whether they are grey;
+ * a grey volume then stores them once per voxel (voxelize.h). */
+void vox_summarise(volume_t *v);
+
 #endif

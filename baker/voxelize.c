@@ -32,8 +32,6 @@
 #define VOX_BAND_MARGIN 0.5f
 /* Scratch per voxel of an object's region: squared distance + inside vote. */
 #define VOX_SCRATCH_BYTES (sizeof(float) + sizeof(signed char))
-/* Pieces of the parallel summary (more than cores, few enough to combine). */
-#define VOX_SUMMARY_CHUNKS 64
 /* Show progress from this many voxels (or triangles) on. */
 #define VOX_PROGRESS_MIN_VOXELS (1u << 21)
 
@@ -393,84 +391,6 @@ static void vox_blend(const scene_object_t *obj, const vox_region_t *r, float ba
     }
 }
 
-/* The summary in VOX_SUMMARY_CHUNKS chunks of the grid, each with its own
- * slot: n's range and whether σs, σa vary or differ between channels.
- * Combining min, max and OR is exact in any order. */
-typedef struct vox_summary {
-  const volume_t *v;
-  size_t count;
-  float n_min[VOX_SUMMARY_CHUNKS], n_max[VOX_SUMMARY_CHUNKS];
-  int varies[VOX_SUMMARY_CHUNKS], coloured[VOX_SUMMARY_CHUNKS];
-} vox_summary_t;
-
-static void summarise_chunk(vox_summary_t *S, size_t slot) {
-  const volume_t *v = S->v;
-  const size_t lo = S->count * slot / VOX_SUMMARY_CHUNKS;
-  const size_t hi = S->count * (slot + 1) / VOX_SUMMARY_CHUNKS;
-  if (lo >= hi) return;
-  float n_min = v->ior[lo], n_max = v->ior[lo];
-  const float *s0 = v->sigma_s, *a0 = v->sigma_a;
-  /* branch-free accumulation: this runs over every voxel of the grid */
-  int varies = 0, coloured = 0;
-  for (size_t i = lo; i < hi; i++) {
-    float n = v->ior[i];
-    n_min = n < n_min ? n : n_min;
-    n_max = n > n_max ? n : n_max;
-    const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
-    varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
-              (a[1] != a0[1]) | (a[2] != a0[2]);
-    coloured |= (s[0] != s[1]) | (s[1] != s[2]) | (a[0] != a[1]) | (a[1] != a[2]);
-  }
-  S->n_min[slot] = n_min;
-  S->n_max[slot] = n_max;
-  S->varies[slot] = varies;
-  S->coloured[slot] = coloured;
-}
-
-static void summarise_chunks(void *ctx, size_t c0, size_t c1) {
-  for (size_t c = c0; c < c1; c++) summarise_chunk(ctx, c);
-}
-
-/* What the kernels may specialise on (DESIGN §3). */
-static void vox_summarise(volume_t *v) {
-  vox_summary_t S;
-  S.v = v;
-  S.count = grid_count(&v->dims);
-  /* an empty chunk (a grid of fewer voxels) reads as the first voxel */
-  for (int t = 0; t < VOX_SUMMARY_CHUNKS; t++) {
-    S.n_min[t] = S.n_max[t] = v->ior[0];
-    S.varies[t] = S.coloured[t] = 0;
-  }
-  bk_parallel(VOX_SUMMARY_CHUNKS, 1, summarise_chunks, &S);
-  float n_min = v->ior[0], n_max = v->ior[0];
-  int varies = 0, coloured = 0;
-  for (int t = 0; t < VOX_SUMMARY_CHUNKS; t++) {
-    n_min = S.n_min[t] < n_min ? S.n_min[t] : n_min;
-    n_max = S.n_max[t] > n_max ? S.n_max[t] : n_max;
-    varies |= S.varies[t];
-    coloured |= S.coloured[t];
-  }
-  v->n_min = n_min;
-  v->n_max = n_max;
-  v->has_refraction = (n_max - n_min) > 1e-6f;
-  v->homogeneous = !varies;
-  v->grey = !coloured;
-}
-
-/* A grey medium's coefficients once per voxel (vox_sigma_index), the RGB
- * arrays shrunk in place: the volume lives through every phase. */
-static void vox_store_grey(volume_t *v) {
-  const size_t n = grid_count(&v->dims);
-  for (size_t i = 0; i < n; i++) {
-    v->sigma_s[i] = v->sigma_s[3 * i];
-    v->sigma_a[i] = v->sigma_a[3 * i];
-  }
-  float *s = realloc(v->sigma_s, n * sizeof(float)), *a = realloc(v->sigma_a, n * sizeof(float));
-  if (s) v->sigma_s = s; /* a failed shrink keeps the larger block: still valid */
-  if (a) v->sigma_a = a;
-  v->sigma_channels = 1;
-}
-
 /* --- the stage ------------------------------------------------------------------- */
 /* Per-object scratch, kept across objects and grown to the largest region. */
 typedef struct vox_scratch {
@@ -509,7 +429,7 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
   out->sigma_s = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_s grid", err);
   out->sigma_a = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_a grid", err);
   if (!out->ior || !out->sigma_s || !out->sigma_a) return BK_ERR_RUNTIME;
-  out->sigma_channels = 3; /* until vox_store_grey */
+  out->sigma_channels = 3; /* until vox_summarise finds it grey */
   if (g_grid) {
     out->g = bk_calloc(count, sizeof(float), "voxelize: g grid", err);
     if (!out->g) return BK_ERR_RUNTIME;
@@ -681,7 +601,6 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
   bk_progress_end(&prog);
   double t_sum = bk_now_ms();
   vox_summarise(out);
-  if (out->grey) vox_store_grey(out);
   bk_log(2, "voxelize: summary %.0f ms", bk_now_ms() - t_sum);
 
   if (scene->object_count > 0)

@@ -34,6 +34,13 @@ foreach(case refuse max_memory honest)
 endforeach()
 set_tests_properties(cli_budget_honest PROPERTIES SKIP_RETURN_CODE 77 RUN_SERIAL TRUE)
 
+# Peak memory per voxel (docs/memory.md): the slope of the peak RSS between
+# 128^3 and 192^3 for a grey and an RGB medium, against the measured level.
+add_test(NAME cli_memory_per_voxel
+         COMMAND bash ${BAKER_TEST_DIR}/memory_per_voxel.sh $<TARGET_FILE:baker>
+                 ${CMAKE_BINARY_DIR}/cli_memory ${CMAKE_SOURCE_DIR}/scenes)
+set_tests_properties(cli_memory_per_voxel PROPERTIES SKIP_RETURN_CODE 77 RUN_SERIAL TRUE)
+
 # Keyframed lights and frame reuse (docs/animation.md): a light-only batch
 # voxelizes once and writes grids bit-identical to single-frame bakes.
 add_test(NAME cli_bake_reuse
