@@ -585,8 +585,10 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
       !(radius = bk_calloc(V, sizeof(float), "adaptive filter radius", err)))
     goto error;
   if (!radius) radius = filter_radius;
-  if ((rc = weighted_phase(&r, radiance, count, weight, err)) != BK_OK ||
-      (!opt->sums && (rc = filter_phase(&r, radiance, count, weight, radius, err)) != BK_OK) ||
+  if ((rc = weighted_phase(&r, radiance, count, weight, err)) != BK_OK) goto error;
+  /* the march is done: its fields make room for the filter's means */
+  pm_setup_free_fields(&r.base);
+  if ((!opt->sums && (rc = filter_phase(&r, radiance, count, weight, radius, err)) != BK_OK) ||
       (!opt->sums && (rc = error_phase(&r, radiance, radius, err)) != BK_OK))
     goto error;
   report(&r, timings);

@@ -27,13 +27,13 @@ extern "C" {
 
 #define BUDGET_FIXED_BYTES (320.0 * 1024 * 1024)
 /* per voxel, reference and adaptive mode, for an RGB medium and a grey one
- * (budget_grey). With the scatter grid below, 116, 54, 152 and 100 B: above
+ * (budget_grey). With the scatter grid below, 116, 54, 138 and 82 B: above
  * the slopes measured with multiple scattering on (docs/memory.md: 95, 47,
- * 144 and 94 B) */
+ * 126-133 and 72-73 B) */
 #define BUDGET_REFERENCE_BYTES 100.0
 #define BUDGET_REFERENCE_GREY_BYTES 46.0
-#define BUDGET_ADAPTIVE_BYTES 136.0
-#define BUDGET_ADAPTIVE_GREY_BYTES 92.0
+#define BUDGET_ADAPTIVE_BYTES 122.0
+#define BUDGET_ADAPTIVE_GREY_BYTES 74.0
 /* per voxel, the scatter grid of multiple scattering at most (σs per march
  * channel and g, baker/bounces.h); counted unless photons.bounces is 0 */
 #define BUDGET_SCATTER_BYTES 16.0
