@@ -93,7 +93,7 @@ static int read_shard(merge_shard_t *s, bk_error_t *err) {
  * photons crossed (its grids' checksums: a mesh or VDB changed between two
  * shards), and the sums' layout and scales. */
 static const char *const SAME_KEYS[] = {
-    "shard_key", "shard_count", "shard_photons", "shard_sum_stride", "shard_sum_channels",
+    "shard_key", "shard_photon_order", "shard_count", "shard_photons", "shard_sum_stride", "shard_sum_channels",
     "shard_sum_mode", "shard_sum_flux", "shard_sum_scales", "shard_grid", "shard_ior_background", "shard_filter",
     "checksum_ior", "checksum_extinction", "checksum_scattering", "checksum_density"};
 

@@ -136,6 +136,8 @@ int shard_meta(shard_state_t *sh, const bake_options_t *opt, const scene_t *s,
   meta[m++] = (vdbio_meta_t){"shard_photon_last", VDBIO_META_INT, NULL, (long long)sh->last, 0};
   meta[m++] = (vdbio_meta_t){"shard_photons", VDBIO_META_INT, NULL, (long long)sh->photons, 0};
   meta[m++] = (vdbio_meta_t){"shard_key", VDBIO_META_STRING, sh->key, 0, 0};
+  /* the photons a slot range holds depend on the launch order */
+  meta[m++] = (vdbio_meta_t){"shard_photon_order", VDBIO_META_INT, NULL, PH_LAUNCH_ORDER, 0};
   meta[m++] = (vdbio_meta_t){"shard_sum_stride", VDBIO_META_INT, NULL, k->stride, 0};
   meta[m++] = (vdbio_meta_t){"shard_sum_channels", VDBIO_META_INT, NULL, k->channels, 0};
   meta[m++] = (vdbio_meta_t){"shard_sum_mode", VDBIO_META_INT, NULL, k->mode, 0};

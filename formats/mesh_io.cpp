@@ -337,6 +337,19 @@ bool is_ply_type(const std::string &t) {
   return false;
 }
 
+// The same loop on a format line whose version its stream cannot read as a
+// number ("format ascii $.0", fuzz_mesh_ply_ascii): a known type and a plain
+// decimal version only.
+bool is_ply_format(const std::string &type, const std::string &version) {
+  if (type != "ascii" && type != "binary_little_endian" && type != "binary_big_endian") return false;
+  if (version.empty() || !isdigit((unsigned char)version[0])) return false;
+  int dots = 0;
+  for (char ch : version)
+    if (ch == '.') dots++;
+    else if (!isdigit((unsigned char)ch)) return false;
+  return dots <= 1;
+}
+
 // ASCII PLY: the x, y, z properties of the "vertex" element; elements before it
 // are skipped token by token (list properties carry their own count).
 bool prescan_ply(const char *text, std::string *msg) {
@@ -363,7 +376,14 @@ bool prescan_ply(const char *text, std::string *msg) {
     }
     std::string kw = c.token(false, false);
     if (kw == "format") {
-      ascii = c.token(false, false) == "ascii";
+      std::string type = c.token(false, false), version = c.token(false, false);
+      if (!is_ply_format(type, version)) {
+        *msg = std::to_string(c.line) + ": the PLY format line must read 'format ascii 1.0' (or " +
+               "binary_little_endian / binary_big_endian), found '" + type.substr(0, 20) + " " +
+               version.substr(0, 20) + "'";
+        return false;
+      }
+      ascii = type == "ascii";
     } else if (kw == "element") {
       element e;
       e.name = c.token(false, false);

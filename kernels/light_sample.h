@@ -92,6 +92,55 @@ BK_INLINE void ph_point(BK_CONSTANT const ph_light *L, bk_uint k, float *a, floa
   ph_hammersley(k, L->count, L->rot_u, L->rot_v, a, b);
 }
 
+/* Launch order: the photon each work-item traces. Hammersley point k lies at
+ * u = k / n, and the top q bits of v are the low q bits of k mirrored. In
+ * index order a work-group holds a thin u-ring over all of v (for a spot,
+ * one cone angle and every azimuth), and the groups PoCL hands a thread
+ * together (halves, then quarters, ...) are one band of cone angles, dear
+ * ones (through the refracting object) or cheap: the threads finish apart.
+ * So photons are dealt in tiles of PH_TILE: a stripe of PH_TILE * Q
+ * consecutive k taken one class of k mod Q at a time is a patch of about
+ * PH_TILE Q / n by 1/Q of the light's domain (square for Q ~ sqrt(n /
+ * PH_TILE)): neighbouring paths in one group. And consecutive groups take
+ * tiles a golden-ratio stride apart, so any run of groups samples the whole
+ * light. A bijection on [0, n) (past the last whole stripe the order is
+ * kept): a batch traces the same photons and, its deposits being integer
+ * sums, gives the same bits. */
+#define PH_TILE 256u
+/* Shards record it: a merge refuses shards traced in another order. */
+#define PH_LAUNCH_ORDER 1
+
+BK_INLINE bk_uint ph_gcd(bk_uint a, bk_uint b) {
+  while (b) {
+    bk_uint t = a % b;
+    a = b;
+    b = t;
+  }
+  return a;
+}
+
+BK_INLINE bk_uint ph_launch_order(bk_uint slot, bk_uint n) {
+  bk_uint q = 0;
+  while (q < 12u && ((bk_ulong)PH_TILE << (2u * q + 2u)) <= (bk_ulong)n) q++;
+  const bk_uint Q = 1u << q, stripe = PH_TILE * Q, whole = n / stripe * stripe;
+  if (slot >= whole) return slot;
+  const bk_uint tiles = whole / PH_TILE;
+  bk_uint stride = (bk_uint)((bk_ulong)tiles * 40503u >> 16) | 1u; /* 40503 / 2^16 ~ 0.618 */
+  while (ph_gcd(stride, tiles) != 1u) stride += 2u;
+  const bk_uint t = (bk_uint)((bk_ulong)(slot / PH_TILE) * stride % tiles);
+  return t / Q * stripe + t % Q + slot % PH_TILE * Q;
+}
+
+/* The photon (an index over every light's photons, as pm_march_photon takes)
+ * that launch slot `slot` traces. */
+BK_INLINE bk_uint ph_photon_of_slot(BK_CONSTANT const ph_light *lights, bk_uint light_count,
+                                    bk_uint slot) {
+  bk_uint l = 0;
+  while (l + 1 < light_count && slot >= lights[l].first + lights[l].count) l++;
+  if (slot < lights[l].first || slot - lights[l].first >= lights[l].count) return slot;
+  return lights[l].first + ph_launch_order(slot - lights[l].first, lights[l].count);
+}
+
 /* The sampling function of each light kind (baker/lights.h): origin and unit
  * direction, voxel coordinates, of the photon from the light-domain point
  * (a, b) in [0,1)^2. */

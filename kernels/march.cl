@@ -21,7 +21,8 @@ __kernel void pm_march(__constant pm_params *P, __constant ph_light *lights,
   uint i = (uint)get_global_id(0);
   if (i >= count) return;
   pm_result r;
-  pm_march_photon(P, lights, ng, pyr, sigma, acc, masks, tables, first + i, &r);
+  pm_march_photon(P, lights, ng, pyr, sigma, acc, masks, tables,
+                  ph_photon_of_slot(lights, P->light_count, first + i), &r);
   out[i] = r;
 }
 

@@ -24,7 +24,8 @@ __kernel void pm_march_ms(__constant pm_params *P, __constant ph_light *lights,
   if (i >= count) return;
   pm_result r;
   ms_tally t;
-  pm_march_scattered(P, M, lights, ng, pyr, sigma, scat, acc, masks, tables, first + i, &r, &t);
+  pm_march_scattered(P, M, lights, ng, pyr, sigma, scat, acc, masks, tables,
+                  ph_photon_of_slot(lights, P->light_count, first + i), &r, &t);
   out[i] = r;
   tally[i] = t;
 }

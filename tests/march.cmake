@@ -21,6 +21,7 @@ foreach(path host cl)
 endforeach()
 add_test(NAME march_straight COMMAND test_march straight)
 add_test(NAME march_photons COMMAND test_march photons)
+add_test(NAME march_launch_order COMMAND test_march launch_order)
 add_test(NAME march_host_vs_device COMMAND test_march_robust host_vs_device)
 # 512^3 needs ~9 GiB: skipped (exit 77) when the machine has less available
 add_test(NAME march_extremes_512 COMMAND test_march_robust extremes_512)

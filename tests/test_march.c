@@ -344,6 +344,36 @@ static int test_photons(void) {
   return 0;
 }
 
+/* The launch order (light_sample.h): a permutation of every light's
+ * photons, whose work-groups are compact patches of the light's domain. */
+static int test_launch_order(void) {
+  const uint32_t sizes[] = {1, 2, 255, 256, 1023, 1024, 3750, 4096, 62500, 65536, 100003, 1u << 20};
+  for (size_t t = 0; t < sizeof sizes / sizeof sizes[0]; t++) {
+    const uint32_t n = sizes[t];
+    unsigned char *seen = calloc(n, 1);
+    REQUIRE(seen != NULL, "memory");
+    float worst = 0.0f;
+    for (uint32_t g = 0; g < n; g += PH_TILE) { /* one work-group */
+      float lo = 1.0f, hi = 0.0f;
+      for (uint32_t k = g; k < n && k < g + PH_TILE; k++) {
+        uint32_t p = ph_launch_order(k, n);
+        REQUIRE(p < n && !seen[p], "n %u: slot %u gives photon %u twice or out of range", n, k, p);
+        seen[p] = 1;
+        float u = (float)p / (float)n;
+        lo = u < lo ? u : lo, hi = u > hi ? u : hi;
+      }
+      worst = hi - lo > worst ? hi - lo : worst;
+    }
+    free(seen);
+    /* a whole stripe's tile spans PH_TILE Q / n of u, Q^2 <= n / PH_TILE;
+     * the remainder keeps index order (at most a stripe) */
+    float bound = n >= 4 * PH_TILE ? 2.0f * sqrtf((float)PH_TILE / (float)n) : 1.0f;
+    printf("launch order: n %u, widest work-group spans %.4f of u (bound %.4f)\n", n, worst, bound);
+    REQUIRE(worst <= bound, "n %u: a work-group spans %g of u", n, worst);
+  }
+  return 0;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     fprintf(stderr, "usage: test_march TEST [host|cl]\n");
@@ -357,6 +387,7 @@ int main(int argc, char **argv) {
   else if (!strcmp(t, "inverse_square")) rc = test_inverse_square(cl, 0);
   else if (!strcmp(t, "inverse_square_spot")) rc = test_inverse_square(cl, 1);
   else if (!strcmp(t, "photons")) rc = test_photons();
+  else if (!strcmp(t, "launch_order")) rc = test_launch_order();
   else if (!strcmp(t, "straight")) rc = test_straight();
   else if (!strcmp(t, "energy")) rc = test_energy(cl, 0);
   else if (!strcmp(t, "energy_grid")) rc = test_energy(cl, 1);
