@@ -1,9 +1,11 @@
 /* out_grids.c: the derived grids of out_grids.h, voxel run by voxel run. */
 #include "out_grids.h"
 
-/* Where channel c of voxel i lies in sigma_s and sigma_a (vox_sigma_index). */
+#include "voxelize.h"
+
+/* Where channel c of voxel i lies in sigma_s and sigma_a. */
 static inline size_t at(const og_source_t *s, size_t i, int c) {
-  return s->sigma_channels == 1 ? i : 3 * i + (size_t)c;
+  return vox_channel_at(s->sigma_channels, i, c);
 }
 
 /* sigma_t = sigma_s + sigma_a per channel */
@@ -42,7 +44,7 @@ void og_emission(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
   for (size_t i = lo; i < hi; i++)
     for (int c = 0; c < 3; c++)
-      *out++ = s->scattering[s->sca_channels == 3 ? 3 * i + c : i] * s->radiance[3 * i + c];
+      *out++ = s->scattering[vox_channel_at(s->sca_channels, i, c)] * s->radiance[3 * i + c];
 }
 
 /* Dispersion: n per channel interleaved (R, G, B). */

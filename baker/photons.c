@@ -102,6 +102,7 @@ int ph_prepare_batch(const scene_t *scene, const grid_dims_t *g, uint64_t photon
     }
     L->first = (bk_uint)first;
     L->count = (bk_uint)counts[l];
+    ph_launch_plan(L->count, &L->tile_rows, &L->tile_stride);
     first += counts[l];
     out->scene_index[out->count] = l;
     out->has_type[sl->type] = 1;

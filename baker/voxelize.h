@@ -61,9 +61,15 @@ typedef struct volume {
   uint64_t key;
 } volume_t;
 
+/* Where channel c of voxel i lies in an array of `channels` (1 or 3)
+ * values per voxel; 0 reads as 3. */
+static inline size_t vox_channel_at(int channels, size_t i, int c) {
+  return channels == 1 ? i : 3 * i + (size_t)c;
+}
+
 /* Where channel c of voxel i lies in sigma_s and sigma_a. */
 static inline size_t vox_sigma_index(const volume_t *v, size_t i, int c) {
-  return v->sigma_channels == 1 ? i : 3 * i + (size_t)c;
+  return vox_channel_at(v->sigma_channels, i, c);
 }
 
 /* sigma_s + sigma_a of channel c at voxel i, as a float. */

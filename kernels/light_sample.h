@@ -56,7 +56,9 @@ typedef struct ph_light {
   float power[3];   /* W per photon, RGB (grey kernels use power[0] only) */
   bk_uint first;    /* this light's photons are [first, first + count) */
   bk_uint count;
-  bk_uint pad[3];
+  bk_uint tile_rows;    /* launch order (ph_launch_plan): Q, 0 keeps index order */
+  bk_uint tile_stride;  /* ... and the stride between consecutive tiles */
+  bk_uint pad;
 } ph_light;
 BK_STATIC_ASSERT(sizeof(ph_light) == 96, "ph_light layout is shared with kernels");
 
@@ -110,35 +112,54 @@ BK_INLINE void ph_point(BK_CONSTANT const ph_light *L, bk_uint k, float *a, floa
 /* Shards record it: a merge refuses shards traced in another order. */
 #define PH_LAUNCH_ORDER 1
 
-BK_INLINE bk_uint ph_gcd(bk_uint a, bk_uint b) {
-  while (b) {
-    bk_uint t = a % b;
-    a = b;
-    b = t;
-  }
-  return a;
-}
-
-BK_INLINE bk_uint ph_launch_order(bk_uint slot, bk_uint n) {
+/* The plan of a light of n photons, made once on the host (photons.c):
+ * Q (0: too few photons for a whole stripe, index order) and a stride
+ * coprime with the number of whole tiles. */
+BK_INLINE void ph_launch_plan(bk_uint n, bk_uint *rows, bk_uint *stride) {
   bk_uint q = 0;
   while (q < 12u && ((bk_ulong)PH_TILE << (2u * q + 2u)) <= (bk_ulong)n) q++;
-  const bk_uint Q = 1u << q, stripe = PH_TILE * Q, whole = n / stripe * stripe;
+  const bk_uint Q = 1u << q, tiles = n / (PH_TILE * Q) * Q;
+  *rows = q == 0u ? 0u : Q;
+  *stride = 1u;
+  if (*rows == 0u) return;
+  bk_uint st = (bk_uint)((bk_ulong)tiles * 40503u >> 16) | 1u; /* 40503 / 2^16 ~ 0.618 */
+  for (;; st += 2u) { /* the first odd st from there coprime with tiles */
+    bk_uint a = st, b = tiles;
+    while (b) {
+      bk_uint t = a % b;
+      a = b;
+      b = t;
+    }
+    if (a == 1u) break;
+  }
+  *stride = st;
+}
+
+/* The photon (of 0..n-1) that slot `slot` traces under the plan (Q, stride). */
+BK_INLINE bk_uint ph_launch_order(bk_uint slot, bk_uint n, bk_uint Q, bk_uint stride) {
+  if (Q == 0u) return slot;
+  const bk_uint stripe = PH_TILE * Q, whole = n / stripe * stripe;
   if (slot >= whole) return slot;
   const bk_uint tiles = whole / PH_TILE;
-  bk_uint stride = (bk_uint)((bk_ulong)tiles * 40503u >> 16) | 1u; /* 40503 / 2^16 ~ 0.618 */
-  while (ph_gcd(stride, tiles) != 1u) stride += 2u;
   const bk_uint t = (bk_uint)((bk_ulong)(slot / PH_TILE) * stride % tiles);
   return t / Q * stripe + t % Q + slot % PH_TILE * Q;
+}
+
+/* The light whose photons [first, first + count) hold photon `index`. */
+BK_INLINE bk_uint ph_light_of(BK_CONSTANT const ph_light *lights, bk_uint light_count,
+                              bk_uint index) {
+  bk_uint l = 0;
+  while (l + 1 < light_count && index >= lights[l].first + lights[l].count) l++;
+  return l;
 }
 
 /* The photon (an index over every light's photons, as pm_march_photon takes)
  * that launch slot `slot` traces. */
 BK_INLINE bk_uint ph_photon_of_slot(BK_CONSTANT const ph_light *lights, bk_uint light_count,
                                     bk_uint slot) {
-  bk_uint l = 0;
-  while (l + 1 < light_count && slot >= lights[l].first + lights[l].count) l++;
-  if (slot < lights[l].first || slot - lights[l].first >= lights[l].count) return slot;
-  return lights[l].first + ph_launch_order(slot - lights[l].first, lights[l].count);
+  BK_CONSTANT const ph_light *L = lights + ph_light_of(lights, light_count, slot);
+  if (slot < L->first || slot - L->first >= L->count) return slot;
+  return L->first + ph_launch_order(slot - L->first, L->count, L->tile_rows, L->tile_stride);
 }
 
 /* The sampling function of each light kind (baker/lights.h): origin and unit

@@ -468,8 +468,7 @@ BK_INLINE int pm_start(const pm_params *P, BK_CONSTANT const ph_light *lights,
                        BK_GLOBAL const float *ng, BK_GLOBAL const float *tables, bk_uint index,
                        pm_photon *ph PM_REC_DECL) {
   const bk_grid g = P->grid;
-  bk_uint l = 0;
-  while (l + 1 < P->light_count && index >= lights[l].first + lights[l].count) l++;
+  const bk_uint l = ph_light_of(lights, P->light_count, index);
   BK_CONSTANT const ph_light *L = lights + l;
   bk_v3 o, d;
   float t0, t1, a, b, w = 1.0f;

@@ -353,10 +353,12 @@ static int test_launch_order(void) {
     unsigned char *seen = calloc(n, 1);
     REQUIRE(seen != NULL, "memory");
     float worst = 0.0f;
+    uint32_t rows, stride;
+    ph_launch_plan(n, &rows, &stride);
     for (uint32_t g = 0; g < n; g += PH_TILE) { /* one work-group */
       float lo = 1.0f, hi = 0.0f;
       for (uint32_t k = g; k < n && k < g + PH_TILE; k++) {
-        uint32_t p = ph_launch_order(k, n);
+        uint32_t p = ph_launch_order(k, n, rows, stride);
         REQUIRE(p < n && !seen[p], "n %u: slot %u gives photon %u twice or out of range", n, k, p);
         seen[p] = 1;
         float u = (float)p / (float)n;
