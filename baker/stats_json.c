@@ -85,6 +85,9 @@ static void put_all(FILE *f, const sj_frame_t *x) {
   put_term(f, "filter", e && e->noise >= 0.0 ? e->filter : -1.0, 0);
   fprintf(f, "    \"batches\": %d,\n    \"twin_batches\": %d,\n", e ? e->batches : 0,
           e ? e->twin_batches : 0);
+  /* what the estimate cost: the step twin, the batches' statistics */
+  fprintf(f, "    \"ms_twin\": %.3f,\n    \"ms_statistics\": %.3f,\n",
+          x->error ? x->error->ms_twin : 0.0, x->error ? x->error->ms_track : 0.0);
   fprintf(f, "    \"target\": %.6g,\n    \"time_budget_s\": %.6g\n  }\n}\n",
           (double)s->target_error, (double)s->time_budget_s);
 }

@@ -152,7 +152,8 @@ static int test_cli(void) {
   size_t len = 0;
   REQUIRE(bk_read_file(stats, &json, &len, &err) == BK_OK, "%s", err.msg);
   const char *want[] = {"\"stages\"", "\"photon marching\"", "\"error estimate\"",
-                        "\"peak_rss_bytes\"", "\"estimate\": 0.", "\"traced\": 20000"};
+                        "\"peak_rss_bytes\"", "\"estimate\": 0.", "\"traced\": 20000",
+                        "\"ms_twin\": ", "\"ms_statistics\": "};
   for (size_t i = 0; i < sizeof want / sizeof want[0]; i++)
     EXPECT(strstr(json, want[i]), "%s lacks %s", stats, want[i]);
   free(json);
