@@ -5,6 +5,7 @@
  * failed write never leaves a half file where the output should be. */
 #include "vdbio_internal.h"
 #include "fdstream.h"
+#include "vdbio_leaves.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/GridDescriptor.h>
@@ -142,7 +143,9 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
   const size_t blocks = (size_t)lx * (size_t)ly;
   std::vector<vdbio_block_out<LeafT>> out(blocks);
   std::vector<float> buf;
-  typename GridT::Ptr grid = GridT::create(vdb::zeroVal<ValueT>());
+  /* a tree whose leaves are compressed on every core when written */
+  typename GridT::Ptr grid =
+      GridT::create(typename TreeT::Ptr(new vdbio_parallel_tree<TreeT>(vdb::zeroVal<ValueT>())));
   vdb::tree::ValueAccessor<TreeT> acc(grid->tree());
   for (int bz = 0; bz < lz; bz++) {
     const int z0 = D * bz;
@@ -275,6 +278,43 @@ public:
   }
 
 private:
+  /* Archive::writeGrid (OpenVDB 10, seekable) without its delayed-load
+   * metadata. That metadata holds each leaf's compressed size, which
+   * OpenVDB 10 finds by compressing the whole grid once more before writing
+   * it (a third of a large grid's write); OpenVDB 11 and later neither write
+   * nor read it, and OpenVDB 10 reads files without it. The layout is
+   * otherwise the same. */
+  void write_grid(vdb::io::GridDescriptor &gd, const vdb::GridBase::Ptr &grid, std::ostream &os,
+                  vdb::io::StreamMetadata::Ptr &file_sm) const {
+    /* the stream metadata varies per grid: a copy of the file's, whose
+     * pointer (the stream keeps the address of the Ptr) is put back after */
+    vdb::io::StreamMetadata::Ptr sm(new vdb::io::StreamMetadata(*file_sm));
+    sm->setHalfFloat(grid->saveFloatAsHalf());
+    sm->gridMetadata() = static_cast<const vdb::MetaMap &>(*grid);
+    vdb::io::setStreamMetadataPtr(os, sm, /*transfer=*/false);
+    gd.writeHeader(os);
+    const std::streampos offsets = os.tellp(); /* rewritten once they are known */
+    gd.writeStreamPos(os);
+    gd.setGridPos(os.tellp());
+    setGridCompression(os, *grid);
+    vdb::GridBase::Ptr meta = grid->copyGrid(); /* shallow: the tree is shared */
+    if (vdb::io::getWriteGridStatsMetadata(os)) {
+      meta->addStatsMetadata();
+      meta->insertMeta(vdb::GridBase::META_FILE_COMPRESSION,
+                       vdb::StringMetadata(vdb::io::compressionToString(vdb::io::getDataCompression(os))));
+    }
+    meta->writeMeta(os);
+    grid->writeTransform(os);
+    grid->writeTopology(os);
+    gd.setBlockPos(os.tellp());
+    grid->writeBuffers(os);
+    gd.setEndPos(os.tellp());
+    os.seekp(offsets, std::ios_base::beg);
+    gd.writeStreamPos(os);
+    gd.seekToEnd(os);
+    vdb::io::setStreamMetadataPtr(os, file_sm, /*transfer=*/false);
+  }
+
   /* Archive::write (OpenVDB 10, seekable), the same bytes, with each grid's
    * tree built just before it is written and freed after: one tree at a
    * time instead of all of them. The names are unique and not empty
@@ -297,7 +337,7 @@ private:
       double t = bk_now_ms();
       vdb::GridBase::Ptr grid = vdbio_make_grid(dims, grids[g], half);
       vdb::io::GridDescriptor gd(grid->getName(), grid->type(), grid->saveFloatAsHalf());
-      writeGrid(gd, grid, os, /*seekable=*/true);
+      write_grid(gd, grid, os, sm);
       /* per-grid compression options (mask compression) reset, as Archive::write does */
       vdb::io::setDataCompression(os, compression());
       bk_log(2, "write: grid %s %.0f ms", grids[g].name, bk_now_ms() - t);

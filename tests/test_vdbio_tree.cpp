@@ -2,7 +2,9 @@
  * the dense rows (formats/vdbio_write.cpp); the tree it writes must be the
  * one tools::copyFromDense at tolerance 0 (+ changeBackground) builds from
  * the same array: same topology, same values and active states everywhere,
- * same leaf and tile counts. The array has what the two could disagree on:
+ * same leaf and tile counts. And its leaves, compressed on every core
+ * (formats/vdbio_leaves.h), must be the bytes OpenVDB's own serial
+ * Tree::writeBuffers writes, for every compression and half float. The array has what the two could disagree on:
  * a box that is not a whole number of 8^3 leaves, exact zeros and -0 and NaN
  * (inactive by OpenVDB's !(|v| > 0)), constant active blocks (tiles) next to
  * varying ones, a zero channel in a Vec3, a background other than 0.
@@ -13,12 +15,14 @@
 
 #include <cmath>
 #include <cstdio>
+#include <sstream>
 #include <string>
 #include <vector>
 
 extern "C" {
 #include "vdbio.h"
 }
+#include "vdbio_leaves.h"
 
 namespace vdb = openvdb;
 
@@ -83,6 +87,56 @@ static void compare(const char *label, const GridT &got, const GridT &want) {
   CHECK(bad == 0, "%s: %d voxels differ in value or state", label, bad);
 }
 
+/* A tree of more leaves than one write window: a varying field, holes of
+ * background (inactive), a band of another inactive value. */
+template <typename TreeT> static typename TreeT::Ptr many_leaves(float bg) {
+  using ValueT = typename TreeT::ValueType;
+  typename TreeT::Ptr t(new TreeT(ValueT(bg)));
+  typename vdb::tree::ValueAccessor<TreeT> acc(*t);
+  for (int k = 0; k < 160; k++)
+    for (int j = 0; j < 96; j++)
+      for (int i = 0; i < 200; i++) {
+        const vdb::Coord c(i, j, k);
+        const float x = std::sin(0.37f * (float)i) * std::cos(0.11f * (float)j) + 0.01f * (float)k;
+        if (x < -0.6f) continue;                       /* background */
+        if (x < -0.5f) acc.setValueOff(c, ValueT(2.0f)); /* a second inactive value */
+        else acc.setValueOn(c, ValueT(x));
+      }
+  return t;
+}
+
+/* vdbio_write_leaves against Tree::writeBuffers on one stream setting. */
+template <typename TreeT>
+static void compare_leaf_bytes(const char *label, const TreeT &tree, uint32_t compression,
+                               bool half) {
+  const typename TreeT::ValueType bg = tree.background();
+  std::ostringstream serial(std::ios_base::binary), parallel(std::ios_base::binary);
+  for (std::ostringstream *s : {&serial, &parallel}) {
+    vdb::io::setDataCompression(*s, compression);
+    vdb::io::setGridBackgroundValuePtr(*s, &bg);
+  }
+  tree.TreeT::writeBuffers(serial, half);
+  vdbio_write_leaves(tree, parallel, half);
+  CHECK(serial.str() == parallel.str(), "%s, compression %u, half %d: %zu bytes serial, %zu "
+        "parallel, or the same count and other bytes", label, compression, (int)half,
+        serial.str().size(), parallel.str().size());
+}
+
+static void test_leaf_bytes() {
+  auto f = many_leaves<vdb::FloatTree>(0.5f);
+  auto v = many_leaves<vdb::Vec3STree>(0.0f);
+  CHECK(f->leafCount() > 2 * VDBIO_WRITE_WINDOW, "only %u leaves", (unsigned)f->leafCount());
+  std::vector<uint32_t> modes = {vdb::io::COMPRESS_NONE, vdb::io::COMPRESS_ACTIVE_MASK,
+                                 vdb::io::COMPRESS_ZIP | vdb::io::COMPRESS_ACTIVE_MASK};
+  if (vdb::io::Archive::hasBloscCompression())
+    modes.push_back(vdb::io::COMPRESS_BLOSC | vdb::io::COMPRESS_ACTIVE_MASK);
+  for (uint32_t m : modes)
+    for (bool half : {false, true}) {
+      compare_leaf_bytes("float", *f, m, half);
+      compare_leaf_bytes("vec3s", *v, m, half);
+    }
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: test_vdbio_tree DIR\n");
@@ -120,6 +174,7 @@ int main(int argc, char **argv) {
   compare("v0", *vdb::gridPtrCast<vdb::Vec3SGrid>(file.readGrid("v0")),
           *reference<vdb::Vec3SGrid>(v, 0.0f));
   file.close();
+  test_leaf_bytes();
   if (failures) std::fprintf(stderr, "test_vdbio_tree: %d check(s) failed\n", failures);
   else std::printf("test_vdbio_tree: ok\n");
   return failures ? 1 : 0;
