@@ -1,35 +1,93 @@
 /* bounces.c: multiple scattering's host side (see bounces.h). */
 #include "bounces.h"
 
+#include "base/parallel.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-double ms_order_ratio(const volume_t *vol) {
-  const grid_dims_t *d = &vol->dims;
-  const size_t count = grid_count(d);
-  double ss = 0.0, st = 0.0, st_scattering = 0.0;
-  size_t scattering = 0;
-  for (size_t i = 0; i < count; i++) {
+/* One pass over the volume for the rule and the scatter grid's need, in
+ * MS_SCAN_CHUNKS chunks side by side whose sums are added in chunk order
+ * (the same bits on every run and thread count). */
+#define MS_SCAN_CHUNKS 64
+typedef struct ms_scan {
+  double ss, st, st_scattering; /* Σ σs, Σ σt, Σ σt where σs > 0 (channels summed) */
+  size_t scattering;            /* voxels with σs > 0 */
+  int sigma_varies, colour;     /* σs differs between voxels; between channels */
+  int g_varies, g_set;          /* g differs between voxels; g != 0 somewhere */
+} ms_scan_t;
+
+typedef struct ms_scan_ctx {
+  const volume_t *vol;
+  size_t count;
+  ms_scan_t part[MS_SCAN_CHUNKS];
+} ms_scan_ctx_t;
+
+static void scan_voxels(const volume_t *vol, size_t a, size_t b, ms_scan_t *p) {
+  const float *sg = vol->sigma_s;
+  float s0[3];
+  for (int c = 0; c < 3; c++) s0[c] = sg[vox_sigma_index(vol, 0, c)];
+  for (size_t i = a; i < b; i++) {
     double s = 0.0, t = 0.0;
+    float sc[3];
     for (int c = 0; c < 3; c++) {
       const size_t at = vox_sigma_index(vol, i, c);
-      s += vol->sigma_s[at];
-      t += vol->sigma_s[at] + vol->sigma_a[at];
+      sc[c] = sg[at];
+      s += sg[at];
+      t += sg[at] + vol->sigma_a[at];
     }
-    ss += s;
-    st += t;
-    if (s > 0.0) {
-      st_scattering += t;
-      scattering++;
-    }
+    p->ss += s;
+    p->st += t;
+    if (s > 0.0) p->st_scattering += t, p->scattering++;
+    if (sc[0] != s0[0] || sc[1] != s0[1] || sc[2] != s0[2]) p->sigma_varies = 1;
+    if (sc[0] != sc[1] || sc[0] != sc[2]) p->colour = 1;
+    if (vol->g && vol->g[i] != vol->g[0]) p->g_varies = 1;
+    if (vol->g && vol->g[i] != 0.0f) p->g_set = 1;
   }
-  if (!(ss > 0.0) || !(st > 0.0)) return 0.0;
+}
+
+static void scan_chunks(void *arg, size_t lo, size_t hi) {
+  ms_scan_ctx_t *x = arg;
+  for (size_t k = lo; k < hi; k++)
+    scan_voxels(x->vol, x->count * k / MS_SCAN_CHUNKS, x->count * (k + 1) / MS_SCAN_CHUNKS,
+                &x->part[k]);
+}
+
+static void scan_volume(const volume_t *vol, ms_scan_t *out) {
+  ms_scan_ctx_t *x = calloc(1, sizeof *x);
+  memset(out, 0, sizeof *out);
+  if (!x) { /* no room for the chunks: one pass on this thread */
+    scan_voxels(vol, 0, grid_count(&vol->dims), out);
+    return;
+  }
+  x->vol = vol, x->count = grid_count(&vol->dims);
+  bk_parallel(MS_SCAN_CHUNKS, 1, scan_chunks, x);
+  for (int k = 0; k < MS_SCAN_CHUNKS; k++) {
+    const ms_scan_t *p = &x->part[k];
+    out->ss += p->ss, out->st += p->st, out->st_scattering += p->st_scattering;
+    out->scattering += p->scattering;
+    out->sigma_varies |= p->sigma_varies, out->colour |= p->colour;
+    out->g_varies |= p->g_varies, out->g_set |= p->g_set;
+  }
+  free(x);
+}
+
+/* The rule's r from the scan. */
+static double order_ratio(const volume_t *vol, const ms_scan_t *m) {
+  const grid_dims_t *d = &vol->dims;
+  if (!(m->ss > 0.0) || !(m->st > 0.0)) return 0.0;
   double h = d->voxel_size, lx = d->nx * h, ly = d->ny * h, lz = d->nz * h;
   double chord = 4.0 * lx * ly * lz / (2.0 * (lx * ly + ly * lz + lz * lx));
-  double tau = st_scattering / (3.0 * (double)scattering) * chord;
-  return ss / st * (1.0 - exp(-tau));
+  double tau = m->st_scattering / (3.0 * (double)m->scattering) * chord;
+  return m->ss / m->st * (1.0 - exp(-tau));
+}
+
+double ms_order_ratio(const volume_t *vol) {
+  ms_scan_t m;
+  scan_volume(vol, &m);
+  return order_ratio(vol, &m);
 }
 
 int ms_auto_bounces(double r) {
@@ -42,30 +100,17 @@ int ms_auto_bounces(double r) {
 
 void ms_decide(const scene_t *scene, const volume_t *vol, ms_setup_t *ms, int *grey_scatter) {
   memset(ms, 0, sizeof *ms);
-  const size_t count = grid_count(&vol->dims);
-  ms->ratio = ms_order_ratio(vol);
+  ms_scan_t m;
+  scan_volume(vol, &m);
+  ms->ratio = order_ratio(vol, &m);
   ms->auto_chosen = scene->bounces == SCENE_BOUNCES_AUTO;
   int n = ms->auto_chosen ? ms_auto_bounces(ms->ratio) : scene->bounces;
   /* no scattering anywhere: nothing to bounce */
   ms->params.max_bounces = ms->ratio > 0.0 ? (bk_uint)n : 0u;
-  const float *sg = vol->sigma_s;
-  *grey_scatter = 1;
-  for (size_t i = 0; i < count; i++) {
-    float s[3], s0[3];
-    for (int c = 0; c < 3; c++) {
-      s[c] = sg[vox_sigma_index(vol, i, c)];
-      s0[c] = sg[vox_sigma_index(vol, 0, c)];
-    }
-    if (s[0] != s0[0] || s[1] != s0[1] || s[2] != s0[2]) ms->sigma_grid = 1;
-    if (s[0] != s[1] || s[0] != s[2]) *grey_scatter = 0;
-  }
-  ms->g_grid = 0;
-  ms->hg = scene->medium_g != 0.0f;
-  if (vol->g)
-    for (size_t i = 0; i < count; i++) {
-      if (vol->g[i] != vol->g[0]) ms->g_grid = 1;
-      if (vol->g[i] != 0.0f) ms->hg = 1;
-    }
+  ms->sigma_grid = m.sigma_varies;
+  *grey_scatter = !m.colour;
+  ms->g_grid = m.g_varies;
+  ms->hg = scene->medium_g != 0.0f || m.g_set;
 }
 
 int ms_build(const scene_t *scene, const volume_t *vol, int channels, ms_setup_t *ms,

@@ -5,27 +5,52 @@
 #include <string.h>
 
 #include "base/common.h"
+#include "base/parallel.h"
 #include "field.h"
 #include "march.h"
 
-/* n, then σt: which specialisations the volume allows. */
+/* n, then σt: which specialisations the volume allows, in SCAN_CHUNKS
+ * chunks side by side (booleans: the same in any order). */
+#define SCAN_CHUNKS 64
+typedef struct scan_ctx {
+  const volume_t *vol;
+  size_t count;
+  float t0[3];
+  unsigned char refract[SCAN_CHUNKS], varies[SCAN_CHUNKS], colour[SCAN_CHUNKS];
+} scan_ctx_t;
+
+static void scan_chunks(void *arg, size_t lo, size_t hi) {
+  scan_ctx_t *x = arg;
+  const volume_t *vol = x->vol;
+  for (size_t k = lo; k < hi; k++) {
+    const size_t a = x->count * k / SCAN_CHUNKS, b = x->count * (k + 1) / SCAN_CHUNKS;
+    for (size_t i = a; i < b; i++)
+      if (vol->ior[i] != vol->ior[0]) {
+        x->refract[k] = 1;
+        break;
+      }
+    for (size_t i = a; i < b && !(x->varies[k] && x->colour[k]); i++) {
+      float t[3];
+      for (int c = 0; c < 3; c++) t[c] = vol_sigma_t(vol, i, c);
+      if (t[0] != x->t0[0] || t[1] != x->t0[1] || t[2] != x->t0[2]) x->varies[k] = 1;
+      if (t[0] != t[1] || t[0] != t[2]) x->colour[k] = 1;
+    }
+  }
+}
+
 static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, int *homogeneous,
                         int *grey) {
+  scan_ctx_t x;
+  memset(&x, 0, sizeof x);
+  x.vol = vol, x.count = count;
+  for (int c = 0; c < 3; c++) x.t0[c] = vol_sigma_t(vol, 0, c);
+  bk_parallel(SCAN_CHUNKS, 1, scan_chunks, &x);
   *has_refraction = vol->ior_rb != NULL; /* dispersion: n differs between channels */
-  for (size_t i = 1; i < count && !*has_refraction; i++)
-    if (vol->ior[i] != vol->ior[0]) {
-      *has_refraction = 1;
-      break;
-    }
-  *homogeneous = 1;
-  *grey = 1;
-  float t0[3];
-  for (int c = 0; c < 3; c++) t0[c] = vol_sigma_t(vol, 0, c);
-  for (size_t i = 0; i < count && (*homogeneous || *grey); i++) {
-    float t[3];
-    for (int c = 0; c < 3; c++) t[c] = vol_sigma_t(vol, i, c);
-    if (t[0] != t0[0] || t[1] != t0[1] || t[2] != t0[2]) *homogeneous = 0;
-    if (t[0] != t[1] || t[0] != t[2]) *grey = 0;
+  *homogeneous = *grey = 1;
+  for (int k = 0; k < SCAN_CHUNKS; k++) {
+    *has_refraction |= x.refract[k];
+    *homogeneous &= !x.varies[k];
+    *grey &= !x.colour[k];
   }
 }
 
@@ -52,7 +77,9 @@ void pm_fields_scan(const volume_t *vol, pm_field_cache_t *kept, int frame, pm_s
     return;
   }
   pm_field_cache_free(kept); /* another volume: its fields go before new ones are built */
+  double t0 = bk_now_ms();
   scan_volume(vol, s->voxels, &s->has_refraction, &s->homogeneous, &s->grey);
+  bk_log(2, "octree: volume scan %.0f ms", bk_now_ms() - t0);
   if (!kept || vol->key == 0) return;
   kept->key = vol->key;
   kept->frame = frame;
@@ -83,6 +110,21 @@ void pm_fields_decide(const scene_t *scene, const volume_t *vol, pm_field_cache_
   kept->grey_scatter = *grey_scatter;
 }
 
+typedef struct sigma_ctx {
+  const volume_t *vol;
+  pm_setup_t *s;
+  double h;
+} sigma_ctx_t;
+
+/* σt per voxel length of voxels [lo, hi). */
+static void sigma_range(void *arg, size_t lo, size_t hi) {
+  const sigma_ctx_t *x = arg;
+  const int nch = x->s->channels;
+  for (size_t i = lo; i < hi; i++)
+    for (int c = 0; c < nch; c++)
+      x->s->sigma[(size_t)nch * i + c] = (float)(vol_sigma_t(x->vol, i, c) * x->h);
+}
+
 /* The pyramid and the {∇n, n} field, only where n varies, and the
  * extinction grid unless the medium is homogeneous (σt per voxel length). */
 static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
@@ -106,9 +148,9 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
   if (s->homogeneous) return BK_OK;
   s->sigma = bk_calloc(s->voxels, s->channels * sizeof(float), "march: extinction grid", err);
   if (!s->sigma) return BK_ERR_RUNTIME;
-  for (size_t i = 0; i < s->voxels; i++)
-    for (int c = 0; c < s->channels; c++)
-      s->sigma[s->channels * i + c] = (float)(vol_sigma_t(vol, i, c) * h);
+  double t0 = bk_now_ms();
+  bk_parallel(s->voxels, BK_GRAIN, sigma_range, (void *)&(sigma_ctx_t){vol, s, h});
+  bk_log(2, "octree: extinction grid %.0f ms", bk_now_ms() - t0);
   return BK_OK;
 }
 
