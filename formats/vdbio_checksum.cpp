@@ -60,14 +60,27 @@ static std::string ck_hex(uint64_t h) {
   return buf;
 }
 
-void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int count,
-                         bool half, vdb::MetaMap &file_meta) {
+std::string vdbio_checksum_placeholder(int g) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "@@checksum@@%04d", g % 10000); /* 16 characters, as ck_hex's */
+  return buf;
+}
+
+void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t *grids,
+                                     int count, vdb::MetaMap &file_meta) {
   char box[96];
   std::snprintf(box, sizeof box, "%d %d %d", dims->nx, dims->ny, dims->nz);
   file_meta.insertMeta("checksum_box", vdb::StringMetadata(box));
+  for (int g = 0; g < count; g++)
+    file_meta.insertMeta(std::string("checksum_") + grids[g].name,
+                         vdb::StringMetadata(vdbio_checksum_placeholder(g)));
+}
+
+std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
+                                         int count, bool half) {
   /* one serial hash per grid (the rule is sequential), the grids side by
    * side, a z slice at a time (a grid made by its fill is one slice here) */
-  std::vector<uint64_t> h((size_t)count);
+  std::vector<std::string> hex((size_t)count);
   const size_t plane = (size_t)dims->nx * (size_t)dims->ny;
   tbb::parallel_for(0, count, [&](int g) {
     const int ch = grids[g].type == VDBIO_VEC3 ? 3 : 1;
@@ -76,11 +89,9 @@ void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int
     uint64_t hg = CK_OFFSET;
     for (int z = 0; z < dims->nz; z++)
       hg = ck_hash(vdbio_slices(dims, grids[g], z, 1, buf), plane, ch, half, hg);
-    h[(size_t)g] = ck_mix_background(hg, bg, ch);
+    hex[(size_t)g] = ck_hex(ck_mix_background(hg, bg, ch));
   });
-  for (int g = 0; g < count; g++)
-    file_meta.insertMeta(std::string("checksum_") + grids[g].name,
-                         vdb::StringMetadata(ck_hex(h[(size_t)g])));
+  return hex;
 }
 
 /* --- checking ---------------------------------------------------------------- */

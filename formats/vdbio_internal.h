@@ -50,11 +50,17 @@ int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
 const float *vdbio_slices(const grid_dims_t *dims, const vdbio_grid_t &grid, int z0, int nz,
                           std::vector<float> &buf);
 
-/* Adds checksum_<grid> for every grid, and checksum_box, to the file
- * metadata (vdbio_checksum.cpp; the rule is in vdbio.h). `half`: the values
- * are stored as 16-bit floats, so the checksum covers the rounded values. */
-void vdbio_add_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids, int grid_count,
-                         bool half, openvdb::MetaMap &file_meta);
+/* The file's checksums (vdbio_checksum.cpp; the rule is in vdbio.h),
+ * taken while the grids are written: checksum_box and checksum_<grid> for
+ * every grid, each grid's holding vdbio_checksum_placeholder(g), 16
+ * characters like the hex that replaces it in the file once
+ * vdbio_checksums has it. `half`: the values are stored as 16-bit floats,
+ * so the checksum covers the rounded values. */
+void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t *grids,
+                                     int grid_count, openvdb::MetaMap &file_meta);
+std::string vdbio_checksum_placeholder(int g);
+std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
+                                         int grid_count, bool half);
 
 /* Whether `box` is the box the file's checksums were taken over. */
 bool vdbio_is_checksum_box(const openvdb::MetaMap *meta, const openvdb::CoordBBox &box);

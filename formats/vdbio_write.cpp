@@ -19,7 +19,10 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <future>
 #include <new>
+#include <sstream>
+#include <stdexcept>
 #include <set>
 #include <string>
 #include <vector>
@@ -268,10 +271,11 @@ class vdbio_checked_archive : public vdb::io::Archive {
 public:
   /* 0, or the errno of the first failed write or close. */
   int write_file(const char *tmp, const grid_dims_t *dims, const vdbio_grid_t *grids, int count,
-                 bool half, const vdb::MetaMap &meta) const {
+                 bool half, const vdb::MetaMap &meta,
+                 std::future<std::vector<std::string>> &checksums) const {
     bk_fd_streambuf sb(tmp);
     std::ostream os(&sb);
-    if (!sb.error()) write_grids(os, dims, grids, count, half, meta);
+    if (!sb.error()) write_grids(os, dims, grids, count, half, meta, checksums);
     os.flush();
     int e = sb.close_file();
     return e ? e : (os.fail() ? EIO : 0);
@@ -321,7 +325,8 @@ private:
    * (vdbio_check_write_args) and no two grids share a tree, so the
    * descriptors need neither suffixes nor instancing. */
   void write_grids(std::ostream &os, const grid_dims_t *dims, const vdbio_grid_t *grids,
-                   int count, bool half, const vdb::MetaMap &meta) const {
+                   int count, bool half, const vdb::MetaMap &meta,
+                   std::future<std::vector<std::string>> &checksums) const {
     vdb::io::StreamMetadata::Ptr sm = vdb::io::getStreamMetadataPtr(os);
     if (!sm) {
       sm.reset(new vdb::io::StreamMetadata);
@@ -330,7 +335,11 @@ private:
     vdb::io::setDataCompression(os, compression());
     vdb::io::setWriteGridStatsMetadata(os, isGridStatsMetadataEnabled());
     writeHeader(os, /*seekable=*/true);
-    meta.writeMeta(os);
+    std::ostringstream meta_bytes(std::ios_base::out | std::ios_base::binary);
+    meta.writeMeta(meta_bytes);
+    const std::string file_meta = meta_bytes.str();
+    const std::streampos meta_at = os.tellp();
+    os.write(file_meta.data(), (std::streamsize)file_meta.size());
     const int32_t n = count;
     os.write(reinterpret_cast<const char *>(&n), sizeof n);
     for (int g = 0; g < count; g++) {
@@ -342,6 +351,26 @@ private:
       vdb::io::setDataCompression(os, compression());
       bk_log(2, "write: grid %s %.0f ms", grids[g].name, bk_now_ms() - t);
     }
+    put_checksums(os, meta_at, file_meta, checksums, count);
+  }
+
+  /* Each grid's checksum over its placeholder in the file metadata, once
+   * the hashing that ran beside the grids' writing has it. */
+  static void put_checksums(std::ostream &os, std::streampos meta_at, const std::string &file_meta,
+                            std::future<std::vector<std::string>> &checksums, int count) {
+    double t = bk_now_ms();
+    const std::vector<std::string> hex = checksums.get();
+    bk_log(2, "write: waited %.0f ms for the checksums", bk_now_ms() - t);
+    for (int g = 0; g < count; g++) {
+      const std::string mark = vdbio_checksum_placeholder(g);
+      const size_t at = file_meta.find(mark);
+      if (at == std::string::npos || file_meta.find(mark, at + 1) != std::string::npos ||
+          hex[(size_t)g].size() != mark.size())
+        throw std::runtime_error("checksum placeholder " + mark + " not found once");
+      os.seekp(meta_at + (std::streamoff)at, std::ios_base::beg);
+      os.write(hex[(size_t)g].data(), (std::streamsize)mark.size());
+    }
+    os.seekp(0, std::ios_base::end);
   }
 };
 
@@ -383,13 +412,16 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
       for (int g = 0; g < grid_count; g++) out.push_back(vdbio_make_grid(dims, grids[g], half));
       nvdbio_write(tmp, out);
     } else {
-      double t_sum = bk_now_ms();
-      vdbio_add_checksums(dims, grids, grid_count, half, file_meta);
-      bk_log(2, "write: checksums %.0f ms", bk_now_ms() - t_sum);
+      /* the checksums (a serial hash per grid) are taken beside the
+       * grids' writing and put in place after them; the future's
+       * destructor waits for them on every way out */
       double t_file = bk_now_ms();
+      std::future<std::vector<std::string>> checksums = std::async(
+          std::launch::async, [=] { return vdbio_checksums(dims, grids, grid_count, half); });
+      vdbio_add_checksum_placeholders(dims, grids, grid_count, file_meta);
       vdbio_checked_archive archive;
       archive.setCompression(vdbio_compression(path, opts));
-      if (int e = archive.write_file(tmp, dims, grids, grid_count, half, file_meta)) {
+      if (int e = archive.write_file(tmp, dims, grids, grid_count, half, file_meta, checksums)) {
         remove(tmp);
         return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write %s: %s", path, tmp, strerror(e));
       }
