@@ -144,6 +144,15 @@ int scene_has_dispersion(const scene_t *s) {
   return 0;
 }
 
+static int grey3(const float v[3]) { return v[0] == v[1] && v[0] == v[2]; }
+
+int scene_is_grey(const scene_t *s) {
+  if (!grey3(s->medium_sigma_s) || !grey3(s->medium_sigma_a)) return 0;
+  for (int i = 0; i < s->object_count; i++)
+    if (!grey3(s->objects[i].sigma_s) || !grey3(s->objects[i].sigma_a)) return 0;
+  return 1;
+}
+
 float scene_object_n(const scene_object_t *o, int ch) {
   return ch != 1 && o->ior_rgb[1] > 0.0f ? o->ior_rgb[ch] : o->ior;
 }

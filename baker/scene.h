@@ -131,6 +131,9 @@ void scene_dispersion_rgb(float n_d, float abbe, float out[3]);
 /* 1 when an object's n differs between channels: the bake then carries n
  * per channel (volume_t.ior_rb) and specialises its kernels (-DDISPERSION). */
 int scene_has_dispersion(const scene_t *s);
+/* Whether the medium's and every object's σs and σa are the same in R, G
+ * and B (the voxelized volume is then grey: voxelize.h). */
+int scene_is_grey(const scene_t *s);
 /* n of object o in channel ch (0 R, 1 G, 2 B). */
 float scene_object_n(const scene_object_t *o, int ch);
 

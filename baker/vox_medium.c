@@ -25,10 +25,11 @@ static void fill_sigma_range(void *ctx, size_t lo, size_t hi) {
   const medium_fill_t *f = ctx;
   const float *ms = f->scene->medium_sigma_s, *ma = f->scene->medium_sigma_a;
   float *s = f->out->sigma_s, *a = f->out->sigma_a;
+  const int C = f->out->sigma_channels;
   for (size_t v = lo; v < hi; v++)
-    for (int ch = 0; ch < 3; ch++) {
-      s[3 * v + ch] = ms[ch];
-      a[3 * v + ch] = ma[ch];
+    for (int ch = 0; ch < C; ch++) {
+      s[(size_t)C * v + ch] = ms[ch];
+      a[(size_t)C * v + ch] = ma[ch];
     }
 }
 
@@ -85,9 +86,9 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
         rho = 0.0f;
         clamped++;
       }
-      for (int ch = 0; ch < 3; ch++) {
-        out->sigma_s[3 * v + ch] = scene->medium_sigma_s[ch] * rho;
-        out->sigma_a[3 * v + ch] = scene->medium_sigma_a[ch] * rho;
+      for (int ch = 0; ch < out->sigma_channels; ch++) {
+        out->sigma_s[vox_sigma_index(out, v, ch)] = scene->medium_sigma_s[ch] * rho;
+        out->sigma_a[vox_sigma_index(out, v, ch)] = scene->medium_sigma_a[ch] * rho;
       }
     }
     if (clamped)
@@ -154,10 +155,15 @@ static void summarise_chunk(vox_summary_t *S, size_t slot) {
   const float *s0 = v->sigma_s, *a0 = v->sigma_a;
   /* branch-free accumulation: this runs over every voxel of the grid */
   int varies = 0, coloured = 0;
+  const int grey = v->sigma_channels == 1; /* grey from the start */
   for (size_t i = lo; i < hi; i++) {
     float n = v->ior[i];
     n_min = n < n_min ? n : n_min;
     n_max = n > n_max ? n : n_max;
+    if (grey) {
+      varies |= (v->sigma_s[i] != s0[0]) | (v->sigma_a[i] != a0[0]);
+      continue;
+    }
     const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
     varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
               (a[1] != a0[1]) | (a[2] != a0[2]);
@@ -196,5 +202,5 @@ void vox_summarise(volume_t *v) {
   v->has_refraction = (n_max - n_min) > 1e-6f;
   v->homogeneous = !varies;
   v->grey = !coloured;
-  if (v->grey) vox_store_grey(v);
+  if (v->grey && v->sigma_channels == 3) vox_store_grey(v);
 }

@@ -371,19 +371,20 @@ static void vox_blend(const scene_object_t *obj, const vox_region_t *r, float ba
           w = vox_weight(inside ? -dd : dd, smoothing);
         }
         if (w <= 0.0f) continue;
-        float *s = out->sigma_s + 3 * gv, *a = out->sigma_a + 3 * gv;
+        const int C = out->sigma_channels;
+        float *s = out->sigma_s + (size_t)C * gv, *a = out->sigma_a + (size_t)C * gv;
         if (out->g) out->g[gv] = w >= 1.0f ? obj->g : out->g[gv] + w * (obj->g - out->g[gv]);
         if (out->ior_rb) vox_blend_dispersion(obj, w, gv, grid_count(d), out->ior_rb);
         if (w >= 1.0f) { /* exactly the object's values, so interiors stay homogeneous */
           out->ior[gv] = obj->ior;
-          for (int ch = 0; ch < 3; ch++) {
+          for (int ch = 0; ch < C; ch++) {
             s[ch] = obj->sigma_s[ch];
             a[ch] = obj->sigma_a[ch];
           }
           continue;
         }
         out->ior[gv] += w * (obj->ior - out->ior[gv]);
-        for (int ch = 0; ch < 3; ch++) {
+        for (int ch = 0; ch < C; ch++) {
           s[ch] += w * (obj->sigma_s[ch] - s[ch]);
           a[ch] += w * (obj->sigma_a[ch] - a[ch]);
         }
@@ -425,11 +426,14 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
   if (rc) return rc;
 
   const size_t count = grid_count(d);
+  /* a scene whose medium and objects are all grey gives a grey volume: its
+   * coefficients once per voxel from the start; others RGB until
+   * vox_summarise finds the volume grey after all */
+  const size_t C = (size_t)(out->sigma_channels = scene_is_grey(scene) ? 1 : 3);
   out->ior = bk_calloc(count, sizeof(float), "voxelize: ior grid", err);
-  out->sigma_s = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_s grid", err);
-  out->sigma_a = bk_calloc(count, 3 * sizeof(float), "voxelize: sigma_a grid", err);
+  out->sigma_s = bk_calloc(count, C * sizeof(float), "voxelize: sigma_s grid", err);
+  out->sigma_a = bk_calloc(count, C * sizeof(float), "voxelize: sigma_a grid", err);
   if (!out->ior || !out->sigma_s || !out->sigma_a) return BK_ERR_RUNTIME;
-  out->sigma_channels = 3; /* until vox_summarise finds it grey */
   if (g_grid) {
     out->g = bk_calloc(count, sizeof(float), "voxelize: g grid", err);
     if (!out->g) return BK_ERR_RUNTIME;
