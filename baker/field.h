@@ -2,9 +2,9 @@
  * the host for the photon march and for the view alike.
  *
  * In: n, one float per voxel (x-fastest), on cubic voxels of size h (m).
- * Out: {∇n (1/voxel), n} as one float4 per voxel in the ray core's padded
- * layout ((nx+2)(ny+2)(nz+2) float4, the outer layer a copy of the edge
- * voxels). ∇n is rc_gradient_at's central difference, taken in 1/m and
+ * Out: {∇n (1/voxel), n} per voxel in the ray core's sparse layout (bricks
+ * of the padded grid, whose outer layer copies the edge voxels, stored only
+ * where n varies: kernels/ray_core.h). ∇n is rc_gradient_at's central difference, taken in 1/m and
  * scaled by h, so that a bake and a view of its file read the same numbers. */
 #ifndef BAKER_FIELD_H
 #define BAKER_FIELD_H
@@ -17,18 +17,27 @@
 extern "C" {
 #endif
 
-/* Float4 entries of a padded field of nx x ny x nz voxels. */
+/* Float4 entries of a padded field of nx x ny x nz voxels (the view's
+ * medium fields, fld_pad4). */
 size_t fld_padded_count(int nx, int ny, int nz);
 
-/* The {∇n, n} field of `ior` (caller frees); NULL and BK_ERR_RUNTIME in err
- * when out of memory. */
+/* The {∇n, n} field of `ior` in the ray core's sparse layout
+ * (kernels/ray_core.h rc_field_gather; caller frees); NULL and
+ * BK_ERR_RUNTIME in err when out of memory. */
 float *fld_build(int nx, int ny, int nz, double h, const float *ior, bk_error_t *err);
 
-/* Dispersion: the fields of n_R, n_G, n_B one after the other (3
- * fld_padded_count float4; kernels/photon_march.h pm_channel_field): G's n is
- * ior, R's and B's the planes ior_rb and ior_rb + nx*ny*nz. */
+/* Dispersion: the fields of n_R, n_G, n_B one after the other
+ * (rc_field_channel): G's n is ior, R's and B's the planes ior_rb and
+ * ior_rb + nx*ny*nz. */
 float *fld_build_rgb(int nx, int ny, int nz, double h, const float *ior, const float *ior_rb,
                      bk_error_t *err);
+
+/* The floats of `fields` sparse fields one after the other at ng. */
+size_t fld_floats(int nx, int ny, int nz, const float *ng, int fields);
+
+/* Voxel (i, j, k)'s {∇n, n} as the sparse field ng holds it (-1 and nx etc.
+ * are the padding: the edge voxels' values). */
+void fld_voxel(const float *ng, int nx, int ny, int nz, int i, int j, int k, float q[4]);
 
 /* Copies an unpadded float4 field src (nx*ny*nz float4) into the padded
  * layout dst (fld_padded_count float4). */

@@ -21,8 +21,8 @@ typedef struct pm_cl_run {
 } pm_cl_run_t;
 
 static size_t field_bytes(const pm_setup_t *s) {
-  return fld_padded_count(s->dims.nx, s->dims.ny, s->dims.nz) * 4 * sizeof(float) *
-         (s->params.dispersion ? 3 : 1);
+  return fld_floats(s->dims.nx, s->dims.ny, s->dims.nz, s->ng, s->params.dispersion ? 3 : 1) *
+         sizeof(float);
 }
 
 /* What the device must offer: 64-bit atomics, buffers as large as the grid. */

@@ -175,7 +175,10 @@ static int upload(view_gpu_t *g, const view_volume_t *v, const view_params_t *p,
   if (!(b[0] = make_buffer(g, v->medium, npad * 4 * sizeof(float), ro, "medium", err)) ||
       !(b[1] = make_buffer(g, v->sigma_t4, v->sigma_t4 ? npad * 4 * sizeof(float) : 16, ro,
                            "extinction", err)) ||
-      !(b[2] = make_buffer(g, v->ng, v->ng ? npad * 4 * sizeof(float) * (v->ior_rb ? 3 : 1) : 16,
+      !(b[2] = make_buffer(g, v->ng,
+                           v->ng ? fld_floats(v->nx, v->ny, v->nz, v->ng, v->ior_rb ? 3 : 1) *
+                                       sizeof(float)
+                                 : 16,
                            ro, "ior", err)) ||
       !(b[3] = make_buffer(g, v->npyr.level, pyr_bytes(&v->npyr), ro, "constant blocks of n", err)) ||
       !(b[4] = make_buffer(g, v->mpyr.level, pyr_bytes(&v->mpyr), ro, "constant blocks", err)) ||

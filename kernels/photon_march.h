@@ -434,7 +434,7 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
 BK_INLINE BK_GLOBAL const float *pm_channel_field(const pm_params *P, BK_GLOBAL const float *ng,
                                                   bk_uint index) {
   const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
-  return ng + (bk_long)(index % 3u) * 4 * rc_pad_sz(n3) * (bk_long)(n3.nz + 2);
+  return rc_field_channel(n3, ng, (int)(index % 3u));
 }
 #endif
 

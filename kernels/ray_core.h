@@ -31,6 +31,7 @@
 #define RC_SQRT(x) sqrt(x)
 #else
 #include <math.h>
+#include <string.h>
 #define RC_EXP(x) expf(x)
 #define RC_SQRT(x) sqrtf(x)
 #endif
@@ -143,6 +144,7 @@ BK_INLINE bk_long rc_pad_index(rc_dims n, int i, int j, int k) {
  * matters). */
 typedef struct rc_tri {
   bk_long base;
+  int ix, iy, iz; /* the lower corner's padded coordinates (base's) */
   float tx, ty, tz;
 } rc_tri;
 
@@ -159,6 +161,7 @@ BK_INLINE rc_tri rc_tri_at(rc_dims n, bk_v3 u) {
   t.tx = fr.x;
   t.ty = fr.y;
   t.tz = fr.z;
+  t.ix = i.x, t.iy = i.y, t.iz = i.z;
   t.base = (bk_long)i.x + rc_pad_sy(n) * i.y + rc_pad_sz(n) * i.z;
   return t;
 #else
@@ -171,6 +174,7 @@ BK_INLINE rc_tri rc_tri_at(rc_dims n, bk_v3 u) {
   i = bk_clampi(i + 1, 0, n.nx);
   j = bk_clampi(j + 1, 0, n.ny);
   k = bk_clampi(k + 1, 0, n.nz);
+  t.ix = i, t.iy = j, t.iz = k;
   t.base = (bk_long)i + rc_pad_sy(n) * j + rc_pad_sz(n) * k;
   return t;
 #endif
@@ -212,10 +216,72 @@ BK_INLINE rc_f4 rc_gather4(rc_dims n, BK_GLOBAL const float *f, const rc_tri *t)
   return o;
 }
 
+/* The {∇n, n} field is stored sparse (baker/field.h builds it): the
+ * padded grid in bricks of RC_BRICK³ stencil corners, each brick stored
+ * with the RC_BRICK + 1 corners per axis its stencils read, or not at all
+ * when every one of those holds ∇n = 0 and the same n (a constant stretch
+ * of medium or glass, most of a grid): a stencil in such a brick reads
+ * that n, and its trilinear mix of equal values is exactly that value
+ * again. Floats, ints stored by their bits:
+ *   [0..2] bricks per axis, [3] bricks stored,
+ *   per brick (x fastest) its slot or -1, then per brick its constant n,
+ *   then the stored bricks, (RC_BRICK + 1)³ float4 each, x fastest.
+ * Dispersion puts three such fields one after the other (rc_field_channel). */
+#define RC_BRICK 8
+#define RC_BRICK_SIDE (RC_BRICK + 1)
+#define RC_BRICK_FLOATS (4 * RC_BRICK_SIDE * RC_BRICK_SIDE * RC_BRICK_SIDE)
+
+#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
+#define RC_AS_INT(f) as_int(f)
+#else
+BK_INLINE int rc_as_int_host(float f) {
+  int i;
+  memcpy(&i, &f, sizeof i);
+  return i;
+}
+#define RC_AS_INT(f) rc_as_int_host(f)
+#endif
+
+/* Floats of a sparse field with `stored` bricks over grid n. */
+BK_INLINE bk_long rc_field_floats(rc_dims n, bk_long stored) {
+  const bk_long b = (bk_long)(n.nx / RC_BRICK + 1) * (n.ny / RC_BRICK + 1) * (n.nz / RC_BRICK + 1);
+  return 4 + 2 * b + stored * RC_BRICK_FLOATS;
+}
+
+/* Channel c's field of a dispersive volume's three. */
+BK_INLINE BK_GLOBAL const float *rc_field_channel(rc_dims n, BK_GLOBAL const float *ng, int c) {
+  for (int k = 0; k < c; k++) ng += rc_field_floats(n, RC_AS_INT(ng[3]));
+  return ng;
+}
+
+/* The trilinear {∇n, n} at stencil t. */
+BK_INLINE rc_f4 rc_field_gather(BK_GLOBAL const float *ng, const rc_tri *t) {
+  const int bx = RC_AS_INT(ng[0]), by = RC_AS_INT(ng[1]), bz = RC_AS_INT(ng[2]);
+  const bk_long b = (bk_long)(t->ix / RC_BRICK) + (bk_long)bx * ((t->iy / RC_BRICK) + (bk_long)by * (t->iz / RC_BRICK));
+  const bk_long bricks = (bk_long)bx * by * bz;
+  const int slot = RC_AS_INT(ng[4 + b]);
+  if (slot < 0) {
+    rc_f4 o = {0.0f, 0.0f, 0.0f, ng[4 + bricks + b]};
+    return o;
+  }
+  BK_GLOBAL const float *f = ng + 4 + 2 * bricks + (bk_long)slot * RC_BRICK_FLOATS;
+  const bk_long dy = RC_BRICK_SIDE, dz = RC_BRICK_SIDE * RC_BRICK_SIDE;
+  const bk_long c = (bk_long)(t->ix % RC_BRICK) + dy * (t->iy % RC_BRICK) + dz * (t->iz % RC_BRICK);
+  rc_vec4 c00 = RC_LERP4(RC_LOAD4(f, c), RC_LOAD4(f, c + 1), t->tx);
+  rc_vec4 c10 = RC_LERP4(RC_LOAD4(f, c + dy), RC_LOAD4(f, c + dy + 1), t->tx);
+  rc_vec4 c01 = RC_LERP4(RC_LOAD4(f, c + dz), RC_LOAD4(f, c + dz + 1), t->tx);
+  rc_vec4 c11 = RC_LERP4(RC_LOAD4(f, c + dz + dy), RC_LOAD4(f, c + dz + dy + 1), t->tx);
+  rc_vec4 c0 = RC_LERP4(c00, c10, t->ty), c1 = RC_LERP4(c01, c11, t->ty);
+  rc_vec4 r = RC_LERP4(c0, c1, t->tz);
+  rc_f4 o = {r.x, r.y, r.z, r.w};
+  (void)bz;
+  return o;
+}
+
 /* n (returned) and ∇n (1/voxel) at u from the {∇n, n} field. */
 BK_INLINE float rc_field(rc_dims n, BK_GLOBAL const float *ng, bk_v3 u, bk_v3 *grad) {
   rc_tri t = rc_tri_at(n, u);
-  rc_f4 q = rc_gather4(n, ng, &t);
+  rc_f4 q = rc_field_gather(ng, &t);
   *grad = v3(q.x, q.y, q.z);
   return q.w;
 }

@@ -364,17 +364,16 @@ BK_INLINE void view_march_pixel(const view_params_t *p, view_fields f, view_flag
     *steps_out = view_march_ray(p, f, fl, px, py, &L, &T);
   } else {
     const rc_dims n = view_dims(p);
-    const bk_long field = 4 * rc_pad_sz(n) * (bk_long)(n.nz + 2);
     BK_GLOBAL const float *ng = f.ng;
     bk_v3 Lc, Tc;
     *steps_out = view_march_ray(p, f, fl, px, py, &Lc, &Tc);
     L.x = Lc.x;
     T.x = Tc.x;
-    f.ng = ng + field;
+    f.ng = rc_field_channel(n, ng, 1);
     *steps_out += view_march_ray(p, f, fl, px, py, &Lc, &Tc);
     L.y = Lc.y;
     T.y = Tc.y;
-    f.ng = ng + 2 * field;
+    f.ng = rc_field_channel(n, ng, 2);
     *steps_out += view_march_ray(p, f, fl, px, py, &Lc, &Tc);
     L.z = Lc.z;
     T.z = Tc.z;

@@ -81,7 +81,8 @@ static grad_err_t compare_analytic(const grid_dims_t *d, const float *ng) {
         double x[3] = {c[0], c[1], c[2]}, g[3];
         grad_exact(x, g);
         int idx[3] = {i, j, k}, cnt[3] = {d->nx, d->ny, d->nz};
-        const float *q = ng + 4 * rc_pad_index(n, i, j, k);
+        float q[4];
+        fld_voxel(ng, n.nx, n.ny, n.nz, i, j, k, q);
         for (int a = 0; a < 3; a++) {
           double diff = fabs(q[a] / d->voxel_size - g[a]);
           int face = idx[a] == 0 || idx[a] == cnt[a] - 1;
@@ -119,7 +120,8 @@ static void check_interpolation(const grid_dims_t *d, const float *ng, const flo
   EXPECT(worst <= bound, "interpolated error %.3g > %.3g", worst, bound);
   bk_v3 g;
   float nc = rc_field(dims, ng, v3(7.5f, 5.5f, 3.5f), &g);
-  const float *q = ng + 4 * rc_pad_index(dims, 7, 5, 3);
+  float q[4];
+  fld_voxel(ng, dims.nx, dims.ny, dims.nz, 7, 5, 3, q);
   EXPECT(nc == n[grid_index(d, 7, 5, 3)] && g.x == q[0] && g.y == q[1] && g.z == q[2],
          "a centre's sample is its value");
 }
@@ -163,7 +165,8 @@ static void test_field(void) {
   for (int q = 0; q < 12; q++) flat[q] = 1.0f + 0.1f * (float)q;
   float *gf = fld_build(4, 1, 3, 0.5, flat, &err);
   REQUIRE(gf, "%s", err.msg);
-  const float *q = gf + 4 * rc_pad_index((rc_dims){4, 1, 3}, 0, 0, 0);
+  float q[4];
+  fld_voxel(gf, 4, 1, 3, 0, 0, 0, q);
   /* 1/voxel: (n1 - n0) = 0.1 along x, one-sided; (n4 - n0)/... along z */
   EXPECT(q[1] == 0.0f && fabsf(q[0] - 0.1f) < 1e-6f && fabsf(q[2] - 0.4f) < 1e-6f,
          "flat grid %g %g %g", q[0], q[1], q[2]);
@@ -216,6 +219,59 @@ static void test_sampler(void) {
         EXPECT(0, "padded sample at (%g %g %g) ch %d differs", u[0], u[1], u[2], c);
   }
   EXPECT(bad == 0, "%d padded samples differ from clamped trilinear", bad);
+}
+
+/* The sparse {∇n, n} field samples exactly as the dense padded layout of
+ * the same values would: a ball of glass (n constant inside and out, a
+ * smooth band between, so bricks stored and left out side by side) on a
+ * grid that is not a whole number of bricks, sampled everywhere, outside
+ * the grid too. */
+static void test_sparse_field(void) {
+  enum { NX = 37, NY = 29, NZ = 23 };
+  static float n[NX * NY * NZ], dense[4 * NX * NY * NZ], p[4 * (NX + 2) * (NY + 2) * (NZ + 2)];
+  for (int k = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      for (int i = 0; i < NX; i++) {
+        float r = sqrtf((i - 20.0f) * (i - 20.0f) + (j - 13.0f) * (j - 13.0f) +
+                        (k - 11.0f) * (k - 11.0f));
+        float w = r < 6.0f ? 1.0f : r > 8.0f ? 0.0f : (8.0f - r) / 2.0f;
+        n[i + NX * (j + NY * k)] = 1.0f + 0.5f * w;
+      }
+  bk_error_t err = {0};
+  float *ng = fld_build(NX, NY, NZ, 0.1, n, &err);
+  REQUIRE(ng, "%s", err.msg);
+  int head[4];
+  memcpy(head, ng, sizeof head);
+  const int bricks = head[0] * head[1] * head[2];
+  EXPECT(head[3] > 0 && head[3] < bricks, "%d of %d bricks stored: expected some, not all",
+         head[3], bricks);
+  for (int k = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      for (int i = 0; i < NX; i++) fld_voxel(ng, NX, NY, NZ, i, j, k, dense + 4 * (i + NX * (j + NY * k)));
+  fld_pad4(NX, NY, NZ, dense, p);
+  const rc_dims d = {NX, NY, NZ};
+  unsigned seed = 7;
+  int bad = 0;
+  for (int s = 0; s < 200000; s++) {
+    float u[3];
+    for (int a = 0; a < 3; a++) {
+      seed = seed * 1103515245u + 12345u;
+      u[a] = -3.0f + (float)((seed >> 8) & 0xffff) / 65536.0f * 46.0f;
+    }
+    rc_tri t = rc_tri_at(d, v3(u[0], u[1], u[2]));
+    rc_f4 a = rc_field_gather(ng, &t), b = rc_gather4(d, p, &t);
+    if ((a.x != b.x || a.y != b.y || a.z != b.z || a.w != b.w) && bad++ < 3)
+      EXPECT(0, "sparse sample at (%g %g %g): %g %g %g %g, dense %g %g %g %g", u[0], u[1], u[2],
+             a.x, a.y, a.z, a.w, b.x, b.y, b.z, b.w);
+  }
+  EXPECT(bad == 0, "%d sparse samples differ from the dense layout's", bad);
+  /* and the values are the field's: the gradient of the band, n inside */
+  float q[4];
+  fld_voxel(ng, NX, NY, NZ, 20, 13, 11, q);
+  EXPECT(q[3] == 1.5f && q[0] == 0.0f, "centre of the ball: n %g, dn/dx %g", q[3], q[0]);
+  fld_voxel(ng, NX, NY, NZ, 27, 13, 11, q);
+  EXPECT(q[0] < 0.0f, "band: dn/dx %g, expected < 0", q[0]);
+  free(ng);
 }
 
 /* --- step ------------------------------------------------------------------------ */
@@ -364,6 +420,7 @@ int main(int argc, char **argv) {
   int all = !strcmp(t, "all");
   if (all || !strcmp(t, "field")) test_field();
   if (all || !strcmp(t, "sampler")) test_sampler();
+  if (all || !strcmp(t, "sparse")) test_sparse_field();
   if (all || !strcmp(t, "step")) test_step();
   if (all || !strcmp(t, "atten_slab")) test_atten_slab();
   if (all || !strcmp(t, "pyramid")) test_pyramid();
