@@ -143,7 +143,9 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
     s->ng = vol->ior_rb ? fld_build_rgb(d->nx, d->ny, d->nz, h, vol->ior, vol->ior_rb, err)
                         : fld_build(d->nx, d->ny, d->nz, h, vol->ior, err);
     if (!s->ng) return BK_ERR_RUNTIME;
-    bk_log(2, "octree: pyramid %.0f ms, {grad n, n} field %.0f ms", t1 - t0, bk_now_ms() - t1);
+    bk_log(2, "octree: pyramid %.0f ms, {grad n, n} field %.0f ms (%.1f MiB sparse)", t1 - t0,
+           bk_now_ms() - t1,
+           (double)fld_floats(d->nx, d->ny, d->nz, s->ng, vol->ior_rb ? 3 : 1) * 4.0 / 1048576.0);
   }
   if (s->homogeneous) return BK_OK;
   s->sigma = bk_calloc(s->voxels, s->channels * sizeof(float), "march: extinction grid", err);
