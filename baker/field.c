@@ -208,7 +208,8 @@ void fld_voxel(const float *ng, int nx, int ny, int nz, int i, int j, int k, flo
   }
   const float *f = ng + 4 + 2 * bricks + (size_t)slot * RC_BRICK_FLOATS;
   const size_t c = (size_t)(X % RC_BRICK) +
-                   RC_BRICK_SIDE * ((size_t)(Y % RC_BRICK) + RC_BRICK_SIDE * (size_t)(Z % RC_BRICK));
+                   RC_BRICK_SIDE * ((size_t)(Y % RC_BRICK) +
+                                    RC_BRICK_SIDE * (size_t)(Z % RC_BRICK));
   memcpy(q, f + 4 * c, 4 * sizeof(float));
   (void)nx, (void)ny;
 }

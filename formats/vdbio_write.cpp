@@ -304,8 +304,9 @@ private:
     vdb::GridBase::Ptr meta = grid->copyGrid(); /* shallow: the tree is shared */
     if (vdb::io::getWriteGridStatsMetadata(os)) {
       meta->addStatsMetadata();
+      const uint32_t compression = vdb::io::getDataCompression(os);
       meta->insertMeta(vdb::GridBase::META_FILE_COMPRESSION,
-                       vdb::StringMetadata(vdb::io::compressionToString(vdb::io::getDataCompression(os))));
+                       vdb::StringMetadata(vdb::io::compressionToString(compression)));
     }
     meta->writeMeta(os);
     grid->writeTransform(os);

@@ -203,9 +203,11 @@ BK_INLINE rc_vec4 rc_lerp4_host(rc_vec4 a, rc_vec4 b, float t) {
 #define RC_LERP4(a, b, t) rc_lerp4_host((a), (b), (t))
 #endif
 
-/* Trilinear value of a padded float4 field at stencil t (x, then y, then z). */
-BK_INLINE rc_f4 rc_gather4(rc_dims n, BK_GLOBAL const float *f, const rc_tri *t) {
-  const bk_long b = t->base, dy = rc_pad_sy(n), dz = rc_pad_sz(n);
+/* Trilinear value at stencil t's fractions of a float4 array whose lower
+ * corner is entry b and whose y and z strides are dy and dz entries (x,
+ * then y, then z). */
+BK_INLINE rc_f4 rc_trilinear4(BK_GLOBAL const float *f, bk_long b, bk_long dy, bk_long dz,
+                              const rc_tri *t) {
   rc_vec4 c00 = RC_LERP4(RC_LOAD4(f, b), RC_LOAD4(f, b + 1), t->tx);
   rc_vec4 c10 = RC_LERP4(RC_LOAD4(f, b + dy), RC_LOAD4(f, b + dy + 1), t->tx);
   rc_vec4 c01 = RC_LERP4(RC_LOAD4(f, b + dz), RC_LOAD4(f, b + dz + 1), t->tx);
@@ -214,6 +216,11 @@ BK_INLINE rc_f4 rc_gather4(rc_dims n, BK_GLOBAL const float *f, const rc_tri *t)
   rc_vec4 r = RC_LERP4(c0, c1, t->tz);
   rc_f4 o = {r.x, r.y, r.z, r.w};
   return o;
+}
+
+/* Trilinear value of a padded float4 field at stencil t. */
+BK_INLINE rc_f4 rc_gather4(rc_dims n, BK_GLOBAL const float *f, const rc_tri *t) {
+  return rc_trilinear4(f, t->base, rc_pad_sy(n), rc_pad_sz(n), t);
 }
 
 /* The {∇n, n} field is stored sparse (baker/field.h builds it): the
@@ -257,7 +264,8 @@ BK_INLINE BK_GLOBAL const float *rc_field_channel(rc_dims n, BK_GLOBAL const flo
 /* The trilinear {∇n, n} at stencil t. */
 BK_INLINE rc_f4 rc_field_gather(BK_GLOBAL const float *ng, const rc_tri *t) {
   const int bx = RC_AS_INT(ng[0]), by = RC_AS_INT(ng[1]), bz = RC_AS_INT(ng[2]);
-  const bk_long b = (bk_long)(t->ix / RC_BRICK) + (bk_long)bx * ((t->iy / RC_BRICK) + (bk_long)by * (t->iz / RC_BRICK));
+  const bk_long b = (bk_long)(t->ix / RC_BRICK) +
+                    (bk_long)bx * ((t->iy / RC_BRICK) + (bk_long)by * (t->iz / RC_BRICK));
   const bk_long bricks = (bk_long)bx * by * bz;
   const int slot = RC_AS_INT(ng[4 + b]);
   if (slot < 0) {
@@ -267,15 +275,7 @@ BK_INLINE rc_f4 rc_field_gather(BK_GLOBAL const float *ng, const rc_tri *t) {
   BK_GLOBAL const float *f = ng + 4 + 2 * bricks + (bk_long)slot * RC_BRICK_FLOATS;
   const bk_long dy = RC_BRICK_SIDE, dz = RC_BRICK_SIDE * RC_BRICK_SIDE;
   const bk_long c = (bk_long)(t->ix % RC_BRICK) + dy * (t->iy % RC_BRICK) + dz * (t->iz % RC_BRICK);
-  rc_vec4 c00 = RC_LERP4(RC_LOAD4(f, c), RC_LOAD4(f, c + 1), t->tx);
-  rc_vec4 c10 = RC_LERP4(RC_LOAD4(f, c + dy), RC_LOAD4(f, c + dy + 1), t->tx);
-  rc_vec4 c01 = RC_LERP4(RC_LOAD4(f, c + dz), RC_LOAD4(f, c + dz + 1), t->tx);
-  rc_vec4 c11 = RC_LERP4(RC_LOAD4(f, c + dz + dy), RC_LOAD4(f, c + dz + dy + 1), t->tx);
-  rc_vec4 c0 = RC_LERP4(c00, c10, t->ty), c1 = RC_LERP4(c01, c11, t->ty);
-  rc_vec4 r = RC_LERP4(c0, c1, t->tz);
-  rc_f4 o = {r.x, r.y, r.z, r.w};
-  (void)bz;
-  return o;
+  return rc_trilinear4(f, c, dy, dz, t);
 }
 
 /* n (returned) and ∇n (1/voxel) at u from the {∇n, n} field. */

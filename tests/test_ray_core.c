@@ -247,7 +247,8 @@ static void test_sparse_field(void) {
          head[3], bricks);
   for (int k = 0; k < NZ; k++)
     for (int j = 0; j < NY; j++)
-      for (int i = 0; i < NX; i++) fld_voxel(ng, NX, NY, NZ, i, j, k, dense + 4 * (i + NX * (j + NY * k)));
+      for (int i = 0; i < NX; i++)
+        fld_voxel(ng, NX, NY, NZ, i, j, k, dense + 4 * (i + NX * (j + NY * k)));
   fld_pad4(NX, NY, NZ, dense, p);
   const rc_dims d = {NX, NY, NZ};
   unsigned seed = 7;

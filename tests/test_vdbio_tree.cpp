@@ -4,7 +4,8 @@
  * the same array: same topology, same values and active states everywhere,
  * same leaf and tile counts. And its leaves, compressed on every core
  * (formats/vdbio_leaves.h), must be the bytes OpenVDB's own serial
- * Tree::writeBuffers writes, for every compression and half float. The array has what the two could disagree on:
+ * Tree::writeBuffers writes, for every compression and half float. The
+ * array has what the two could disagree on:
  * a box that is not a whole number of 8^3 leaves, exact zeros and -0 and NaN
  * (inactive by OpenVDB's !(|v| > 0)), constant active blocks (tiles) next to
  * varying ones, a zero channel in a Vec3, a background other than 0.
