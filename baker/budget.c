@@ -42,6 +42,7 @@ int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *e
                  (s->bounces != 0 ? (grey ? BUDGET_SCATTER_GREY_BYTES : BUDGET_SCATTER_BYTES)
                                   : 0.0) +
                  (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0) +
+                 (s->ior_vdb.present ? BUDGET_IOR_VDB_BYTES : 0.0) +
                  (s->mode != MODE_ADAPTIVE && budget_anisotropic(s) ? BUDGET_FLUX_BYTES : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
   return BK_OK;

@@ -38,9 +38,14 @@ extern "C" {
  * channel and g, baker/bounces.h); counted unless photons.bounces is 0 */
 #define BUDGET_SCATTER_BYTES 16.0
 #define BUDGET_SCATTER_GREY_BYTES 8.0
-/* dispersion: two more fields {∇n, n} (32 bytes), the R and B planes of n
- * and the interleaved ior_rgb grid written (20): counted, not measured */
-#define BUDGET_DISPERSION_BYTES 52.0
+/* dispersion: two more fields {∇n, n} (46 bytes at most, field.h), the R
+ * and B planes of n and the interleaved ior_rgb grid written (20): counted,
+ * not measured */
+#define BUDGET_DISPERSION_BYTES 66.0
+/* n from a VDB (grid.ior_vdb) may vary in every brick of the {∇n, n}
+ * field: its worst case over the dense float4 field the constants above
+ * were measured with (field.h) */
+#define BUDGET_IOR_VDB_BYTES 7.0
 /* per voxel, the flux of an anisotropic medium (some g != 0, reference mode):
  * 7 counters, radiance_flux, radiance_uncollided, radiance_flux_uncollided
  * and phase_g (baker/march.h) */

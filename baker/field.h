@@ -32,6 +32,12 @@ float *fld_build(int nx, int ny, int nz, double h, const float *ior, bk_error_t 
 float *fld_build_rgb(int nx, int ny, int nz, double h, const float *ior, const float *ior_rb,
                      bk_error_t *err);
 
+/* Bytes per voxel of one sparse field at most: every brick stored, each
+ * with its (RC_BRICK + 1)³ corners (16 B per voxel where n varies; the
+ * bundled scenes need under 1). For memory checks made before the field
+ * exists. */
+#define FLD_WORST_BYTES_PER_VOXEL (16.0 * 729.0 / 512.0)
+
 /* The floats of `fields` sparse fields one after the other at ng. */
 size_t fld_floats(int nx, int ny, int nz, const float *ng, int fields);
 
