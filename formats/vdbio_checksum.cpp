@@ -12,7 +12,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <chrono>
 #include <new>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -60,20 +62,28 @@ static std::string ck_hex(uint64_t h) {
   return buf;
 }
 
-std::string vdbio_checksum_placeholder(int g) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "@@checksum@@%04d", g % 10000); /* 16 characters, as ck_hex's */
-  return buf;
+std::string vdbio_checksum_placeholder(uint64_t key, int g) {
+  /* 16 characters, as ck_hex's; a key drawn per file keeps other metadata
+   * (a scene path, say) from holding the same text */
+  uint64_t h = key ^ (CK_PRIME * (uint64_t)(g + 1));
+  h = (h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ull;
+  return "~" + ck_hex(h ^ (h >> 32)).substr(1);
+}
+
+uint64_t vdbio_checksum_key(void) {
+  std::random_device rd;
+  const uint64_t t = (uint64_t)std::chrono::steady_clock::now().time_since_epoch().count();
+  return ((uint64_t)rd() << 32) ^ (uint64_t)rd() ^ t;
 }
 
 void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t *grids,
-                                     int count, vdb::MetaMap &file_meta) {
+                                     int count, uint64_t key, vdb::MetaMap &file_meta) {
   char box[96];
   std::snprintf(box, sizeof box, "%d %d %d", dims->nx, dims->ny, dims->nz);
   file_meta.insertMeta("checksum_box", vdb::StringMetadata(box));
   for (int g = 0; g < count; g++)
     file_meta.insertMeta(std::string("checksum_") + grids[g].name,
-                         vdb::StringMetadata(vdbio_checksum_placeholder(g)));
+                         vdb::StringMetadata(vdbio_checksum_placeholder(key, g)));
 }
 
 std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,

@@ -52,13 +52,15 @@ const float *vdbio_slices(const grid_dims_t *dims, const vdbio_grid_t &grid, int
 
 /* The file's checksums (vdbio_checksum.cpp; the rule is in vdbio.h),
  * taken while the grids are written: checksum_box and checksum_<grid> for
- * every grid, each grid's holding vdbio_checksum_placeholder(g), 16
+ * every grid, each grid's holding vdbio_checksum_placeholder(key, g), 16
  * characters like the hex that replaces it in the file once
- * vdbio_checksums has it. `half`: the values are stored as 16-bit floats,
- * so the checksum covers the rounded values. */
+ * vdbio_checksums has it; key (vdbio_checksum_key) is drawn per file, so
+ * that no other metadata holds the same text. `half`: the values are
+ * stored as 16-bit floats, so the checksum covers the rounded values. */
 void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t *grids,
-                                     int grid_count, openvdb::MetaMap &file_meta);
-std::string vdbio_checksum_placeholder(int g);
+                                     int grid_count, uint64_t key, openvdb::MetaMap &file_meta);
+std::string vdbio_checksum_placeholder(uint64_t key, int g);
+uint64_t vdbio_checksum_key(void);
 std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
                                          int grid_count, bool half);
 

@@ -269,6 +269,8 @@ static int vdbio_file_meta(const char *path, const grid_dims_t *d, const vdbio_m
  * a stream whose failures we see (Archive::write is protected). */
 class vdbio_checked_archive : public vdb::io::Archive {
 public:
+  /* key: the checksum placeholders' (vdbio_add_checksum_placeholders) */
+  explicit vdbio_checked_archive(uint64_t key) : key_(key) {}
   /* 0, or the errno of the first failed write or close. */
   int write_file(const char *tmp, const grid_dims_t *dims, const vdbio_grid_t *grids, int count,
                  bool half, const vdb::MetaMap &meta,
@@ -357,13 +359,13 @@ private:
 
   /* Each grid's checksum over its placeholder in the file metadata, once
    * the hashing that ran beside the grids' writing has it. */
-  static void put_checksums(std::ostream &os, std::streampos meta_at, const std::string &file_meta,
-                            std::future<std::vector<std::string>> &checksums, int count) {
+  void put_checksums(std::ostream &os, std::streampos meta_at, const std::string &file_meta,
+                     std::future<std::vector<std::string>> &checksums, int count) const {
     double t = bk_now_ms();
     const std::vector<std::string> hex = checksums.get();
     bk_log(2, "write: waited %.0f ms for the checksums", bk_now_ms() - t);
     for (int g = 0; g < count; g++) {
-      const std::string mark = vdbio_checksum_placeholder(g);
+      const std::string mark = vdbio_checksum_placeholder(key_, g);
       const size_t at = file_meta.find(mark);
       if (at == std::string::npos || file_meta.find(mark, at + 1) != std::string::npos ||
           hex[(size_t)g].size() != mark.size())
@@ -373,6 +375,8 @@ private:
     }
     os.seekp(0, std::ios_base::end);
   }
+
+  uint64_t key_;
 };
 
 /* Zip by default; Blosc only where this OpenVDB was built with it. */
@@ -419,8 +423,9 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
       double t_file = bk_now_ms();
       std::future<std::vector<std::string>> checksums = std::async(
           std::launch::async, [=] { return vdbio_checksums(dims, grids, grid_count, half); });
-      vdbio_add_checksum_placeholders(dims, grids, grid_count, file_meta);
-      vdbio_checked_archive archive;
+      const uint64_t key = vdbio_checksum_key();
+      vdbio_add_checksum_placeholders(dims, grids, grid_count, key, file_meta);
+      vdbio_checked_archive archive(key);
       archive.setCompression(vdbio_compression(path, opts));
       if (int e = archive.write_file(tmp, dims, grids, grid_count, half, file_meta, checksums)) {
         remove(tmp);
