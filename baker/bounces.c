@@ -21,7 +21,6 @@ typedef struct ms_scan {
 
 typedef struct ms_scan_ctx {
   const volume_t *vol;
-  size_t count;
   ms_scan_t part[MS_SCAN_CHUNKS];
 } ms_scan_ctx_t;
 
@@ -48,30 +47,24 @@ static void scan_voxels(const volume_t *vol, size_t a, size_t b, ms_scan_t *p) {
   }
 }
 
-static void scan_chunks(void *arg, size_t lo, size_t hi) {
+static void scan_chunk(void *arg, size_t k, size_t a, size_t b) {
   ms_scan_ctx_t *x = arg;
-  for (size_t k = lo; k < hi; k++)
-    scan_voxels(x->vol, x->count * k / MS_SCAN_CHUNKS, x->count * (k + 1) / MS_SCAN_CHUNKS,
-                &x->part[k]);
+  scan_voxels(x->vol, a, b, &x->part[k]);
 }
 
 static void scan_volume(const volume_t *vol, ms_scan_t *out) {
-  ms_scan_ctx_t *x = calloc(1, sizeof *x);
+  ms_scan_ctx_t x;
+  memset(&x, 0, sizeof x);
   memset(out, 0, sizeof *out);
-  if (!x) { /* no room for the chunks: one pass on this thread */
-    scan_voxels(vol, 0, grid_count(&vol->dims), out);
-    return;
-  }
-  x->vol = vol, x->count = grid_count(&vol->dims);
-  bk_parallel(MS_SCAN_CHUNKS, 1, scan_chunks, x);
+  x.vol = vol;
+  bk_parallel_chunks(grid_count(&vol->dims), MS_SCAN_CHUNKS, scan_chunk, &x);
   for (int k = 0; k < MS_SCAN_CHUNKS; k++) {
-    const ms_scan_t *p = &x->part[k];
+    const ms_scan_t *p = &x.part[k];
     out->ss += p->ss, out->st += p->st, out->st_scattering += p->st_scattering;
     out->scattering += p->scattering;
     out->sigma_varies |= p->sigma_varies, out->colour |= p->colour;
     out->g_varies |= p->g_varies, out->g_set |= p->g_set;
   }
-  free(x);
 }
 
 /* The rule's r from the scan. */

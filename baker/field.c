@@ -58,18 +58,24 @@ static void corner(const fld_job_t *x, int X, int Y, int Z, float q[4]) {
   q[3] = x->ior[(size_t)i + (size_t)d.nx * ((size_t)j + (size_t)d.ny * k)];
 }
 
+/* Brick b's first padded corner. */
+static void brick_origin(const fld_job_t *x, size_t b, int o[3]) {
+  o[0] = RC_BRICK * (int)(b % (size_t)x->bx);
+  o[1] = RC_BRICK * (int)(b / (size_t)x->bx % (size_t)x->by);
+  o[2] = RC_BRICK * (int)(b / ((size_t)x->bx * (size_t)x->by));
+}
+
 /* Brick b's corners into out (RC_BRICK_FLOATS floats); whether all of them
  * are (0, 0, 0, n0), n0 the first corner's n. */
 static int brick(const fld_job_t *x, size_t b, float *out) {
-  const int X0 = RC_BRICK * (int)(b % (size_t)x->bx);
-  const int Y0 = RC_BRICK * (int)(b / (size_t)x->bx % (size_t)x->by);
-  const int Z0 = RC_BRICK * (int)(b / ((size_t)x->bx * (size_t)x->by));
+  int o[3];
+  brick_origin(x, b, o);
   int flat = 1;
   float *q = out;
   for (int z = 0; z < RC_BRICK_SIDE; z++)
     for (int y = 0; y < RC_BRICK_SIDE; y++)
       for (int c = 0; c < RC_BRICK_SIDE; c++, q += 4) {
-        corner(x, X0 + c, Y0 + y, Z0 + z, q);
+        corner(x, o[0] + c, o[1] + y, o[2] + z, q);
         flat &= q[0] == 0.0f && q[1] == 0.0f && q[2] == 0.0f && q[3] == out[3];
       }
   return flat;
@@ -80,12 +86,12 @@ static int brick(const fld_job_t *x, size_t b, float *out) {
  * and the brick need not be computed. */
 static int brick_uniform(const fld_job_t *x, size_t b, float *n) {
   const rc_dims d = x->d;
-  int lo[3], hi[3];
-  const int B[3] = {(int)(b % (size_t)x->bx), (int)(b / (size_t)x->bx % (size_t)x->by),
-                    (int)(b / ((size_t)x->bx * (size_t)x->by))}, N[3] = {d.nx, d.ny, d.nz};
+  int lo[3], hi[3], o[3];
+  const int N[3] = {d.nx, d.ny, d.nz};
+  brick_origin(x, b, o);
   for (int a = 0; a < 3; a++) { /* corners X0..X0+RC_BRICK are voxels X-1, then ±1 */
-    lo[a] = bk_clampi(RC_BRICK * B[a] - 2, 0, N[a] - 1);
-    hi[a] = bk_clampi(RC_BRICK * B[a] + RC_BRICK, 0, N[a] - 1);
+    lo[a] = bk_clampi(o[a] - 2, 0, N[a] - 1);
+    hi[a] = bk_clampi(o[a] + RC_BRICK, 0, N[a] - 1);
   }
   const float *v = x->ior;
   *n = v[(size_t)lo[0] + (size_t)d.nx * ((size_t)lo[1] + (size_t)d.ny * lo[2])];
@@ -191,25 +197,13 @@ void fld_pad4(int nx, int ny, int nz, const float *src, float *dst) {
   pad_faces(nx, ny, nz, dst);
 }
 
-void fld_voxel(const float *ng, int nx, int ny, int nz, int i, int j, int k, float q[4]) {
-  (void)nz;
-  int head[3];
-  memcpy(head, ng, sizeof head);
-  const int X = i + 1, Y = j + 1, Z = k + 1; /* padded */
-  const size_t bricks = (size_t)head[0] * head[1] * head[2];
-  const size_t b = (size_t)(X / RC_BRICK) +
-                   (size_t)head[0] * ((size_t)(Y / RC_BRICK) + (size_t)head[1] * (Z / RC_BRICK));
-  int slot;
-  memcpy(&slot, ng + 4 + b, sizeof slot);
-  if (slot < 0) {
-    q[0] = q[1] = q[2] = 0.0f;
-    q[3] = ng[4 + bricks + b];
-    return;
-  }
-  const float *f = ng + 4 + 2 * bricks + (size_t)slot * RC_BRICK_FLOATS;
-  const size_t c = (size_t)(X % RC_BRICK) +
-                   RC_BRICK_SIDE * ((size_t)(Y % RC_BRICK) +
-                                    RC_BRICK_SIDE * (size_t)(Z % RC_BRICK));
-  memcpy(q, f + 4 * c, 4 * sizeof(float));
-  (void)nx, (void)ny;
+void fld_voxel(const float *ng, int i, int j, int k, float q[4]) {
+  /* the sampler's stencil at the voxel's own padded corner: a mix with
+   * weight 0 of the next corners gives this one's value exactly */
+  rc_tri t;
+  t.ix = i + 1, t.iy = j + 1, t.iz = k + 1;
+  t.base = 0;
+  t.tx = t.ty = t.tz = 0.0f;
+  rc_f4 v = rc_field_gather(ng, &t);
+  q[0] = v.x, q[1] = v.y, q[2] = v.z, q[3] = v.w;
 }

@@ -41,9 +41,10 @@ float *fld_build_rgb(int nx, int ny, int nz, double h, const float *ior, const f
 /* The floats of `fields` sparse fields one after the other at ng. */
 size_t fld_floats(int nx, int ny, int nz, const float *ng, int fields);
 
-/* Voxel (i, j, k)'s {∇n, n} as the sparse field ng holds it (-1 and nx etc.
- * are the padding: the edge voxels' values). */
-void fld_voxel(const float *ng, int nx, int ny, int nz, int i, int j, int k, float q[4]);
+/* Voxel (i, j, k)'s {∇n, n} as the sparse field ng holds it, read through
+ * the sampler; each of i, j, k from -1 (the padding: the edge voxel's
+ * value) to its count - 1. */
+void fld_voxel(const float *ng, int i, int j, int k, float q[4]);
 
 /* Copies an unpadded float4 field src (nx*ny*nz float4) into the padded
  * layout dst (fld_padded_count float4). */

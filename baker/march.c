@@ -192,7 +192,8 @@ int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t 
   s->seed = scene->seed;
   pm_set_range(s, 0, s->lights.photons);
   /* what the march holds per voxel: n/∇n, the pyramid, σt, the counters */
-  size_t per_voxel = (s->has_refraction ? (vol->ior_rb ? 3 : 1) * 23 + 1 : 0) + /* 23: field.h */
+  const size_t field = (size_t)ceil(FLD_WORST_BYTES_PER_VOXEL);
+  size_t per_voxel = (s->has_refraction ? (vol->ior_rb ? 3 : 1) * field + 1 : 0) +
                      (s->homogeneous ? 0 : s->channels * sizeof(float)) +
                      s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
                      (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0) +

@@ -14,27 +14,23 @@
 #define SCAN_CHUNKS 64
 typedef struct scan_ctx {
   const volume_t *vol;
-  size_t count;
   float t0[3];
   unsigned char refract[SCAN_CHUNKS], varies[SCAN_CHUNKS], colour[SCAN_CHUNKS];
 } scan_ctx_t;
 
-static void scan_chunks(void *arg, size_t lo, size_t hi) {
+static void scan_chunk(void *arg, size_t k, size_t a, size_t b) {
   scan_ctx_t *x = arg;
   const volume_t *vol = x->vol;
-  for (size_t k = lo; k < hi; k++) {
-    const size_t a = x->count * k / SCAN_CHUNKS, b = x->count * (k + 1) / SCAN_CHUNKS;
-    for (size_t i = a; i < b; i++)
-      if (vol->ior[i] != vol->ior[0]) {
-        x->refract[k] = 1;
-        break;
-      }
-    for (size_t i = a; i < b && !(x->varies[k] && x->colour[k]); i++) {
-      float t[3];
-      for (int c = 0; c < 3; c++) t[c] = vol_sigma_t(vol, i, c);
-      if (t[0] != x->t0[0] || t[1] != x->t0[1] || t[2] != x->t0[2]) x->varies[k] = 1;
-      if (t[0] != t[1] || t[0] != t[2]) x->colour[k] = 1;
+  for (size_t i = a; i < b; i++)
+    if (vol->ior[i] != vol->ior[0]) {
+      x->refract[k] = 1;
+      break;
     }
+  for (size_t i = a; i < b && !(x->varies[k] && x->colour[k]); i++) {
+    float t[3];
+    for (int c = 0; c < 3; c++) t[c] = vol_sigma_t(vol, i, c);
+    if (t[0] != x->t0[0] || t[1] != x->t0[1] || t[2] != x->t0[2]) x->varies[k] = 1;
+    if (t[0] != t[1] || t[0] != t[2]) x->colour[k] = 1;
   }
 }
 
@@ -42,9 +38,9 @@ static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, 
                         int *grey) {
   scan_ctx_t x;
   memset(&x, 0, sizeof x);
-  x.vol = vol, x.count = count;
+  x.vol = vol;
   for (int c = 0; c < 3; c++) x.t0[c] = vol_sigma_t(vol, 0, c);
-  bk_parallel(SCAN_CHUNKS, 1, scan_chunks, &x);
+  bk_parallel_chunks(count, SCAN_CHUNKS, scan_chunk, &x);
   *has_refraction = vol->ior_rb != NULL; /* dispersion: n differs between channels */
   *homogeneous = *grey = 1;
   for (int k = 0; k < SCAN_CHUNKS; k++) {

@@ -141,15 +141,13 @@ static void vox_store_grey(volume_t *v) {
  * Combining min, max and OR is exact in any order. */
 typedef struct vox_summary {
   const volume_t *v;
-  size_t count;
   float n_min[VOX_SUMMARY_CHUNKS], n_max[VOX_SUMMARY_CHUNKS];
   int varies[VOX_SUMMARY_CHUNKS], coloured[VOX_SUMMARY_CHUNKS];
 } vox_summary_t;
 
-static void summarise_chunk(vox_summary_t *S, size_t slot) {
+static void summarise_chunk(void *ctx, size_t slot, size_t lo, size_t hi) {
+  vox_summary_t *S = ctx;
   const volume_t *v = S->v;
-  const size_t lo = S->count * slot / VOX_SUMMARY_CHUNKS;
-  const size_t hi = S->count * (slot + 1) / VOX_SUMMARY_CHUNKS;
   if (lo >= hi) return;
   float n_min = v->ior[lo], n_max = v->ior[lo];
   const float *s0 = v->sigma_s, *a0 = v->sigma_a;
@@ -175,20 +173,16 @@ static void summarise_chunk(vox_summary_t *S, size_t slot) {
   S->coloured[slot] = coloured;
 }
 
-static void summarise_chunks(void *ctx, size_t c0, size_t c1) {
-  for (size_t c = c0; c < c1; c++) summarise_chunk(ctx, c);
-}
 
 void vox_summarise(volume_t *v) {
   vox_summary_t S;
   S.v = v;
-  S.count = grid_count(&v->dims);
   /* an empty chunk (a grid of fewer voxels) reads as the first voxel */
   for (int t = 0; t < VOX_SUMMARY_CHUNKS; t++) {
     S.n_min[t] = S.n_max[t] = v->ior[0];
     S.varies[t] = S.coloured[t] = 0;
   }
-  bk_parallel(VOX_SUMMARY_CHUNKS, 1, summarise_chunks, &S);
+  bk_parallel_chunks(grid_count(&v->dims), VOX_SUMMARY_CHUNKS, summarise_chunk, &S);
   float n_min = v->ior[0], n_max = v->ior[0];
   int varies = 0, coloured = 0;
   for (int t = 0; t < VOX_SUMMARY_CHUNKS; t++) {

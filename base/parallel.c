@@ -56,3 +56,22 @@ void bk_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t
   for (int t = 1; t <= started; t++) pthread_join(tid[t], NULL);
   for (int t = started + 1; t < threads; t++) range_run(&jobs[t]);
 }
+
+typedef struct bk_chunk_job {
+  size_t n;
+  int chunks;
+  void (*fn)(void *ctx, size_t k, size_t lo, size_t hi);
+  void *ctx;
+} bk_chunk_job_t;
+
+static void chunk_range(void *arg, size_t k0, size_t k1) {
+  const bk_chunk_job_t *j = arg;
+  for (size_t k = k0; k < k1; k++)
+    j->fn(j->ctx, k, j->n * k / (size_t)j->chunks, j->n * (k + 1) / (size_t)j->chunks);
+}
+
+void bk_parallel_chunks(size_t n, int chunks, void (*fn)(void *ctx, size_t k, size_t lo, size_t hi),
+                        void *ctx) {
+  bk_chunk_job_t j = {n, chunks, fn, ctx};
+  bk_parallel((size_t)chunks, 1, chunk_range, &j);
+}

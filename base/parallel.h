@@ -22,6 +22,12 @@ extern "C" {
  * PoCL 4): call before any OpenCL use. */
 void bk_set_threads(int n);
 void bk_parallel(size_t n, size_t grain, void (*fn)(void *ctx, size_t lo, size_t hi), void *ctx);
+/* fn(ctx, k, lo, hi) for each chunk k of `chunks` fixed chunks of [0, n)
+ * (chunk k is [n k / chunks, n (k+1) / chunks)), chunks side by side: for
+ * reductions whose chunk results are combined in chunk order afterwards,
+ * the same on every run and thread count. */
+void bk_parallel_chunks(size_t n, int chunks, void (*fn)(void *ctx, size_t k, size_t lo, size_t hi),
+                        void *ctx);
 
 #ifdef __cplusplus
 }

@@ -72,7 +72,6 @@ typedef struct grad_err {
  * analytic gradient in 1/m. */
 static grad_err_t compare_analytic(const grid_dims_t *d, const float *ng) {
   grad_err_t e = {0, 0, 0};
-  const rc_dims n = {d->nx, d->ny, d->nz};
   for (int k = 0; k < d->nz; k++)
     for (int j = 0; j < d->ny; j++)
       for (int i = 0; i < d->nx; i++) {
@@ -82,7 +81,7 @@ static grad_err_t compare_analytic(const grid_dims_t *d, const float *ng) {
         grad_exact(x, g);
         int idx[3] = {i, j, k}, cnt[3] = {d->nx, d->ny, d->nz};
         float q[4];
-        fld_voxel(ng, n.nx, n.ny, n.nz, i, j, k, q);
+        fld_voxel(ng, i, j, k, q);
         for (int a = 0; a < 3; a++) {
           double diff = fabs(q[a] / d->voxel_size - g[a]);
           int face = idx[a] == 0 || idx[a] == cnt[a] - 1;
@@ -121,7 +120,7 @@ static void check_interpolation(const grid_dims_t *d, const float *ng, const flo
   bk_v3 g;
   float nc = rc_field(dims, ng, v3(7.5f, 5.5f, 3.5f), &g);
   float q[4];
-  fld_voxel(ng, dims.nx, dims.ny, dims.nz, 7, 5, 3, q);
+  fld_voxel(ng, 7, 5, 3, q);
   EXPECT(nc == n[grid_index(d, 7, 5, 3)] && g.x == q[0] && g.y == q[1] && g.z == q[2],
          "a centre's sample is its value");
 }
@@ -166,7 +165,7 @@ static void test_field(void) {
   float *gf = fld_build(4, 1, 3, 0.5, flat, &err);
   REQUIRE(gf, "%s", err.msg);
   float q[4];
-  fld_voxel(gf, 4, 1, 3, 0, 0, 0, q);
+  fld_voxel(gf, 0, 0, 0, q);
   /* 1/voxel: (n1 - n0) = 0.1 along x, one-sided; (n4 - n0)/... along z */
   EXPECT(q[1] == 0.0f && fabsf(q[0] - 0.1f) < 1e-6f && fabsf(q[2] - 0.4f) < 1e-6f,
          "flat grid %g %g %g", q[0], q[1], q[2]);
@@ -248,7 +247,7 @@ static void test_sparse_field(void) {
   for (int k = 0; k < NZ; k++)
     for (int j = 0; j < NY; j++)
       for (int i = 0; i < NX; i++)
-        fld_voxel(ng, NX, NY, NZ, i, j, k, dense + 4 * (i + NX * (j + NY * k)));
+        fld_voxel(ng, i, j, k, dense + 4 * (i + NX * (j + NY * k)));
   fld_pad4(NX, NY, NZ, dense, p);
   const rc_dims d = {NX, NY, NZ};
   unsigned seed = 7;
@@ -268,9 +267,9 @@ static void test_sparse_field(void) {
   EXPECT(bad == 0, "%d sparse samples differ from the dense layout's", bad);
   /* and the values are the field's: the gradient of the band, n inside */
   float q[4];
-  fld_voxel(ng, NX, NY, NZ, 20, 13, 11, q);
+  fld_voxel(ng, 20, 13, 11, q);
   EXPECT(q[3] == 1.5f && q[0] == 0.0f, "centre of the ball: n %g, dn/dx %g", q[3], q[0]);
-  fld_voxel(ng, NX, NY, NZ, 27, 13, 11, q);
+  fld_voxel(ng, 27, 13, 11, q);
   EXPECT(q[0] < 0.0f, "band: dn/dx %g, expected < 0", q[0]);
   free(ng);
 }
