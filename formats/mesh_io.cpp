@@ -389,8 +389,7 @@ bool prescan_ply(const char *text, std::string *msg) {
       e.name = c.token(false, false);
       std::string count = c.token(false, false);
       double n = 0;
-      /* OpenMesh reads "nan" or "-1" as a huge count and reserves for it;
-       * PLY counts are ints (and a larger double would not convert) */
+      /* OpenMesh reads "nan" or "-1" as a huge count; PLY counts are ints */
       if (!parse_number(count, &n) || !(n >= 0) || n != std::floor(n) || n > 2147483647.0) {
         *msg = std::to_string(c.line) + ": element " + e.name +
                ": the count must be a whole number from 0 to 2147483647, found '" + count + "'";
