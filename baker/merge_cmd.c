@@ -95,7 +95,7 @@ static int read_shard(merge_shard_t *s, bk_error_t *err) {
 static const char *const SAME_KEYS[] = {
     "shard_key", "shard_photon_order", "shard_count", "shard_photons", "shard_sum_stride", "shard_sum_channels",
     "shard_sum_mode", "shard_sum_flux", "shard_sum_scales", "shard_grid", "shard_ior_background", "shard_filter",
-    "checksum_ior", "checksum_extinction", "checksum_scattering", "checksum_density"};
+    "checksum_v2_ior", "checksum_v2_extinction", "checksum_v2_scattering", "checksum_v2_density"};
 
 static int check_together(const merge_shard_t *sh, int n, bk_error_t *err) {
   for (int i = 1; i < n; i++)

@@ -116,16 +116,19 @@ int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_d
 void vdbio_dense_free(vdbio_dense_t *d);
 
 /* Checksums (written by vdbio_write, checked by vdbio_verify). The file
- * metadata holds checksum_box = "NX NY NZ" and, per grid, checksum_<name> =
- * 16 hex digits: 64-bit FNV-1a over 32-bit words (h ^= word; h *= 2^40 +
- * 2^8 + 0xb3, from 14695981039346656037) of the grid's values over the index
- * box [0,NX) x [0,NY) x [0,NZ), x fastest then y then z, channels
- * interleaved, each value as its IEEE-754 bits after three rules that make
- * the written and the read values agree: a voxel whose channels are all 0 or
- * NaN hashes as zeros (it is stored as inactive background), -0 hashes as
- * +0, and with half-float output the value is first rounded to half; the
- * grid's background value (one word per channel) ends the hash. Outside the
- * box, the grid must hold only its background. */
+ * metadata holds checksum_box = "NX NY NZ" and, per grid, checksum_v2_<name>
+ * = 16 hex digits. The grid's values over the index box [0,NX) x [0,NY) x
+ * [0,NZ), x fastest then y then z, channels interleaved, are taken as 32-bit
+ * words: a value's IEEE-754 bits, or 0 for +-0 and NaN (what an inactive
+ * voxel reads back as), with half-float output after rounding to half. Word
+ * i goes to lane i mod 8; each lane is a 32-bit FNV-1a (h ^= word; h *=
+ * 16777619, from 2166136261). The checksum is the 64-bit FNV-1a (h ^= word;
+ * h *= 2^40 + 2^8 + 0xb3, from 14695981039346656037) over the eight lanes,
+ * then over the grid's background value (one word per channel, -0 as +0).
+ * Files written before this rule hold checksum_<name> instead: the 64-bit
+ * FNV-1a over all the words in one chain, a voxel whose channels are all 0
+ * or NaN as zeros, -0 as +0, then the background; they are still checked.
+ * Outside the box, the grid must hold only its background. */
 typedef enum { VDBIO_VERIFY_OK = 0, VDBIO_VERIFY_CORRUPT = 1, VDBIO_VERIFY_UNCHECKED = 2 }
     vdbio_verify_status_t;
 typedef struct vdbio_verify_grid {

@@ -141,7 +141,7 @@ open('bad.stl', 'wb').write(b'x' * 80 + struct.pack('<I', 100000000) + tri * 2)"
     done
     [ $refused -ge 3 ] || fail "only $refused flips hit a grid the view reads"
     # a file without checksums (the key renamed): rendered, with one warning
-    python3 -c "import sys; d=open('out.vdb','rb').read().replace(b'checksum_radiance', b'checksxm_radiance'); open('old.vdb','wb').write(d)"
+    python3 -c "import sys; d=open('out.vdb','rb').read().replace(b'checksum_v2_radiance', b'checksxm_v2_radiance'); open('old.vdb','wb').write(d)"
     "$BAKER" view old.vdb -o old.exr --resolution 64x48 -q 2> e.txt || fail "view without checksums: $(cat e.txt)"
     [ "$(grep -c 'no checksums' e.txt)" = 1 ] || fail "not one warning: $(cat e.txt)"
     echo "ok: $refused corrupt grids refused by view, one warning without checksums";;

@@ -46,8 +46,12 @@ if(EXISTS ${VDBIO_PYTHON})
            COMMAND ${VDBIO_PYTHON} ${BAKER_TEST_DIR}/vdbio_python_check.py
                    ${VDBIO_TEST_DIR}/known.vdb)
   set_tests_properties(vdbio_python PROPERTIES FIXTURES_REQUIRED vdbio_known)
+  # both checksum rules of vdbio.h, implemented again in Python from the text
+  add_test(NAME vdbio_checksum_rules
+           COMMAND ${VDBIO_PYTHON} ${BAKER_TEST_DIR}/checksum_rules.py $<TARGET_FILE:baker>
+                   ${CMAKE_SOURCE_DIR}/scenes ${VDBIO_TEST_DIR}/checksum_rules)
 else()
-  message(STATUS "${VDBIO_PYTHON} not found: test vdbio_python skipped")
+  message(STATUS "${VDBIO_PYTHON} not found: tests vdbio_python, vdbio_checksum_rules skipped")
 endif()
 
 # The leaf-by-leaf writer builds the tree tools::copyFromDense builds (issue 15).
