@@ -8,46 +8,18 @@
 #include "base/parallel.h"
 #include "field.h"
 #include "march.h"
+#include "vox_medium.h"
 
-/* n, then σt: which specialisations the volume allows, in SCAN_CHUNKS
- * chunks side by side (booleans: the same in any order). */
-#define SCAN_CHUNKS 64
-typedef struct scan_ctx {
-  const volume_t *vol;
-  float t0[3];
-  unsigned char refract[SCAN_CHUNKS], varies[SCAN_CHUNKS], colour[SCAN_CHUNKS];
-} scan_ctx_t;
-
-static void scan_chunk(void *arg, size_t k, size_t a, size_t b) {
-  scan_ctx_t *x = arg;
-  const volume_t *vol = x->vol;
-  for (size_t i = a; i < b; i++)
-    if (vol->ior[i] != vol->ior[0]) {
-      x->refract[k] = 1;
-      break;
-    }
-  for (size_t i = a; i < b && !(x->varies[k] && x->colour[k]); i++) {
-    float t[3];
-    for (int c = 0; c < 3; c++) t[c] = vol_sigma_t(vol, i, c);
-    if (t[0] != x->t0[0] || t[1] != x->t0[1] || t[2] != x->t0[2]) x->varies[k] = 1;
-    if (t[0] != t[1] || t[0] != t[2]) x->colour[k] = 1;
-  }
-}
-
-static void scan_volume(const volume_t *vol, size_t count, int *has_refraction, int *homogeneous,
-                        int *grey) {
-  scan_ctx_t x;
-  memset(&x, 0, sizeof x);
-  x.vol = vol;
-  for (int c = 0; c < 3; c++) x.t0[c] = vol_sigma_t(vol, 0, c);
-  bk_parallel_chunks(count, SCAN_CHUNKS, scan_chunk, &x);
-  *has_refraction = vol->ior_rb != NULL; /* dispersion: n differs between channels */
-  *homogeneous = *grey = 1;
-  for (int k = 0; k < SCAN_CHUNKS; k++) {
-    *has_refraction |= x.refract[k];
-    *homogeneous &= !x.varies[k];
-    *grey &= !x.colour[k];
-  }
+/* What the march specialises on: n varies (or differs between channels:
+ * dispersion), σt the same everywhere, σt grey. The volume's own scan when
+ * it has one (vox_summarise), else one made here. */
+static void scan_volume(const volume_t *vol, int *has_refraction, int *homogeneous, int *grey) {
+  vox_scan_t own;
+  if (!vol->scanned) vox_scan(vol, &own);
+  const vox_scan_t *f = vol->scanned ? &vol->scan : &own;
+  *has_refraction = vol->ior_rb != NULL || f->n_max > f->n_min;
+  *homogeneous = !f->t_varies;
+  *grey = !f->t_coloured;
 }
 
 /* The cache holds this volume's scan (its fields, channels > 0, may still
@@ -74,7 +46,7 @@ void pm_fields_scan(const volume_t *vol, pm_field_cache_t *kept, int frame, pm_s
   }
   pm_field_cache_free(kept); /* another volume: its fields go before new ones are built */
   double t0 = bk_now_ms();
-  scan_volume(vol, s->voxels, &s->has_refraction, &s->homogeneous, &s->grey);
+  scan_volume(vol, &s->has_refraction, &s->homogeneous, &s->grey);
   bk_log(2, "octree: volume scan %.0f ms", bk_now_ms() - t0);
   if (!kept || vol->key == 0) return;
   kept->key = vol->key;

@@ -136,65 +136,74 @@ static void vox_store_grey(volume_t *v) {
   v->sigma_channels = 1;
 }
 
-/* The summary in VOX_SUMMARY_CHUNKS chunks of the grid, each with its own
- * slot: n's range and whether σs, σa vary or differ between channels.
- * Combining min, max and OR is exact in any order. */
-typedef struct vox_summary {
+/* The scan in VOX_SUMMARY_CHUNKS chunks of the grid, each with its own
+ * slot. Combining min, max and OR is exact in any order. */
+typedef struct vox_chunks {
   const volume_t *v;
-  float n_min[VOX_SUMMARY_CHUNKS], n_max[VOX_SUMMARY_CHUNKS];
-  int varies[VOX_SUMMARY_CHUNKS], coloured[VOX_SUMMARY_CHUNKS];
-} vox_summary_t;
+  vox_scan_t slot[VOX_SUMMARY_CHUNKS];
+} vox_chunks_t;
 
-static void summarise_chunk(void *ctx, size_t slot, size_t lo, size_t hi) {
-  vox_summary_t *S = ctx;
+static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
+  vox_chunks_t *S = ctx;
   const volume_t *v = S->v;
   if (lo >= hi) return;
   float n_min = v->ior[lo], n_max = v->ior[lo];
   const float *s0 = v->sigma_s, *a0 = v->sigma_a;
   /* branch-free accumulation: this runs over every voxel of the grid */
-  int varies = 0, coloured = 0;
-  const int grey = v->sigma_channels == 1; /* grey from the start */
-  for (size_t i = lo; i < hi; i++) {
-    float n = v->ior[i];
-    n_min = n < n_min ? n : n_min;
-    n_max = n > n_max ? n : n_max;
-    if (grey) {
+  int varies = 0, coloured = 0, t_varies = 0, t_coloured = 0;
+  if (v->sigma_channels == 1) { /* grey from the start */
+    const float t0 = s0[0] + a0[0];
+    for (size_t i = lo; i < hi; i++) {
+      float n = v->ior[i];
+      n_min = n < n_min ? n : n_min;
+      n_max = n > n_max ? n : n_max;
       varies |= (v->sigma_s[i] != s0[0]) | (v->sigma_a[i] != a0[0]);
-      continue;
+      t_varies |= v->sigma_s[i] + v->sigma_a[i] != t0;
     }
-    const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
-    varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
-              (a[1] != a0[1]) | (a[2] != a0[2]);
-    coloured |= (s[0] != s[1]) | (s[1] != s[2]) | (a[0] != a[1]) | (a[1] != a[2]);
+  } else {
+    const float t0[3] = {s0[0] + a0[0], s0[1] + a0[1], s0[2] + a0[2]};
+    for (size_t i = lo; i < hi; i++) {
+      float n = v->ior[i];
+      n_min = n < n_min ? n : n_min;
+      n_max = n > n_max ? n : n_max;
+      const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
+      const float t[3] = {s[0] + a[0], s[1] + a[1], s[2] + a[2]};
+      varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
+                (a[1] != a0[1]) | (a[2] != a0[2]);
+      coloured |= (s[0] != s[1]) | (s[1] != s[2]) | (a[0] != a[1]) | (a[1] != a[2]);
+      t_varies |= (t[0] != t0[0]) | (t[1] != t0[1]) | (t[2] != t0[2]);
+      t_coloured |= (t[0] != t[1]) | (t[1] != t[2]);
+    }
   }
-  S->n_min[slot] = n_min;
-  S->n_max[slot] = n_max;
-  S->varies[slot] = varies;
-  S->coloured[slot] = coloured;
+  S->slot[k] = (vox_scan_t){n_min, n_max, varies, coloured, t_varies, t_coloured};
 }
 
-
-void vox_summarise(volume_t *v) {
-  vox_summary_t S;
+void vox_scan(const volume_t *v, vox_scan_t *out) {
+  vox_chunks_t S;
   S.v = v;
   /* an empty chunk (a grid of fewer voxels) reads as the first voxel */
-  for (int t = 0; t < VOX_SUMMARY_CHUNKS; t++) {
-    S.n_min[t] = S.n_max[t] = v->ior[0];
-    S.varies[t] = S.coloured[t] = 0;
+  const vox_scan_t first = {v->ior[0], v->ior[0], 0, 0, 0, 0};
+  for (int k = 0; k < VOX_SUMMARY_CHUNKS; k++) S.slot[k] = first;
+  bk_parallel_chunks(grid_count(&v->dims), VOX_SUMMARY_CHUNKS, scan_chunk, &S);
+  *out = first;
+  for (int k = 0; k < VOX_SUMMARY_CHUNKS; k++) {
+    const vox_scan_t *c = &S.slot[k];
+    out->n_min = c->n_min < out->n_min ? c->n_min : out->n_min;
+    out->n_max = c->n_max > out->n_max ? c->n_max : out->n_max;
+    out->varies |= c->varies;
+    out->coloured |= c->coloured;
+    out->t_varies |= c->t_varies;
+    out->t_coloured |= c->t_coloured;
   }
-  bk_parallel_chunks(grid_count(&v->dims), VOX_SUMMARY_CHUNKS, summarise_chunk, &S);
-  float n_min = v->ior[0], n_max = v->ior[0];
-  int varies = 0, coloured = 0;
-  for (int t = 0; t < VOX_SUMMARY_CHUNKS; t++) {
-    n_min = S.n_min[t] < n_min ? S.n_min[t] : n_min;
-    n_max = S.n_max[t] > n_max ? S.n_max[t] : n_max;
-    varies |= S.varies[t];
-    coloured |= S.coloured[t];
-  }
-  v->n_min = n_min;
-  v->n_max = n_max;
-  v->has_refraction = (n_max - n_min) > 1e-6f;
-  v->homogeneous = !varies;
-  v->grey = !coloured;
+}
+
+void vox_summarise(volume_t *v) {
+  vox_scan(v, &v->scan);
+  v->scanned = 1;
+  v->n_min = v->scan.n_min;
+  v->n_max = v->scan.n_max;
+  v->has_refraction = (v->n_max - v->n_min) > 1e-6f;
+  v->homogeneous = !v->scan.varies;
+  v->grey = !v->scan.coloured;
   if (v->grey && v->sigma_channels == 3) vox_store_grey(v);
 }

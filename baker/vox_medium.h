@@ -19,9 +19,13 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err);
  * over the planes rb (plane floats apart), as voxelize composites n. */
 void vox_blend_dispersion(const scene_object_t *obj, float w, size_t gv, size_t plane, float *rb);
 
+/* The volume scanned once over every voxel (vox_scan_t, voxelize.h). */
+void vox_scan(const volume_t *v, vox_scan_t *out);
+
 /* What the kernels may specialise on (DESIGN §3), once the objects are
- * composited: n's range, whether σs and σa vary and whether they are grey;
- * a grey volume then stores them once per voxel (voxelize.h). */
+ * composited: vox_scan, kept in v->scan, and from it n's range, whether σs
+ * and σa vary and whether they are grey; a grey volume then stores them
+ * once per voxel (voxelize.h). */
 void vox_summarise(volume_t *v);
 
 #endif

@@ -36,6 +36,15 @@
 extern "C" {
 #endif
 
+/* One pass over every voxel (vox_scan): n's exact range; whether σs or σa
+ * differ anywhere from voxel 0 (varies) or between channels (coloured); the
+ * same for σt = σs + σa, as floats (t_varies, t_coloured), which is what
+ * the march specialises on. */
+typedef struct vox_scan {
+  float n_min, n_max;
+  int varies, coloured, t_varies, t_coloured;
+} vox_scan_t;
+
 typedef struct volume {
   grid_dims_t dims;
   float *ior;      /* n per voxel, >= 1 */
@@ -56,6 +65,10 @@ typedef struct volume {
   int homogeneous;     /* sigma_s and sigma_a the same in every voxel */
   int grey;            /* R = G = B for both coefficients everywhere */
   float n_min, n_max;
+  /* the pass these came from, when `scanned` (vox_summarise; a volume
+   * filled by hand is scanned by the march itself) */
+  vox_scan_t scan;
+  int scanned;
   /* A hash of every input vox_build read (baker/frame_reuse.h), set by a
    * batch of frames to say which volume this is; 0: not known. */
   uint64_t key;
