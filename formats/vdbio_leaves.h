@@ -8,7 +8,8 @@
  * the leaf iterator's order, which is writeBuffers' own) in windows of
  * VDBIO_WRITE_WINDOW, each thread writing runs of a window into buffers that
  * carry the stream's compression and background, the buffers then written
- * in order; at most a window's buffers are in memory. vdbio_parallel_tree is
+ * in order while the next window is compressed; at most two windows'
+ * buffers are in memory. vdbio_parallel_tree is
  * a tree that writes its buffers so, for Archive's writer to call. Checked
  * byte for byte against OpenVDB's own by test_vdbio_tree. */
 #ifndef BAKER_VDBIO_LEAVES_H
@@ -16,6 +17,7 @@
 
 #include <openvdb/openvdb.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <sstream>
@@ -33,19 +35,32 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half) {
   for (auto it = tree.cbeginLeaf(); it; ++it) leaves.push_back(it.getLeaf());
   const uint32_t compression = openvdb::io::getDataCompression(os);
   const void *background = openvdb::io::getGridBackgroundValuePtr(os);
-  std::vector<std::string> runs(VDBIO_WRITE_WINDOW / VDBIO_WRITE_RUN);
-  for (size_t w = 0; w < leaves.size(); w += VDBIO_WRITE_WINDOW) {
+  /* the runs of window w, compressed on every core into runs[w % 2] */
+  std::vector<std::string> runs[2];
+  auto compress = [&](size_t w) {
     const size_t end = std::min(leaves.size(), w + VDBIO_WRITE_WINDOW);
-    const size_t count = (end - w + VDBIO_WRITE_RUN - 1) / VDBIO_WRITE_RUN;
-    tbb::parallel_for(size_t(0), count, [&](size_t r) {
+    std::vector<std::string> &out = runs[(w / VDBIO_WRITE_WINDOW) % 2];
+    out.assign((end - w + VDBIO_WRITE_RUN - 1) / VDBIO_WRITE_RUN, std::string());
+    tbb::parallel_for(size_t(0), out.size(), [&](size_t r) {
       std::ostringstream run(std::ios_base::out | std::ios_base::binary);
       openvdb::io::setDataCompression(run, compression);
       openvdb::io::setGridBackgroundValuePtr(run, background);
       const size_t lo = w + r * VDBIO_WRITE_RUN, hi = std::min(end, lo + VDBIO_WRITE_RUN);
       for (size_t i = lo; i < hi; i++) leaves[i]->writeBuffers(run, to_half);
-      runs[r] = run.str();
+      out[r] = run.str();
     });
-    for (size_t r = 0; r < count; r++) os.write(runs[r].data(), (std::streamsize)runs[r].size());
+  };
+  if (!leaves.empty()) compress(0);
+  /* a window is written while the next one is compressed: the stream
+   * takes one thread, the compression the others (and the writer's, once
+   * it has written) */
+  for (size_t w = 0; w < leaves.size(); w += VDBIO_WRITE_WINDOW) {
+    tbb::task_group next;
+    if (w + VDBIO_WRITE_WINDOW < leaves.size())
+      next.run([&, w] { compress(w + VDBIO_WRITE_WINDOW); });
+    for (const std::string &r : runs[(w / VDBIO_WRITE_WINDOW) % 2])
+      os.write(r.data(), (std::streamsize)r.size());
+    next.wait();
   }
 }
 
