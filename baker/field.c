@@ -188,12 +188,25 @@ float *fld_build_rgb(int nx, int ny, int nz, double h, const float *ior, const f
   return build(nx, ny, nz, h, n, 3, err);
 }
 
-void fld_pad4(int nx, int ny, int nz, const float *src, float *dst) {
-  const rc_dims d = {nx, ny, nz};
-  for (int k = 0; k < nz; k++)
+typedef struct pad_ctx {
+  rc_dims d;
+  const float *src;
+  float *dst;
+} pad_ctx_t;
+
+/* The rows of z slices [k0, k1) into the padded layout. */
+static void pad_slices(void *arg, size_t k0, size_t k1) {
+  const pad_ctx_t *x = arg;
+  const int nx = x->d.nx, ny = x->d.ny;
+  for (int k = (int)k0; k < (int)k1; k++)
     for (int j = 0; j < ny; j++)
-      memcpy(dst + 4 * rc_pad_index(d, 0, j, k), src + 4 * (size_t)nx * ((size_t)j + (size_t)ny * k),
-             4 * sizeof(float) * (size_t)nx);
+      memcpy(x->dst + 4 * rc_pad_index(x->d, 0, j, k),
+             x->src + 4 * (size_t)nx * ((size_t)j + (size_t)ny * k), 4 * sizeof(float) * (size_t)nx);
+}
+
+void fld_pad4(int nx, int ny, int nz, const float *src, float *dst) {
+  pad_ctx_t x = {{nx, ny, nz}, src, dst};
+  bk_parallel((size_t)nz, 1, pad_slices, &x);
   pad_faces(nx, ny, nz, dst);
 }
 

@@ -9,10 +9,13 @@
 #include <string.h>
 
 #include "base/grid.h"
+#include "base/parallel.h"
 #include "kernels/view_march.h"
 #include "vdbio.h"
 #include "view_camera.h"
 #include "view_fields.h"
+
+static void zero_bytes(void *p, size_t lo, size_t hi) { memset((char *)p + lo, 0, hi - lo); }
 
 void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err) {
   size_t bytes;
@@ -21,7 +24,7 @@ void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err) {
     bk_fail(err, BK_ERR_RUNTIME, "%s: cannot allocate %zu x %zu bytes", what, count, size);
     return NULL;
   }
-  memset(p, 0, bytes);
+  bk_parallel(bytes, (size_t)1 << 20, zero_bytes, p); /* first touches on every core */
   return p;
 }
 
@@ -129,16 +132,42 @@ static int place_aligned(vdbio_dense_t *d, const vdbio_dense_t *like, float **ou
 }
 
 /* Refuses NaN/inf anywhere and negative coefficients. */
-static int check_values(const char *path, const char *name, const float *a, size_t n,
-                        int nonneg, bk_error_t *err) {
+/* The checks of check_values in chunks side by side (counts and a
+ * minimum: the same in any order). */
+#define VIEW_CHUNKS 64
+typedef struct check_ctx {
+  const float *a;
+  int nonneg;
+  size_t bad[VIEW_CHUNKS], neg[VIEW_CHUNKS];
+  float most_neg[VIEW_CHUNKS];
+} check_ctx_t;
+
+static void check_chunk(void *arg, size_t k, size_t lo, size_t hi) {
+  check_ctx_t *x = arg;
   size_t bad = 0, neg = 0;
   float most_neg = 0.0f;
-  for (size_t i = 0; i < n; i++) {
-    if (!isfinite(a[i])) bad++;
-    else if (nonneg && a[i] < 0.0f) {
+  for (size_t i = lo; i < hi; i++) {
+    const float a = x->a[i];
+    bad += !isfinite(a);
+    if (x->nonneg && a < 0.0f) {
       neg++;
-      if (a[i] < most_neg) most_neg = a[i];
+      most_neg = a < most_neg ? a : most_neg;
     }
+  }
+  x->bad[k] = bad, x->neg[k] = neg, x->most_neg[k] = most_neg;
+}
+
+static int check_values(const char *path, const char *name, const float *a, size_t n,
+                        int nonneg, bk_error_t *err) {
+  check_ctx_t x;
+  memset(&x, 0, sizeof x);
+  x.a = a, x.nonneg = nonneg;
+  bk_parallel_chunks(n, VIEW_CHUNKS, check_chunk, &x);
+  size_t bad = 0, neg = 0;
+  float most_neg = 0.0f;
+  for (int k = 0; k < VIEW_CHUNKS; k++) {
+    bad += x.bad[k], neg += x.neg[k];
+    most_neg = x.most_neg[k] < most_neg ? x.most_neg[k] : most_neg;
   }
   if (bad)
     return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %zu NaN or infinite values",
@@ -337,6 +366,25 @@ static void load_describe(const view_load_t *L, view_volume_t *v) {
 }
 
 /* n: values below 1 are background (0) or nonsense; n >= 1 by contract. */
+/* n below 1 raised to 1, and n's range, in chunks (min and max: exact in
+ * any order; an empty chunk leaves its slot out of range). */
+typedef struct ior_ctx {
+  float *n;
+  float lo[VIEW_CHUNKS], hi[VIEW_CHUNKS];
+} ior_ctx_t;
+
+static void ior_chunk(void *arg, size_t k, size_t a, size_t b) {
+  ior_ctx_t *x = arg;
+  float lo = 1e30f, hi = -1e30f;
+  for (size_t i = a; i < b; i++) {
+    const float n = x->n[i] < 1.0f ? 1.0f : x->n[i];
+    x->n[i] = n;
+    lo = n < lo ? n : lo;
+    hi = n > hi ? n : hi;
+  }
+  x->lo[k] = lo, x->hi[k] = hi;
+}
+
 static int load_ior(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
   if (!L->arr[G_IOR]) {
     v->n_min = v->n_max = 1.0f;
@@ -344,13 +392,14 @@ static int load_ior(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *e
   }
   v->ior = L->arr[G_IOR];
   L->arr[G_IOR] = NULL;
+  ior_ctx_t x;
+  x.n = v->ior;
+  bk_parallel_chunks(nvox, VIEW_CHUNKS, ior_chunk, &x);
   v->n_min = 1e30f;
   v->n_max = -1e30f;
-  for (size_t i = 0; i < nvox; i++) {
-    float n = v->ior[i] < 1.0f ? 1.0f : v->ior[i];
-    v->ior[i] = n;
-    v->n_min = n < v->n_min ? n : v->n_min;
-    v->n_max = n > v->n_max ? n : v->n_max;
+  for (int k = 0; k < VIEW_CHUNKS; k++) {
+    v->n_min = x.lo[k] < v->n_min ? x.lo[k] : v->n_min;
+    v->n_max = x.hi[k] > v->n_max ? x.hi[k] : v->n_max;
   }
   v->refraction = v->n_max - v->n_min > VIEW_N_EPS;
   return BK_OK;
@@ -467,6 +516,31 @@ static int load_coefficients(view_load_t *L, view_volume_t *v, size_t nvox, bk_e
   return BK_OK;
 }
 
+typedef struct pack_ctx {
+  const float *ext, *sca, *rad;
+  int sc; /* channels of ext and sca */
+  float scale;
+  float *medium, *sigma_t4;
+} pack_ctx_t;
+
+/* {S = σs L̄, σt (grey; 0 for RGB, whose σt goes to sigma_t4)} of [lo, hi). */
+static void pack_source(void *arg, size_t lo, size_t hi) {
+  const pack_ctx_t *x = arg;
+  const int sc = x->sc;
+  for (size_t i = lo; i < hi; i++) {
+    for (int c = 0; c < 3; c++)
+      x->medium[4 * i + c] =
+          x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] * x->rad[3 * i + c] : 0.0f;
+    if (sc == 1 && x->ext) x->medium[4 * i + 3] = x->scale * x->ext[i];
+  }
+}
+
+static void pack_sigma_t(void *arg, size_t lo, size_t hi) {
+  const pack_ctx_t *x = arg;
+  for (size_t i = lo; i < hi; i++)
+    for (int c = 0; c < 3; c++) x->sigma_t4[4 * i + c] = x->scale * x->ext[3 * i + c];
+}
+
 /* Packs {S = σs L̄, σt (grey)} and, for RGB, {σt}; σ per voxel length. */
 static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
   int rc = load_coefficients(L, v, nvox, err);
@@ -477,22 +551,16 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   const double scale = L->scale;
   v->medium = view_alloc(nvox, 4 * sizeof(float), "view: medium", err);
   if (!v->medium) return BK_ERR_RUNTIME;
-  for (size_t i = 0; i < nvox; i++)
-    for (int c = 0; c < 3; c++)
-      v->medium[4 * i + c] =
-          sca ? (float)scale * sca[i * sc + (sc == 3 ? c : 0)] * rad[3 * i + c] : 0.0f;
-  if (sc == 1) {
-    if (ext)
-      for (size_t i = 0; i < nvox; i++) v->medium[4 * i + 3] = (float)scale * ext[i];
-    return BK_OK;
-  }
+  pack_ctx_t x = {ext, sca, rad, sc, (float)scale, v->medium, NULL};
+  bk_parallel(nvox, BK_GRAIN, pack_source, &x);
+  if (sc == 1) return BK_OK;
   v->homogeneous = is_constant(ext, nvox, 3, v->st_const);
   for (int c = 0; c < 3; c++) v->st_const[c] *= (float)scale;
   if (v->homogeneous) return BK_OK;
   v->sigma_t4 = view_alloc(nvox, 4 * sizeof(float), "view: extinction", err);
   if (!v->sigma_t4) return BK_ERR_RUNTIME;
-  for (size_t i = 0; i < nvox; i++)
-    for (int c = 0; c < 3; c++) v->sigma_t4[4 * i + c] = (float)scale * ext[3 * i + c];
+  x.sigma_t4 = v->sigma_t4;
+  bk_parallel(nvox, BK_GRAIN, pack_sigma_t, &x);
   return BK_OK;
 }
 
