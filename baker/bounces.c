@@ -106,6 +106,25 @@ void ms_decide(const scene_t *scene, const volume_t *vol, ms_setup_t *ms, int *g
   ms->hg = scene->medium_g != 0.0f || m.g_set;
 }
 
+typedef struct scat_ctx {
+  const volume_t *vol;
+  ms_setup_t *ms;
+  int channels;
+  double h;
+} scat_ctx_t;
+
+/* The scatter grid of voxels [lo, hi): σs per voxel length, then g. */
+static void scat_range(void *arg, size_t lo, size_t hi) {
+  const scat_ctx_t *x = arg;
+  const volume_t *vol = x->vol;
+  for (size_t i = lo; i < hi; i++) {
+    float *o = x->ms->scat + x->ms->stride * i;
+    for (int c = 0; c < x->channels; c++)
+      o[c] = (float)(vol->sigma_s[vox_sigma_index(vol, i, c)] * x->h);
+    if (x->ms->g_grid) o[x->channels] = vol->g[i];
+  }
+}
+
 int ms_build(const scene_t *scene, const volume_t *vol, int channels, ms_setup_t *ms,
              bk_error_t *err) {
   ms_params *M = &ms->params;
@@ -121,11 +140,8 @@ int ms_build(const scene_t *scene, const volume_t *vol, int channels, ms_setup_t
   if (!ms->sigma_grid && !ms->g_grid) return BK_OK;
   ms->scat = bk_calloc(count, ms->stride * sizeof(float), "march: scatter grid", err);
   if (!ms->scat) return BK_ERR_RUNTIME;
-  for (size_t i = 0; i < count; i++) {
-    float *o = ms->scat + ms->stride * i;
-    for (int c = 0; c < channels; c++) o[c] = (float)(vol->sigma_s[vox_sigma_index(vol, i, c)] * h);
-    if (ms->g_grid) o[channels] = vol->g[i];
-  }
+  scat_ctx_t x = {vol, ms, channels, h};
+  bk_parallel(count, BK_GRAIN, scat_range, &x);
   return BK_OK;
 }
 
