@@ -131,9 +131,8 @@ static int place_aligned(vdbio_dense_t *d, const vdbio_dense_t *like, float **ou
   return BK_OK;
 }
 
-/* Refuses NaN/inf anywhere and negative coefficients. */
-/* The checks of check_values in chunks side by side (counts and a
- * minimum: the same in any order). */
+/* check_values in chunks side by side (counts and a minimum: the same in
+ * any order). */
 #define VIEW_CHUNKS 64
 typedef struct check_ctx {
   const float *a;
@@ -148,8 +147,8 @@ static void check_chunk(void *arg, size_t k, size_t lo, size_t hi) {
   float most_neg = 0.0f;
   for (size_t i = lo; i < hi; i++) {
     const float a = x->a[i];
-    bad += !isfinite(a);
-    if (x->nonneg && a < 0.0f) {
+    if (!isfinite(a)) bad++;
+    else if (x->nonneg && a < 0.0f) {
       neg++;
       most_neg = a < most_neg ? a : most_neg;
     }
@@ -157,6 +156,7 @@ static void check_chunk(void *arg, size_t k, size_t lo, size_t hi) {
   x->bad[k] = bad, x->neg[k] = neg, x->most_neg[k] = most_neg;
 }
 
+/* Refuses NaN/inf anywhere and negative coefficients. */
 static int check_values(const char *path, const char *name, const float *a, size_t n,
                         int nonneg, bk_error_t *err) {
   check_ctx_t x;
@@ -365,7 +365,6 @@ static void load_describe(const view_load_t *L, view_volume_t *v) {
                L->gname[g], L->ch[g] == 1 ? "float" : "Vec3f");
 }
 
-/* n: values below 1 are background (0) or nonsense; n >= 1 by contract. */
 /* n below 1 raised to 1, and n's range, in chunks (min and max: exact in
  * any order; an empty chunk leaves its slot out of range). */
 typedef struct ior_ctx {
@@ -385,6 +384,7 @@ static void ior_chunk(void *arg, size_t k, size_t a, size_t b) {
   x->lo[k] = lo, x->hi[k] = hi;
 }
 
+/* n: values below 1 are background (0) or nonsense; n >= 1 by contract. */
 static int load_ior(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
   if (!L->arr[G_IOR]) {
     v->n_min = v->n_max = 1.0f;

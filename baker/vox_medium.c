@@ -151,29 +151,24 @@ static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   const float *s0 = v->sigma_s, *a0 = v->sigma_a;
   /* branch-free accumulation: this runs over every voxel of the grid */
   int varies = 0, coloured = 0, t_varies = 0, t_coloured = 0;
-  if (v->sigma_channels == 1) { /* grey from the start */
-    const float t0 = s0[0] + a0[0];
-    for (size_t i = lo; i < hi; i++) {
-      float n = v->ior[i];
-      n_min = n < n_min ? n : n_min;
-      n_max = n > n_max ? n : n_max;
+  const int grey = v->sigma_channels == 1; /* grey from the start */
+  const float t0[3] = {vol_sigma_t(v, 0, 0), vol_sigma_t(v, 0, 1), vol_sigma_t(v, 0, 2)};
+  for (size_t i = lo; i < hi; i++) {
+    float n = v->ior[i];
+    n_min = n < n_min ? n : n_min;
+    n_max = n > n_max ? n : n_max;
+    if (grey) {
       varies |= (v->sigma_s[i] != s0[0]) | (v->sigma_a[i] != a0[0]);
-      t_varies |= v->sigma_s[i] + v->sigma_a[i] != t0;
+      t_varies |= v->sigma_s[i] + v->sigma_a[i] != t0[0];
+      continue;
     }
-  } else {
-    const float t0[3] = {s0[0] + a0[0], s0[1] + a0[1], s0[2] + a0[2]};
-    for (size_t i = lo; i < hi; i++) {
-      float n = v->ior[i];
-      n_min = n < n_min ? n : n_min;
-      n_max = n > n_max ? n : n_max;
-      const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
-      const float t[3] = {s[0] + a[0], s[1] + a[1], s[2] + a[2]};
-      varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
-                (a[1] != a0[1]) | (a[2] != a0[2]);
-      coloured |= (s[0] != s[1]) | (s[1] != s[2]) | (a[0] != a[1]) | (a[1] != a[2]);
-      t_varies |= (t[0] != t0[0]) | (t[1] != t0[1]) | (t[2] != t0[2]);
-      t_coloured |= (t[0] != t[1]) | (t[1] != t[2]);
-    }
+    const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
+    const float t[3] = {s[0] + a[0], s[1] + a[1], s[2] + a[2]};
+    varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
+              (a[1] != a0[1]) | (a[2] != a0[2]);
+    coloured |= (s[0] != s[1]) | (s[1] != s[2]) | (a[0] != a[1]) | (a[1] != a[2]);
+    t_varies |= (t[0] != t0[0]) | (t[1] != t0[1]) | (t[2] != t0[2]);
+    t_coloured |= (t[0] != t[1]) | (t[1] != t[2]);
   }
   S->slot[k] = (vox_scan_t){n_min, n_max, varies, coloured, t_varies, t_coloured};
 }
