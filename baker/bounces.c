@@ -2,73 +2,15 @@
 #include "bounces.h"
 
 #include "base/parallel.h"
+#include "vox_medium.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-/* One pass over the volume for the rule and the scatter grid's need, in
- * MS_SCAN_CHUNKS chunks side by side whose sums are added in chunk order
- * (the same bits on every run and thread count). */
-#define MS_SCAN_CHUNKS 64
-typedef struct ms_scan {
-  double ss, st, st_scattering; /* Σ σs, Σ σt, Σ σt where σs > 0 (channels summed) */
-  size_t scattering;            /* voxels with σs > 0 */
-  int sigma_varies, colour;     /* σs differs between voxels; between channels */
-  int g_varies, g_set;          /* g differs between voxels; g != 0 somewhere */
-} ms_scan_t;
-
-typedef struct ms_scan_ctx {
-  const volume_t *vol;
-  ms_scan_t part[MS_SCAN_CHUNKS];
-} ms_scan_ctx_t;
-
-static void scan_voxels(const volume_t *vol, size_t a, size_t b, ms_scan_t *p) {
-  const float *sg = vol->sigma_s;
-  float s0[3];
-  for (int c = 0; c < 3; c++) s0[c] = sg[vox_sigma_index(vol, 0, c)];
-  for (size_t i = a; i < b; i++) {
-    double s = 0.0, t = 0.0;
-    float sc[3];
-    for (int c = 0; c < 3; c++) {
-      const size_t at = vox_sigma_index(vol, i, c);
-      sc[c] = sg[at];
-      s += sg[at];
-      t += sg[at] + vol->sigma_a[at];
-    }
-    p->ss += s;
-    p->st += t;
-    if (s > 0.0) p->st_scattering += t, p->scattering++;
-    if (sc[0] != s0[0] || sc[1] != s0[1] || sc[2] != s0[2]) p->sigma_varies = 1;
-    if (sc[0] != sc[1] || sc[0] != sc[2]) p->colour = 1;
-    if (vol->g && vol->g[i] != vol->g[0]) p->g_varies = 1;
-    if (vol->g && vol->g[i] != 0.0f) p->g_set = 1;
-  }
-}
-
-static void scan_chunk(void *arg, size_t k, size_t a, size_t b) {
-  ms_scan_ctx_t *x = arg;
-  scan_voxels(x->vol, a, b, &x->part[k]);
-}
-
-static void scan_volume(const volume_t *vol, ms_scan_t *out) {
-  ms_scan_ctx_t x;
-  memset(&x, 0, sizeof x);
-  memset(out, 0, sizeof *out);
-  x.vol = vol;
-  bk_parallel_chunks(grid_count(&vol->dims), MS_SCAN_CHUNKS, scan_chunk, &x);
-  for (int k = 0; k < MS_SCAN_CHUNKS; k++) {
-    const ms_scan_t *p = &x.part[k];
-    out->ss += p->ss, out->st += p->st, out->st_scattering += p->st_scattering;
-    out->scattering += p->scattering;
-    out->sigma_varies |= p->sigma_varies, out->colour |= p->colour;
-    out->g_varies |= p->g_varies, out->g_set |= p->g_set;
-  }
-}
-
 /* The rule's r from the scan. */
-static double order_ratio(const volume_t *vol, const ms_scan_t *m) {
+static double order_ratio(const volume_t *vol, const vox_scan_t *m) {
   const grid_dims_t *d = &vol->dims;
   if (!(m->ss > 0.0) || !(m->st > 0.0)) return 0.0;
   double h = d->voxel_size, lx = d->nx * h, ly = d->ny * h, lz = d->nz * h;
@@ -78,9 +20,8 @@ static double order_ratio(const volume_t *vol, const ms_scan_t *m) {
 }
 
 double ms_order_ratio(const volume_t *vol) {
-  ms_scan_t m;
-  scan_volume(vol, &m);
-  return order_ratio(vol, &m);
+  vox_scan_t own;
+  return order_ratio(vol, vox_scan_of(vol, &own));
 }
 
 int ms_auto_bounces(double r) {
@@ -93,17 +34,17 @@ int ms_auto_bounces(double r) {
 
 void ms_decide(const scene_t *scene, const volume_t *vol, ms_setup_t *ms, int *grey_scatter) {
   memset(ms, 0, sizeof *ms);
-  ms_scan_t m;
-  scan_volume(vol, &m);
-  ms->ratio = order_ratio(vol, &m);
+  vox_scan_t own;
+  const vox_scan_t *m = vox_scan_of(vol, &own);
+  ms->ratio = order_ratio(vol, m);
   ms->auto_chosen = scene->bounces == SCENE_BOUNCES_AUTO;
   int n = ms->auto_chosen ? ms_auto_bounces(ms->ratio) : scene->bounces;
   /* no scattering anywhere: nothing to bounce */
   ms->params.max_bounces = ms->ratio > 0.0 ? (bk_uint)n : 0u;
-  ms->sigma_grid = m.sigma_varies;
-  *grey_scatter = !m.colour;
-  ms->g_grid = m.g_varies;
-  ms->hg = scene->medium_g != 0.0f || m.g_set;
+  ms->sigma_grid = m->s_varies;
+  *grey_scatter = !m->s_coloured;
+  ms->g_grid = m->g_varies;
+  ms->hg = scene->medium_g != 0.0f || m->g_set;
 }
 
 typedef struct scat_ctx {

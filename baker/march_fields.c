@@ -15,8 +15,7 @@
  * it has one (vox_summarise), else one made here. */
 static void scan_volume(const volume_t *vol, int *has_refraction, int *homogeneous, int *grey) {
   vox_scan_t own;
-  if (!vol->scanned) vox_scan(vol, &own);
-  const vox_scan_t *f = vol->scanned ? &vol->scan : &own;
+  const vox_scan_t *f = vox_scan_of(vol, &own);
   *has_refraction = vol->ior_rb != NULL || f->n_max > f->n_min;
   *homogeneous = !f->t_varies;
   *grey = !f->t_coloured;

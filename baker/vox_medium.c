@@ -143,6 +143,26 @@ typedef struct vox_chunks {
   vox_scan_t slot[VOX_SUMMARY_CHUNKS];
 } vox_chunks_t;
 
+/* Voxel i's part of the sums and flags multiple scattering decides on
+ * (the sums in bounces.c's former order: the channels, then the voxels). */
+static inline void scan_scattering(const volume_t *v, size_t i, const float s0[3],
+                                   vox_scan_t *p) {
+  double s = 0.0, t = 0.0;
+  float sc[3];
+  for (int c = 0; c < 3; c++) {
+    const size_t at = vox_sigma_index(v, i, c);
+    sc[c] = v->sigma_s[at];
+    s += sc[c];
+    t += v->sigma_s[at] + v->sigma_a[at];
+  }
+  p->ss += s;
+  p->st += t;
+  if (s > 0.0) p->st_scattering += t, p->scattering++;
+  p->s_varies |= (sc[0] != s0[0]) | (sc[1] != s0[1]) | (sc[2] != s0[2]);
+  p->s_coloured |= (sc[0] != sc[1]) | (sc[0] != sc[2]);
+  if (v->g) p->g_varies |= v->g[i] != v->g[0], p->g_set |= v->g[i] != 0.0f;
+}
+
 static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   vox_chunks_t *S = ctx;
   const volume_t *v = S->v;
@@ -153,10 +173,14 @@ static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   int varies = 0, coloured = 0, t_varies = 0, t_coloured = 0;
   const int grey = v->sigma_channels == 1; /* grey from the start */
   const float t0[3] = {vol_sigma_t(v, 0, 0), vol_sigma_t(v, 0, 1), vol_sigma_t(v, 0, 2)};
+  float ms0[3];
+  for (int c = 0; c < 3; c++) ms0[c] = v->sigma_s[vox_sigma_index(v, 0, c)];
+  vox_scan_t p = S->slot[k]; /* zero sums */
   for (size_t i = lo; i < hi; i++) {
     float n = v->ior[i];
     n_min = n < n_min ? n : n_min;
     n_max = n > n_max ? n : n_max;
+    scan_scattering(v, i, ms0, &p);
     if (grey) {
       varies |= (v->sigma_s[i] != s0[0]) | (v->sigma_a[i] != a0[0]);
       t_varies |= v->sigma_s[i] + v->sigma_a[i] != t0[0];
@@ -170,14 +194,18 @@ static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
     t_varies |= (t[0] != t0[0]) | (t[1] != t0[1]) | (t[2] != t0[2]);
     t_coloured |= (t[0] != t[1]) | (t[1] != t[2]);
   }
-  S->slot[k] = (vox_scan_t){n_min, n_max, varies, coloured, t_varies, t_coloured};
+  p.n_min = n_min, p.n_max = n_max;
+  p.varies = varies, p.coloured = coloured, p.t_varies = t_varies, p.t_coloured = t_coloured;
+  S->slot[k] = p;
 }
 
 void vox_scan(const volume_t *v, vox_scan_t *out) {
   vox_chunks_t S;
   S.v = v;
   /* an empty chunk (a grid of fewer voxels) reads as the first voxel */
-  const vox_scan_t first = {v->ior[0], v->ior[0], 0, 0, 0, 0};
+  vox_scan_t first;
+  memset(&first, 0, sizeof first);
+  first.n_min = first.n_max = v->ior[0];
   for (int k = 0; k < VOX_SUMMARY_CHUNKS; k++) S.slot[k] = first;
   bk_parallel_chunks(grid_count(&v->dims), VOX_SUMMARY_CHUNKS, scan_chunk, &S);
   *out = first;
@@ -189,7 +217,17 @@ void vox_scan(const volume_t *v, vox_scan_t *out) {
     out->coloured |= c->coloured;
     out->t_varies |= c->t_varies;
     out->t_coloured |= c->t_coloured;
+    out->ss += c->ss, out->st += c->st, out->st_scattering += c->st_scattering;
+    out->scattering += c->scattering;
+    out->s_varies |= c->s_varies, out->s_coloured |= c->s_coloured;
+    out->g_varies |= c->g_varies, out->g_set |= c->g_set;
   }
+}
+
+const vox_scan_t *vox_scan_of(const volume_t *v, vox_scan_t *own) {
+  if (v->scanned) return &v->scan;
+  vox_scan(v, own);
+  return own;
 }
 
 void vox_summarise(volume_t *v) {

@@ -22,6 +22,10 @@ void vox_blend_dispersion(const scene_object_t *obj, float w, size_t gv, size_t 
 /* The volume scanned once over every voxel (vox_scan_t, voxelize.h). */
 void vox_scan(const volume_t *v, vox_scan_t *out);
 
+/* The volume's own scan (vox_summarise), or for a volume filled by hand
+ * one made into *own. */
+const vox_scan_t *vox_scan_of(const volume_t *v, vox_scan_t *own);
+
 /* What the kernels may specialise on (DESIGN §3), once the objects are
  * composited: vox_scan, kept in v->scan, and from it n's range, whether σs
  * and σa vary and whether they are grey; a grey volume then stores them

@@ -39,10 +39,16 @@ extern "C" {
 /* One pass over every voxel (vox_scan): n's exact range; whether σs or σa
  * differ anywhere from voxel 0 (varies) or between channels (coloured); the
  * same for σt = σs + σa, as floats (t_varies, t_coloured), which is what
- * the march specialises on. */
+ * the march specialises on; and what multiple scattering decides on
+ * (baker/bounces.c): the sums of σs and σt over the channels, of σt where
+ * σs > 0 and the count of those voxels, whether σs alone varies or is
+ * coloured, whether g varies or is set. */
 typedef struct vox_scan {
   float n_min, n_max;
   int varies, coloured, t_varies, t_coloured;
+  double ss, st, st_scattering;
+  size_t scattering;
+  int s_varies, s_coloured, g_varies, g_set;
 } vox_scan_t;
 
 typedef struct volume {
