@@ -267,7 +267,7 @@ static int step_is_exact(const pm_setup_t *s) {
  * of all batches together (sampling tables count them in bounded sums). */
 static void set_mode(bt_run_t *x, const scene_t *scene, uint64_t limit) {
   uint64_t n = (uint64_t)scene->photon_count;
-  int b = scene->batches > 0 ? scene->batches : 1;
+  int b = scene_batches(scene);
   x->target = scene->target_error;
   x->budget_ms = scene->time_budget_s * 1000.0;
   if (x->target > 0.0 || x->budget_ms > 0.0) {

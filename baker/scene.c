@@ -153,6 +153,11 @@ int scene_is_grey(const scene_t *s) {
   return 1;
 }
 
+int scene_batches(const scene_t *s) {
+  if (s->batches > 0) return s->batches;
+  return s->target_error > 0.0f || s->time_budget_s > 0.0f ? SCENE_OPEN_BATCHES : SCENE_FIXED_BATCHES;
+}
+
 float scene_object_n(const scene_object_t *o, int ch) {
   return ch != 1 && o->ior_rgb[1] > 0.0f ? o->ior_rgb[ch] : o->ior;
 }
@@ -474,7 +479,7 @@ void scene_defaults(scene_t *s) {
   s->integrator = INTEGRATOR_EULER;
   s->step = 0.5f;
   s->bounces = SCENE_BOUNCES_AUTO;
-  s->batches = 8;
+  s->batches = 0; /* scene_batches() */
   s->pilot = 4000;
   s->gradient_threshold = SCENE_AUTO;
   s->luminance_threshold = SCENE_AUTO;

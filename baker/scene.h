@@ -100,7 +100,7 @@ typedef struct scene {
   integrator_t integrator;   /* default euler */
   float step;                /* voxels, default 0.5 */
   int bounces;               /* scattering events per photon, or SCENE_BOUNCES_AUTO (default) */
-  int batches;               /* independent batches, default 8 (baker/batches.h) */
+  int batches;               /* independent batches; 0 (default): scene_batches() picks */
   float target_error;        /* > 0: add batches until the error estimate is below; 0 off */
   float time_budget_s;       /* > 0: stop adding batches at this march time; 0 off */
 
@@ -134,6 +134,14 @@ int scene_has_dispersion(const scene_t *s);
 /* Whether the medium's and every object's σs and σa are the same in R, G
  * and B (the voxelized volume is then grey: voxelize.h). */
 int scene_is_grey(const scene_t *s);
+/* The batches a bake traces (baker/batches.h): photons.batches when set,
+ * else SCENE_FIXED_BATCHES for a fixed photon count (a few large Hammersley
+ * sets: the noise estimate's cost is their spread, docs/error.md) and
+ * SCENE_OPEN_BATCHES with a target error or time budget (their unit of
+ * work is count / batches photons: finer steps stop nearer the goal). */
+#define SCENE_FIXED_BATCHES 4
+#define SCENE_OPEN_BATCHES 8
+int scene_batches(const scene_t *s);
 /* n of object o in channel ch (0 R, 1 G, 2 B). */
 float scene_object_n(const scene_object_t *o, int ch);
 

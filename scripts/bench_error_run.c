@@ -8,7 +8,8 @@
  * step 1/8 voxel, TRUTH_PHOTONS photons, 8 batches, the scene's seed + 1000
  * so that its photons are not the runs'; cached as
  * SCENE-HASH-RES-TRUTH-s1000.truth in $BENCH_ERROR_CACHE when set), then for Euler and
- * RK4 at step 0.5 and each photon count bakes with 8 batches and prints one
+ * RK4 at step 0.5 and each photon count bakes with the scene's batches
+ * (default 4: scene_batches) and prints one
  * JSON line: the estimate ε̂ and its terms, the true ε (docs/error.md), the
  * ratio, the relative L2 over all voxels and channels, and the times of the
  * march, the twin and the per-batch statistics, with the march time of the
@@ -133,9 +134,10 @@ static void pays(const char *what, const float *T) {
   bt_result_t r;
   pm_stats_t st;
   bk_error_t err = {0, ""};
-  free(bake(scene.integrator, scene.step, 4096, 8, &r, &st)); /* kernels built */
+  int b = scene.batches; /* the adaptive bakes' (0: scene_batches decides) */
+  free(bake(scene.integrator, scene.step, 4096, b, &r, &st)); /* kernels built */
   double t0 = bk_now_ms(), c0 = cpu_ms();
-  float *x = bake(scene.integrator, scene.step, n, 8, &r, &st);
+  float *x = bake(scene.integrator, scene.step, n, b, &r, &st);
   double ms = bk_now_ms() - t0, cpu = cpu_ms() - c0;
   printf("{\"mode\": \"reference\", \"photons\": %lld, \"true\": %.5f, \"rel_l2\": %.5f, "
          "\"estimate\": %.5f, \"ms\": %.1f, \"cpu_ms\": %.1f}\n", n, ee_true_error(x, T, V),
@@ -199,7 +201,7 @@ int main(int argc, char **argv) {
   bt_result_t r, r1;
   pm_stats_t st, st1;
   for (int i = 0; i < 2; i++) /* warm the kernel cache: timings without builds */
-    free(bake(integ[i], 0.5f, 4096, 8, &r, &st));
+    free(bake(integ[i], 0.5f, 4096, loaded.batches, &r, &st));
   for (int i = 0; i < 2; i++)
     for (char *p = argv[4]; *p;) {
       long long n = strtoll(p, &p, 10);
@@ -214,7 +216,7 @@ int main(int argc, char **argv) {
         ms1 = fmin(ms1, st1.ms_march);
         free(x);
         c0 = cpu_ms();
-        x = bake(integ[i], 0.5f, n, 8, &r, &st);
+        x = bake(integ[i], 0.5f, n, loaded.batches, &r, &st);
         cpu8 = fmin(cpu8, cpu_ms() - c0);
         ms8 = fmin(ms8, st.ms_march), twin = fmin(twin, r.ms_twin), track = fmin(track, r.ms_track);
       }
