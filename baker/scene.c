@@ -155,7 +155,8 @@ int scene_is_grey(const scene_t *s) {
 
 int scene_batches(const scene_t *s) {
   if (s->batches > 0) return s->batches;
-  return s->target_error > 0.0f || s->time_budget_s > 0.0f ? SCENE_OPEN_BATCHES : SCENE_FIXED_BATCHES;
+  int open_ended = s->target_error > 0.0f || s->time_budget_s > 0.0f;
+  return open_ended ? SCENE_OPEN_BATCHES : SCENE_FIXED_BATCHES;
 }
 
 float scene_object_n(const scene_object_t *o, int ch) {
