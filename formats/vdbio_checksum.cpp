@@ -14,6 +14,7 @@
 #include <cstring>
 #include <chrono>
 #include <new>
+#include <stdexcept>
 #include <random>
 #include <string>
 #include <vector>
@@ -303,7 +304,9 @@ vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMa
 }
 
 /* One grid: read, hash, compare. Read errors of one grid are that grid's
- * corruption (the file itself opened). */
+ * corruption (the file itself opened). Its metadata and transform are read
+ * first, under the reader's parse limit (vdbio_isolate.cpp): a corrupt
+ * string length there asks for gigabytes, and is refused at once. */
 static void ck_verify_grid(vdb::io::File &file, const std::string &name, const vdb::MetaMap &meta,
                            vdbio_verify_grid_t *out) {
   std::snprintf(out->name, sizeof out->name, "%s", name.c_str());
@@ -314,6 +317,13 @@ static void ck_verify_grid(vdb::io::File &file, const std::string &name, const v
       out->status = VDBIO_VERIFY_UNCHECKED;
       detail = "no checksum recorded";
     } else {
+      try {
+        file.readGridMetadata(name);
+      } catch (const std::bad_alloc &) {
+        throw std::runtime_error("its metadata or transform asks for more memory than any "
+                                 "grid's header needs");
+      }
+      vdbio_trees_next();
       vdb::GridBase::Ptr g = file.readGrid(name);
       out->status = vdbio_check_grid(*g, &meta, name, detail);
     }
@@ -326,36 +336,22 @@ static void ck_verify_grid(vdb::io::File &file, const std::string &name, const v
   std::snprintf(out->detail, sizeof out->detail, "%s", detail.c_str());
 }
 
-int vdbio_verify(const char *path, vdbio_verify_grid_t **grids, int *count, bk_error_t *err) {
-  *grids = nullptr;
-  *count = 0;
+int vdbio_verify_grid_direct(const char *path, const char *name, vdbio_verify_grid_t *out,
+                             bk_error_t *err) {
   vdbio_init();
-  int rc = BK_OK;
   try {
     vdb::io::File file(path);
-    if ((rc = vdbio_open(file, path, nullptr, err)))
+    int rc = vdbio_open(file, path, nullptr, err);
+    if (rc)
       return rc;
     vdb::MetaMap::Ptr meta = file.getMetadata();
-    std::vector<std::string> names;
-    for (vdb::io::File::NameIterator it = file.beginName(); it != file.endName(); ++it)
-      names.push_back(*it);
-    *grids = static_cast<vdbio_verify_grid_t *>(
-        bk_calloc(names.size() ? names.size() : 1, sizeof(vdbio_verify_grid_t), path, err));
-    if (!*grids)
-      return BK_ERR_RUNTIME;
-    for (size_t i = 0; i < names.size(); i++)
-      ck_verify_grid(file, names[i], *meta, &(*grids)[i]);
-    *count = (int)names.size();
+    ck_verify_grid(file, name, *meta, out);
     file.close();
   } catch (const std::bad_alloc &) {
-    rc = bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while verifying", path);
+    return bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory while verifying grid \"%s\"", path,
+                   name);
   } catch (const std::exception &e) {
-    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: %s", path, e.what());
+    return bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: %s", path, e.what());
   }
-  if (rc) {
-    std::free(*grids);
-    *grids = nullptr;
-    *count = 0;
-  }
-  return rc;
+  return BK_OK;
 }

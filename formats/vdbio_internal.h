@@ -90,6 +90,9 @@ int vdbio_list_grids_direct(const char *path, char ***names, char ***types, int 
                             bk_error_t *err);
 int vdbio_read_meta_direct(const char *path, const char *key, char *out, size_t len,
                            bk_error_t *err);
+/* vdbio_checksum.cpp: one grid of vdbio_verify, in this process. */
+int vdbio_verify_grid_direct(const char *path, const char *name, vdbio_verify_grid_t *out,
+                             bk_error_t *err);
 /* vdbio_box.cpp: the exact readers of vdbio.h (vdbio_read_box,
  * vdbio_read_meta_all), in this process. */
 int vdbio_read_box_direct(const char *path, const char *grid_name, const grid_dims_t *dims,

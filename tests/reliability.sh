@@ -120,6 +120,34 @@ open('bad.stl', 'wb').write(b'x' * 80 + struct.pack('<I', 100000000) + tri * 2)"
     [ $corrupt -ge 1 ] || fail "no flip was reported as CORRUPT"
     "$BAKER" verify nothere.vdb > /dev/null 2>&1; [ $? = 2 ] || fail "missing file is not exit 2"
     echo "ok: 15 flips: $corrupt CORRUPT, $unreadable unreadable, $missed missed";;
+  verify_absurd)
+    # the first grid's transform type name ("...Map") given a 2 GB length:
+    # verify read it in this process and filled gigabytes before failing
+    # (up to 140 s and 15 GB). Every read is now in a limited child: the
+    # file's grid headers are refused at once as unreadable (exit 2)
+    bake -o out.vdb --compression none || fail "bake"
+    python3 - <<'PY' || fail "no transform type name found"
+import re, struct
+d = bytearray(open("out.vdb", "rb").read())
+m = re.search(rb"[A-Za-z]+Map", bytes(d))
+n = struct.unpack_from("<I", d, m.start() - 4)[0]
+assert n == m.end() - m.start()
+struct.pack_into("<I", d, m.start() - 4, 0x7ffffff0)
+open("bad.vdb", "wb").write(bytes(d))
+PY
+    python3 - "$BAKER" <<'PY' > r.txt || fail "verify ran too long or used too much memory: $(cat r.txt)"
+import resource, subprocess, sys, time
+t = time.time()
+p = subprocess.run([sys.argv[1], "verify", "bad.vdb"], capture_output=True, text=True, timeout=60)
+kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+print(p.returncode, "%.1f s" % (time.time() - t), kib, "KiB")
+print(p.stdout + p.stderr)
+sys.exit(0 if kib < 1024 * 1024 else 1)
+PY
+    read -r rc secs unit kib rest < r.txt
+    [ "$rc" = 2 ] || fail "exit $rc, expected 2: $(cat r.txt)"
+    grep -q "bad.vdb: .*corrupt sizes" r.txt || fail "the file and the reason are not named: $(cat r.txt)"
+    echo "ok: exit 2 in $secs s, at most $kib KiB: $(sed -n 2p r.txt)";;
   view_checksum)
     bake -o out.vdb --compression none || fail "bake"
     "$BAKER" view out.vdb -o ok.exr --resolution 64x48 -q 2> e.txt || fail "view of an intact file"
