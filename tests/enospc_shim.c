@@ -3,7 +3,7 @@
  *
  *   BK_SHIM_MATCH=".tmp"          only files whose path contains this
  *   BK_SHIM_ENOSPC_AFTER=N        write/writev/pwrite/fwrite to them fail
- *                                 with ENOSPC once N bytes have gone through
+ *                                 with ENOSPC once N bytes have gone to them
  *   BK_SHIM_FSYNC_ERRNO=28        fsync/fdatasync of them fail with that errno
  *                                 (a full disk seen only at write-back)
  *
@@ -42,6 +42,12 @@ static size_t allowance(int fd, size_t want) {
   return (size_t)left < want ? (size_t)left : want;
 }
 
+/* Only the matching files' bytes count: the process may write others (the
+ * view writes its EXR and PNG side by side) in any order. */
+static void count_written(int fd, ssize_t w) {
+  if (w > 0 && matches(fd)) __atomic_add_fetch(&written, (long long)w, __ATOMIC_RELAXED);
+}
+
 #define REAL(name) ((__typeof__(&name))dlsym(RTLD_NEXT, #name))
 
 ssize_t write(int fd, const void *buf, size_t n) {
@@ -51,7 +57,7 @@ ssize_t write(int fd, const void *buf, size_t n) {
     return -1;
   }
   ssize_t w = REAL(write)(fd, buf, ok);
-  if (w > 0) __atomic_add_fetch(&written, w, __ATOMIC_RELAXED);
+  count_written(fd, w);
   return w;
 }
 
@@ -62,7 +68,7 @@ ssize_t pwrite(int fd, const void *buf, size_t n, off_t off) {
     return -1;
   }
   ssize_t w = REAL(pwrite)(fd, buf, ok, off);
-  if (w > 0) __atomic_add_fetch(&written, w, __ATOMIC_RELAXED);
+  count_written(fd, w);
   return w;
 }
 
@@ -75,7 +81,7 @@ ssize_t writev(int fd, const struct iovec *iov, int cnt) {
     return -1;
   }
   ssize_t w = REAL(writev)(fd, iov, cnt);
-  if (w > 0) __atomic_add_fetch(&written, w, __ATOMIC_RELAXED);
+  count_written(fd, w);
   return w;
 }
 
@@ -86,7 +92,7 @@ size_t fwrite(const void *buf, size_t size, size_t count, FILE *f) {
     return 0;
   }
   size_t w = REAL(fwrite)(buf, size, count, f);
-  __atomic_add_fetch(&written, (long long)(w * size), __ATOMIC_RELAXED);
+  count_written(fileno(f), (ssize_t)(w * size));
   return w;
 }
 
