@@ -360,6 +360,16 @@ static int view_prepare(view_job_t *j, bk_error_t *err) {
   return j->rgba ? BK_OK : BK_ERR_RUNTIME;
 }
 
+/* While the grids are decoded in reader processes: OpenCL's start-up, tens
+ * of ms of library loading. A failure is left for view_frame's own call,
+ * which reports it only when the volume needs a device. */
+static void view_start_gpu(void *ctx) {
+  view_job_t *j = ctx;
+  bk_error_t ignored;
+  if (!j->gpu.ready && view_gpu_init(&j->gpu, j->o.device, &ignored) == BK_OK)
+    j->tot.device_in_read = 1;
+}
+
 /* The frame's volume: the previous frame's when the file's contents hash
  * the same (docs/animation.md), else read. */
 static int view_frame_volume(view_job_t *j, const char *in, int frame, bk_error_t *err) {
@@ -373,7 +383,7 @@ static int view_frame_volume(view_job_t *j, const char *in, int frame, bk_error_
   }
   view_volume_free(&j->vol);
   j->vol_key = 0;
-  int rc = view_volume_load(in, &j->vol, err);
+  int rc = view_volume_load(in, &j->vol, view_start_gpu, j, err);
   j->tot.read_ms += bk_now_ms() - t0;
   if (rc) return rc;
   j->vol_key = key, j->vol_frame = frame;

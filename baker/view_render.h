@@ -34,6 +34,7 @@ typedef struct view_totals {
   uint64_t ray_steps, pixels, capped;
   int frames;
   int reused;          /* frames that kept the previous frame's volume */
+  int device_in_read;  /* the device was opened during the read (in its time) */
   char last_options[256];
 } view_totals_t;
 

@@ -210,6 +210,8 @@ typedef struct view_load {
   vdbio_dense_t own[G_COUNT], like;
   float *arr[G_COUNT];
   double scale;
+  void (*meanwhile)(void *ctx); /* while the readers work (view_volume_load) */
+  void *ctx;
 } view_load_t;
 
 /* Which grids the file has, and of which types. */
@@ -259,7 +261,9 @@ static int load_read_own(view_load_t *L, bk_error_t *err) {
   for (int g = 0; g < G_COUNT; g++)
     if (L->present[g]) which[count] = g, names[count++] = L->gname[g];
   /* the grids side by side, one reader per core */
-  if ((rc = vdbio_read_dense_verified_all(L->path, count, names, own, checked, err))) return rc;
+  if ((rc = vdbio_read_dense_verified_all(L->path, count, names, own, checked, L->meanwhile,
+                                          L->ctx, err)))
+    return rc;
   for (int i = 0; i < count; i++) {
     const int g = which[i];
     L->own[g] = own[i];
@@ -564,11 +568,13 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   return BK_OK;
 }
 
-int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err) {
+int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void *ctx), void *ctx,
+                     bk_error_t *err) {
   view_load_t L;
   memset(&L, 0, sizeof L);
   memset(v, 0, sizeof *v);
   L.path = path;
+  L.meanwhile = meanwhile, L.ctx = ctx;
   L.scale = 1.0;
   const char *gname[G_COUNT] = {"radiance",      "ior",     "extinction",         "scattering",
                                 "ior_rgb",       "radiance_flux", "phase_g",

@@ -44,8 +44,11 @@ typedef struct view_volume {
   char desc[512];              /* what was read, for -v */
 } view_volume_t;
 
-/* Reads path into v (zeroed first); on failure v is freed. */
-int view_volume_load(const char *path, view_volume_t *v, bk_error_t *err);
+/* Reads path into v (zeroed first); on failure v is freed. meanwhile(ctx)
+ * (NULL: none) runs while the grids are decoded in their reader processes
+ * (vdbio_read_dense_verified_all): the view starts OpenCL there. */
+int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void *ctx), void *ctx,
+                     bk_error_t *err);
 void view_volume_free(view_volume_t *v);
 /* World bounding box of the volume's cells. */
 void view_volume_world_box(const view_volume_t *v, double bmin[3], double bmax[3]);

@@ -406,7 +406,7 @@ int vdbio_read_dense_verified(const char *path, const char *grid_name, int pad,
  * read again alone before the file is called corrupt, and the rest then one
  * at a time. The first failure in list order is the answer. */
 static int iso_run_all(iso_job *const *jobs, int count, int width, const char *path,
-                       bk_error_t *err) {
+                       void (*meanwhile)(void *), void *ctx, bk_error_t *err) {
   const iso_limits l = iso_limits_for(path);
   std::vector<iso_started> st((size_t)count);
   int next = 0, rc = BK_OK;
@@ -415,6 +415,8 @@ static int iso_run_all(iso_job *const *jobs, int count, int width, const char *p
       rc = iso_start(*jobs[next], path, l, &st[(size_t)next], err), next++;
     if (rc)
       break;
+    if (i == 0 && meanwhile)
+      meanwhile(ctx);
     bool died = false;
     rc = iso_parent(*jobs[i], st[(size_t)i].fd, st[(size_t)i].pid, path, l, err, &died);
     close(st[(size_t)i].fd);
@@ -435,7 +437,8 @@ static int iso_run_all(iso_job *const *jobs, int count, int width, const char *p
 }
 
 int vdbio_read_dense_verified_all(const char *path, int count, const char *const *names,
-                                  vdbio_dense_t *outs, int *checked, bk_error_t *err) {
+                                  vdbio_dense_t *outs, int *checked,
+                                  void (*meanwhile)(void *ctx), void *ctx, bk_error_t *err) {
   if (!path || count < 0 || (count && (!names || !outs || !checked)))
     return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_dense_verified_all: invalid arguments");
   std::vector<iso_dense_job> jobs((size_t)count);
@@ -454,7 +457,7 @@ int vdbio_read_dense_verified_all(const char *path, int count, const char *const
   /* one child per core: each grid's decode, copy and checksum beside the others */
   const long cpus = sysconf(_SC_NPROCESSORS_ONLN);
   const int width = cpus < 1 ? 1 : cpus > count ? count : (int)cpus;
-  const int rc = iso_run_all(ptr.data(), count, width < 1 ? 1 : width, path, err);
+  const int rc = iso_run_all(ptr.data(), count, width < 1 ? 1 : width, path, meanwhile, ctx, err);
   for (int i = 0; i < count; i++) {
     checked[i] = jobs[(size_t)i].checked;
     if (rc)

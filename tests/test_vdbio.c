@@ -273,7 +273,7 @@ static void check_read_all(const char *path) {
   const char *names[3] = {"radiance", "density", "radiance"};
   vdbio_dense_t all[3], one;
   int checked[3] = {0, 0, 0};
-  int rc = vdbio_read_dense_verified_all(path, 3, names, all, checked, &err);
+  int rc = vdbio_read_dense_verified_all(path, 3, names, all, checked, NULL, NULL, &err);
   EXPECT(rc == BK_OK, "read_dense_verified_all: %s", err.msg);
   for (int i = 0; rc == BK_OK && i < 3; i++) {
     int ck = 0;
@@ -289,7 +289,7 @@ static void check_read_all(const char *path) {
     vdbio_dense_free(&all[i]);
   }
   const char *missing[3] = {"density", "no_such_grid", "radiance"};
-  rc = vdbio_read_dense_verified_all(path, 3, missing, all, checked, &err);
+  rc = vdbio_read_dense_verified_all(path, 3, missing, all, checked, NULL, NULL, &err);
   EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "no_such_grid"), "missing grid: rc %d %s", rc,
          err.msg);
   for (int i = 0; i < 3; i++)
