@@ -348,7 +348,7 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
   bt_options_t bo = {0};
   bo.shard_index = r->opt->shard_index, bo.shard_count = r->opt->shard_count, bo.sums = shard;
   bo.error_grid = r->opt->error_grid;
-  bo.halves = r->filter_on && !shard && scene_batches(r->scene) != 1;
+  bo.halves = r->filter_on && !shard && scene_batches(r->scene, bt_per_voxel(bo.error_grid, bo.shard_count)) != 1;
   bo.w_max = 1.0 / r->pdf_min;
   bo.photon_limit = PM_TABLES_MAX_PHOTONS;
   bo.t_start = r->opt->t_start;

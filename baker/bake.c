@@ -85,7 +85,7 @@ void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_
            s->hash, scene_mode_name(s->mode), s->photon_count,
            scene_integrator_name(s->integrator), (double)s->step, s->seed, s->resolution,
            compression_name(opt->write.compression), opt->write.half_float ? 1 : 0,
-           s->mode != MODE_ADAPTIVE ? "n/a" : opt->no_filter ? "off" : "on", scene_batches(s),
+           s->mode != MODE_ADAPTIVE ? "n/a" : opt->no_filter ? "off" : "on", scene_batches(s, bt_per_voxel(opt->error_grid, opt->shard_count)),
            (double)s->target_error, (double)s->time_budget_s, opt->error_grid);
   size_t at = strlen(out);
   if (opt->shard_count && at < len)

@@ -266,9 +266,9 @@ static int step_is_exact(const pm_setup_t *s) {
 /* The batches of a bake: fixed (B of the count's share) or open (target,
  * budget: batches of count / B up to the cap); limit > 0 caps the photons
  * of all batches together (sampling tables count them in bounded sums). */
-static void set_mode(bt_run_t *x, const scene_t *scene, uint64_t limit) {
-  uint64_t n = (uint64_t)scene->photon_count;
-  int b = scene_batches(scene);
+static void set_mode(bt_run_t *x, const scene_t *scene, const bt_options_t *o) {
+  const uint64_t n = (uint64_t)scene->photon_count, limit = o->photon_limit;
+  int b = scene_batches(scene, bt_per_voxel(o->error_grid, o->shard_count));
   x->target = scene->target_error;
   x->budget_ms = scene->time_budget_s * 1000.0;
   if (x->target > 0.0 || x->budget_ms > 0.0) {
@@ -288,7 +288,7 @@ static void set_mode(bt_run_t *x, const scene_t *scene, uint64_t limit) {
 uint64_t bt_photons_at_most(const scene_t *scene, const bt_options_t *o) {
   bt_run_t x;
   memset(&x, 0, sizeof x);
-  set_mode(&x, scene, o->photon_limit);
+  set_mode(&x, scene, o);
   return x.photon_cap;
 }
 
@@ -410,7 +410,7 @@ int bt_march(clh_context_t *cl, const scene_t *scene, pm_setup_t *s, const bt_op
   memset(&tr, 0, sizeof tr);
   x.scene = scene, x.o = o, x.s = s, x.tr = &tr;
   snprintf(x.label, sizeof x.label, "photon marching");
-  set_mode(&x, scene, o->photon_limit);
+  set_mode(&x, scene, o);
   int rc = check_options(&x, o, err);
   if (rc) return rc;
   if (o->t_start > 0.0 && x.budget_ms > 0.0) /* the stages before the march spent some */

@@ -134,14 +134,19 @@ int scene_has_dispersion(const scene_t *s);
 /* Whether the medium's and every object's σs and σa are the same in R, G
  * and B (the voxelized volume is then grey: voxelize.h). */
 int scene_is_grey(const scene_t *s);
-/* The batches a bake traces (baker/batches.h): photons.batches when set,
- * else SCENE_FIXED_BATCHES for a fixed photon count (a few large Hammersley
- * sets: the noise estimate's cost is their spread, docs/error.md) and
- * SCENE_OPEN_BATCHES with a target error or time budget (their unit of
- * work is count / batches photons: finer steps stop nearer the goal). */
-#define SCENE_FIXED_BATCHES 4
+/* The batches a bake traces (baker/batches.h): photons.batches when set;
+ * else SCENE_OPEN_BATCHES with a target error or time budget (their unit of
+ * work is count / batches photons: finer steps stop nearer the goal);
+ * else, for a fixed photon count, as few large Hammersley sets as the
+ * estimate allows (the noise estimate's cost is their sparseness,
+ * docs/error.md): SCENE_FIXED_BATCHES for the grid-wide noise term, which
+ * averages over every lit voxel, and SCENE_VOXEL_BATCHES where each voxel's
+ * own spread is used (per_voxel: --error-grid's standard error; the
+ * adaptive mode's filter term, which compares halves of the batches). */
+#define SCENE_FIXED_BATCHES 2
+#define SCENE_VOXEL_BATCHES 4
 #define SCENE_OPEN_BATCHES 8
-int scene_batches(const scene_t *s);
+int scene_batches(const scene_t *s, int per_voxel);
 /* n of object o in channel ch (0 R, 1 G, 2 B). */
 float scene_object_n(const scene_object_t *o, int ch);
 

@@ -9,7 +9,7 @@
  * so that its photons are not the runs'; cached as
  * SCENE-HASH-RES-TRUTH-s1000.truth in $BENCH_ERROR_CACHE when set), then for Euler and
  * RK4 at step 0.5 and each photon count bakes with the scene's batches
- * (default 4: scene_batches) and prints one
+ * (default 2 for a fixed bake: scene_batches) and prints one
  * JSON line: the estimate ε̂ and its terms, the true ε (docs/error.md), the
  * ratio, the relative L2 over all voxels and channels, and the times of the
  * march, the twin and the per-batch statistics, with the march time of the
