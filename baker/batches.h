@@ -55,7 +55,7 @@ extern "C" {
 /* The truth's integrator: RK4 at this step (voxels). */
 #define BT_TRUTH_STEP 0.125f
 
-/* Whether a bake keeps each voxel's own spread, which needs more batches
+/* Whether a bake returns each voxel's own spread, which needs more batches
  * (scene_batches): --error-grid, except in a shard (which estimates nothing). */
 static inline int bt_per_voxel(int error_grid, int shard_count) {
   return error_grid && !shard_count;

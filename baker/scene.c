@@ -156,7 +156,7 @@ int scene_is_grey(const scene_t *s) {
 int scene_batches(const scene_t *s, int per_voxel) {
   if (s->batches > 0) return s->batches;
   if (s->target_error > 0.0f || s->time_budget_s > 0.0f) return SCENE_OPEN_BATCHES;
-  return per_voxel || s->mode == MODE_ADAPTIVE ? SCENE_VOXEL_BATCHES : SCENE_FIXED_BATCHES;
+  return per_voxel ? SCENE_VOXEL_BATCHES : SCENE_FIXED_BATCHES;
 }
 
 float scene_object_n(const scene_object_t *o, int ch) {

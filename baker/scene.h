@@ -139,10 +139,9 @@ int scene_is_grey(const scene_t *s);
  * work is count / batches photons: finer steps stop nearer the goal);
  * else, for a fixed photon count, as few large Hammersley sets as the
  * estimate allows (the noise estimate's cost is their sparseness,
- * docs/error.md): SCENE_FIXED_BATCHES for the grid-wide noise term, which
- * averages over every lit voxel, and SCENE_VOXEL_BATCHES where each voxel's
- * own spread is used (per_voxel: --error-grid's standard error; the
- * adaptive mode's filter term, which compares halves of the batches). */
+ * docs/error.md): SCENE_FIXED_BATCHES for the grid-wide terms, which
+ * average over every lit voxel, and SCENE_VOXEL_BATCHES when each voxel's
+ * own spread is wanted (per_voxel: --error-grid's standard error). */
 #define SCENE_FIXED_BATCHES 2
 #define SCENE_VOXEL_BATCHES 4
 #define SCENE_OPEN_BATCHES 8
