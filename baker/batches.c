@@ -109,34 +109,42 @@ static int twin_with(clh_context_t *cl, bt_run_t *x, uint64_t *acc, unsigned int
 /* Target mode: the integrator and step whose bias leaves room for the noise
  * at the least predicted cost, twin_cost per photon / (E² − ε_step²), among
  * Euler and RK4 at 1/2 and 1/4 voxel and the truth's RK4 1/8 (bias 0).
- * A bias above 0.8 E leaves too little room. Sets x->s's integrator and
- * step; the tracker keeps the chosen one's twins. */
+ * A bias above 0.8 E leaves too little room. A finer step of an integrator
+ * costs at least what its coarser step did per photon, so once the best
+ * cost is below that, the finer step is not traced. Sets x->s's integrator
+ * and step; the tracker keeps the chosen one's twins (copied aside). */
 static int choose_integrator(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *err) {
   static const struct { integrator_t i; float step; } cand[] = {
       {INTEGRATOR_EULER, 0.5f}, {INTEGRATOR_EULER, 0.25f}, {INTEGRATOR_RK4, 0.5f},
       {INTEGRATOR_RK4, 0.25f}};
   const double E = x->target;
-  int best = -1;
+  int best = -1, rc = BK_OK;
   double best_cost = x->cost / (E * E), ms;
-  for (int c = 0; c < (int)(sizeof cand / sizeof cand[0]); c++) {
+  double floor_of[2] = {0.0, 0.0}; /* per integrator: the least cost of a finer step */
+  float *keep = NULL;
+  for (int c = 0; c < (int)(sizeof cand / sizeof cand[0]) && !rc; c++) {
     unsigned dev = integrator_kind(cand[c].i)->device;
-    int rc = twin_with(cl, x, acc, dev, cand[c].step, &ms, err);
-    if (rc) return rc;
+    const int k = cand[c].i == INTEGRATOR_RK4;
+    if (best_cost <= floor_of[k]) continue;
+    if ((rc = twin_with(cl, x, acc, dev, cand[c].step, &ms, err))) break;
+    floor_of[k] = x->cost / (E * E);
     double st = ee_twin_step(x->tr, x->fine);
     double cost = st >= 0.0 && st <= 0.8 * E ? x->cost / (E * E - st * st) : HUGE_VAL;
     bk_log(2, "target error %g: %s step %g: bias %.4f, twin %.0f ms, relative cost %.3g", E,
            integrator_kind(cand[c].i)->name, (double)cand[c].step, st, ms, cost / best_cost);
-    if (cost < best_cost) best_cost = cost, best = c;
+    if (cost < best_cost) best_cost = cost, best = c, rc = ee_twin_save(x->tr, &keep, err);
   }
-  if (best < 0) { /* the truth's own integrator */
+  if (!rc && best < 0) { /* the truth's own integrator */
     x->s->params.integrator = integrator_kind(INTEGRATOR_RK4)->device;
     x->s->params.step = BT_TRUTH_STEP;
     x->step_exact = 1;
-    return BK_OK;
+  } else if (!rc) {
+    x->s->params.integrator = integrator_kind(cand[best].i)->device;
+    x->s->params.step = cand[best].step;
+    if (keep) ee_twin_restore(x->tr, keep, BT_TWIN_BATCHES);
   }
-  x->s->params.integrator = integrator_kind(cand[best].i)->device;
-  x->s->params.step = cand[best].step;
-  return twin_with(cl, x, acc, x->s->params.integrator, x->s->params.step, &ms, err);
+  free(keep);
+  return rc;
 }
 
 /* The step term: twins with the truth's integrator, then with the bake's
@@ -337,10 +345,10 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
   int rc = BK_OK;
   x->t0 = bk_now_ms();
   if (!x->step_exact && s->lights.photons > 0 && x->batches != 1 && !x->o->shard_count) {
-    uint64_t total = x->batches ? x->photons : x->photons * BT_MIN_BATCHES;
+    const uint64_t keep = x->photons;
+    uint64_t total = x->batches ? x->photons : x->photons * BT_OPEN_TWIN_BATCHES;
     uint64_t n = (uint64_t)(total * BT_TWIN_FRACTION / BT_TWIN_BATCHES);
     x->photons = n > BT_TWIN_MIN ? n : BT_TWIN_MIN;
-    uint64_t keep = x->batches ? total : total / BT_MIN_BATCHES;
     res->terms.twin_photons = x->photons;
     rc = run_twin(cl, x, acc, err);
     x->photons = keep;

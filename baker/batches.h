@@ -34,7 +34,7 @@
 extern "C" {
 #endif
 
-#define BT_MIN_BATCHES 4  /* open-ended modes stop no earlier */
+#define BT_MIN_BATCHES 2  /* open-ended modes stop no earlier (as few as a fixed bake) */
 /* Open-ended modes stop here at the latest: the fixed-point scale is set for
  * this many batches (a deposit of one photon across one voxel is then still
  * about 2^62 / (4096 n_b path bound) quanta, thousands at 128^3). */
@@ -52,6 +52,10 @@ extern "C" {
  * batches (at least BT_TWIN_MIN per batch). */
 #define BT_TWIN_FRACTION (1.0 / 64.0)
 #define BT_TWIN_MIN 1024u
+/* The open modes size their twins as if this many batches were traced: a
+ * target's choice of integrator rests on the twins' bias, which fewer
+ * twin photons (2 batches' share) made too noisy to choose by. */
+#define BT_OPEN_TWIN_BATCHES 4
 /* The truth's integrator: RK4 at this step (voxels). */
 #define BT_TRUTH_STEP 0.125f
 

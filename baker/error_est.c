@@ -244,6 +244,21 @@ void ee_twin_reset(ee_tracker_t *t) {
   t->twins = 0;
 }
 
+int ee_twin_save(const ee_tracker_t *t, float **keep, bk_error_t *err) {
+  if (!t->dsum) return BK_OK; /* nothing recorded */
+  if (!*keep && !(*keep = bk_calloc(2 * t->count, sizeof(float), "error estimate: twin copy", err)))
+    return BK_ERR_RUNTIME;
+  memcpy(*keep, t->dsum, t->count * sizeof(float));
+  memcpy(*keep + t->count, t->dsumsq, t->count * sizeof(float));
+  return BK_OK;
+}
+
+void ee_twin_restore(ee_tracker_t *t, const float *keep, int twins) {
+  memcpy(t->dsum, keep, t->count * sizeof(float));
+  memcpy(t->dsumsq, keep + t->count, t->count * sizeof(float));
+  t->twins = twins;
+}
+
 void ee_batches_reset(ee_tracker_t *t) {
   memset(t->prev, 0, t->count * sizeof(float));
   memset(t->sumsq, 0, t->count * sizeof(float));

@@ -82,6 +82,11 @@ int ee_twin_add(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, const
                 bk_error_t *err);
 /* Forget the twins recorded (another integrator is measured next). */
 void ee_twin_reset(ee_tracker_t *t);
+/* The twins recorded, copied into *keep (allocated on the first call, the
+ * caller frees it) and put back: target mode measures several integrators
+ * and keeps the chosen one's twins without tracing them again. */
+int ee_twin_save(const ee_tracker_t *t, float **keep, bk_error_t *err);
+void ee_twin_restore(ee_tracker_t *t, const float *keep, int twins);
 /* Forget the batches recorded (target mode drops its pilot batches and
  * starts over with larger ones); the twins are kept. */
 void ee_batches_reset(ee_tracker_t *t);
