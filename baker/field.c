@@ -14,7 +14,7 @@ size_t fld_padded_count(int nx, int ny, int nz) {
 /* Fills the outer layer of a padded float4 field from its edge voxels: x
  * faces per row, then whole y rows, then whole z planes, so edges and
  * corners copy what the previous pass put there. */
-static void pad_faces(int nx, int ny, int nz, float *f) {
+void fld_pad4_faces(int nx, int ny, int nz, float *f) {
   const size_t px = (size_t)nx + 2, py = (size_t)ny + 2, row = 4 * px, plane = row * py;
   for (size_t K = 1; K <= (size_t)nz; K++)
     for (size_t J = 1; J <= (size_t)ny; J++) {
@@ -207,7 +207,7 @@ static void pad_slices(void *arg, size_t k0, size_t k1) {
 void fld_pad4(int nx, int ny, int nz, const float *src, float *dst) {
   pad_ctx_t x = {{nx, ny, nz}, src, dst};
   bk_parallel((size_t)nz, 1, pad_slices, &x);
-  pad_faces(nx, ny, nz, dst);
+  fld_pad4_faces(nx, ny, nz, dst);
 }
 
 void fld_voxel(const float *ng, int i, int j, int k, float q[4]) {

@@ -49,6 +49,9 @@ void fld_voxel(const float *ng, int i, int j, int k, float q[4]);
 /* Copies an unpadded float4 field src (nx*ny*nz float4) into the padded
  * layout dst (fld_padded_count float4). */
 void fld_pad4(int nx, int ny, int nz, const float *src, float *dst);
+/* The outer layer of a padded float4 field whose voxels are filled: each
+ * edge voxel's value copied outwards (what fld_pad4 does after the copy). */
+void fld_pad4_faces(int nx, int ny, int nz, float *f);
 
 #ifdef __cplusplus
 }

@@ -101,8 +101,8 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
     double t0 = bk_now_ms();
     /* dispersion: constant where every channel's n is, a field per channel */
     const size_t count = s->voxels;
-    const oct_source_t rgb[3] = {{vol->ior_rb, 1, 1}, {vol->ior, 1, 1},
-                                 {vol->ior_rb ? vol->ior_rb + count : NULL, 1, 1}};
+    const oct_source_t rgb[3] = {{vol->ior_rb, 1, 1, 0}, {vol->ior, 1, 1, 0},
+                                 {vol->ior_rb ? vol->ior_rb + count : NULL, 1, 1, 0}};
     int rc = vol->ior_rb ? oct_build_fields(d->nx, d->ny, d->nz, rgb, 3, OCT_HALO, &s->pyramid, err)
                          : oct_build(d, vol->ior, &s->pyramid, err);
     if (rc != BK_OK) return rc;

@@ -39,19 +39,20 @@ typedef struct oct_scan {
   atomic_int failed;
 } oct_scan_t;
 
-/* Row `row` (its first voxel's index): f[i] gets bit 0, 1, 2 when voxel i
- * differs from its +x, +y (when `dy`) or +z (when `dz`) neighbour in any
- * channel; returns the OR of all. Channel by channel along the row, so the
- * loop is branch-free. */
-static unsigned row_pairs(const oct_scan_t *w, size_t row, int dy, int dz, unsigned char *f) {
+/* Row (j, k): f[i] gets bit 0, 1, 2 when voxel i differs from its +x, +y
+ * (when `dy`) or +z (when `dz`) neighbour in any channel; returns the OR of
+ * all. Channel by channel along the row, so the loop is branch-free. */
+static unsigned row_pairs(const oct_scan_t *w, int j, int k, int dy, int dz, unsigned char *f) {
   const int n = w->nx;
   memset(f, 0, (size_t)n);
   for (int s = 0; s < w->nsrc; s++)
     for (int ch = 0; ch < w->src[s].channels; ch++) {
-      const size_t st = (size_t)w->src[s].stride;
+      const size_t st = (size_t)w->src[s].stride, pad = w->src[s].pad ? 1 : 0;
+      const size_t sx = (size_t)n + 2 * pad, sy = (size_t)w->ny + 2 * pad;
+      const size_t row = pad + sx * ((size_t)j + pad + sy * ((size_t)k + pad));
       const float *p = w->src[s].values + st * row + (size_t)ch;
       /* without a neighbour, the voxel itself: masked off below */
-      const size_t oy = dy ? st * (size_t)n : 0, oz = dz ? st * (size_t)n * (size_t)w->ny : 0;
+      const size_t oy = dy ? st * sx : 0, oz = dz ? st * sx * sy : 0;
       for (int i = 0; i < n; i++) {
         const float *q = p + st * (size_t)i;
         const float a = q[0], x = i + 1 < n ? q[st] : a;
@@ -88,8 +89,7 @@ static void slice_blocks(const oct_scan_t *w, int k, int dz, unsigned char *f, u
   const size_t bx = (size_t)w->bx;
   memset(s, 0, bx * (size_t)w->by);
   for (int j = 0; j < w->ny; j++) {
-    const size_t row = (size_t)w->nx * ((size_t)j + (size_t)w->ny * k);
-    if (!row_pairs(w, row, j + 1 < w->ny, dz, f)) continue;
+    if (!row_pairs(w, j, k, j + 1 < w->ny, dz, f)) continue;
     row_blocks(w, f, r);
     int a0, a1, p0, p1; /* block rows whose grown y range holds j; and j + 1 too */
     pair_blocks(j, j, w->H, w->by - 1, &a0, &a1);
@@ -210,7 +210,7 @@ error:
 }
 
 int oct_build(const grid_dims_t *d, const float *ior, oct_pyramid_t *out, bk_error_t *err) {
-  const oct_source_t n = {ior, 1, 1};
+  const oct_source_t n = {ior, 1, 1, 0};
   return oct_build_fields(d->nx, d->ny, d->nz, &n, 1, OCT_HALO, out, err);
 }
 

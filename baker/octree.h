@@ -53,10 +53,13 @@ typedef struct oct_pyramid {
   uint64_t voxels_at_level[OCT_LEVELS + 1];
 } oct_pyramid_t;
 
-/* One input of a pyramid: `channels` floats every `stride` floats per voxel. */
+/* One input of a pyramid: `channels` floats every `stride` floats per voxel;
+ * pad 1: stored with one layer of voxels around the grid (field.h's padded
+ * layout), 0: the grid alone. */
 typedef struct oct_source {
   const float *values;
   int stride, channels;
+  int pad;
 } oct_source_t;
 
 /* Builds the pyramid of `ior` (grid_count(d) floats), exact equality and a

@@ -21,7 +21,8 @@ static int pad_field(const view_volume_t *v, float **a, bk_error_t *err) {
 /* n and its constant blocks, exactly as the photon march sees them. */
 static int build_refraction(view_volume_t *v, bk_error_t *err) {
   const size_t count = (size_t)v->nx * v->ny * v->nz;
-  const oct_source_t n[3] = {{v->ior, 1, 1}, {v->ior_rb, 1, 1}, {v->ior_rb ? v->ior_rb + count : NULL, 1, 1}};
+  const oct_source_t n[3] = {{v->ior, 1, 1, 0}, {v->ior_rb, 1, 1, 0},
+                             {v->ior_rb ? v->ior_rb + count : NULL, 1, 1, 0}};
   v->ng = v->ior_rb ? fld_build_rgb(v->nx, v->ny, v->nz, v->voxel_size, v->ior, v->ior_rb, err)
                     : fld_build(v->nx, v->ny, v->nz, v->voxel_size, v->ior, err);
   if (!v->ng) return BK_ERR_RUNTIME;
@@ -32,9 +33,10 @@ int view_fields_build(view_volume_t *v, bk_error_t *err) {
   int rc;
   if (v->refraction && (rc = build_refraction(v, err))) return rc;
   /* S and σt constant over a block and the voxel around it that trilinear
-   * sampling reads; built before padding */
-  oct_source_t medium[4] = {{v->medium, 4, 4}, {v->sigma_t4, 4, 3}, {v->aniso, 4, 4},
-                            {v->aniso_s, 4, 3}};
+   * sampling reads: S and σt packed padded already (view_volume.c), the
+   * phase lobes padded after */
+  oct_source_t medium[4] = {{v->medium, 4, 4, 1}, {v->sigma_t4, 4, 3, 1}, {v->aniso, 4, 4, 0},
+                            {v->aniso_s, 4, 3, 0}};
   int nsrc = 1;
   if (v->sigma_t4) medium[nsrc++] = medium[1];
   if (v->aniso) { /* the phase lobes: part of the source */
@@ -42,8 +44,6 @@ int view_fields_build(view_volume_t *v, bk_error_t *err) {
     medium[nsrc++] = medium[3];
   }
   if ((rc = oct_build_fields(v->nx, v->ny, v->nz, medium, nsrc, 1, &v->mpyr, err))) return rc;
-  if ((rc = pad_field(v, &v->medium, err)) || (rc = pad_field(v, &v->sigma_t4, err)) ||
-      (rc = pad_field(v, &v->aniso, err)) || (rc = pad_field(v, &v->aniso_s, err)))
-    return rc;
+  if ((rc = pad_field(v, &v->aniso, err)) || (rc = pad_field(v, &v->aniso_s, err))) return rc;
   return BK_OK;
 }

@@ -10,6 +10,7 @@
 
 #include "base/grid.h"
 #include "base/parallel.h"
+#include "field.h"
 #include "kernels/view_march.h"
 #include "vdbio.h"
 #include "view_camera.h"
@@ -524,25 +525,36 @@ typedef struct pack_ctx {
   const float *ext, *sca, *rad;
   int sc; /* channels of ext and sca */
   float scale;
-  float *medium, *sigma_t4;
+  int nx, ny;
+  float *medium, *sigma_t4; /* padded (field.h): the kernel's layout */
 } pack_ctx_t;
 
-/* {S = σs L̄, σt (grey; 0 for RGB, whose σt goes to sigma_t4)} of [lo, hi). */
+/* {S = σs L̄, σt (grey; 0 for RGB, whose σt goes to sigma_t4)} of the rows
+ * [lo, hi) (row j + ny k), written straight into the padded layout. */
 static void pack_source(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
   const int sc = x->sc;
-  for (size_t i = lo; i < hi; i++) {
-    for (int c = 0; c < 3; c++)
-      x->medium[4 * i + c] =
-          x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] * x->rad[3 * i + c] : 0.0f;
-    if (sc == 1 && x->ext) x->medium[4 * i + 3] = x->scale * x->ext[i];
+  const size_t px = (size_t)x->nx + 2, py = (size_t)x->ny + 2;
+  for (size_t row = lo; row < hi; row++) {
+    const size_t j = row % (size_t)x->ny, k = row / (size_t)x->ny;
+    float *m = x->medium + 4 * (1 + px * (j + 1 + py * (k + 1)));
+    for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, m += 4) {
+      for (int c = 0; c < 3; c++)
+        m[c] = x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] * x->rad[3 * i + c] : 0.0f;
+      if (sc == 1 && x->ext) m[3] = x->scale * x->ext[i];
+    }
   }
 }
 
 static void pack_sigma_t(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
-  for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < 3; c++) x->sigma_t4[4 * i + c] = x->scale * x->ext[3 * i + c];
+  const size_t px = (size_t)x->nx + 2, py = (size_t)x->ny + 2;
+  for (size_t row = lo; row < hi; row++) {
+    const size_t j = row % (size_t)x->ny, k = row / (size_t)x->ny;
+    float *s = x->sigma_t4 + 4 * (1 + px * (j + 1 + py * (k + 1)));
+    for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, s += 4)
+      for (int c = 0; c < 3; c++) s[c] = x->scale * x->ext[3 * i + c];
+  }
 }
 
 /* Packs {S = σs L̄, σt (grey)} and, for RGB, {σt}; σ per voxel length. */
@@ -553,18 +565,22 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   const float *rad = L->arr[G_RAD];
   const int sc = v->sigma_ch;
   const double scale = L->scale;
-  v->medium = view_alloc(nvox, 4 * sizeof(float), "view: medium", err);
+  const size_t padded = fld_padded_count(v->nx, v->ny, v->nz), rows = (size_t)v->ny * v->nz;
+  const size_t grain = BK_GRAIN / (size_t)v->nx + 1;
+  v->medium = view_alloc(padded, 4 * sizeof(float), "view: medium", err);
   if (!v->medium) return BK_ERR_RUNTIME;
-  pack_ctx_t x = {ext, sca, rad, sc, (float)scale, v->medium, NULL};
-  bk_parallel(nvox, BK_GRAIN, pack_source, &x);
+  pack_ctx_t x = {ext, sca, rad, sc, (float)scale, v->nx, v->ny, v->medium, NULL};
+  bk_parallel(rows, grain, pack_source, &x);
+  fld_pad4_faces(v->nx, v->ny, v->nz, v->medium);
   if (sc == 1) return BK_OK;
   v->homogeneous = is_constant(ext, nvox, 3, v->st_const);
   for (int c = 0; c < 3; c++) v->st_const[c] *= (float)scale;
   if (v->homogeneous) return BK_OK;
-  v->sigma_t4 = view_alloc(nvox, 4 * sizeof(float), "view: extinction", err);
+  v->sigma_t4 = view_alloc(padded, 4 * sizeof(float), "view: extinction", err);
   if (!v->sigma_t4) return BK_ERR_RUNTIME;
   x.sigma_t4 = v->sigma_t4;
-  bk_parallel(nvox, BK_GRAIN, pack_sigma_t, &x);
+  bk_parallel(rows, grain, pack_sigma_t, &x);
+  fld_pad4_faces(v->nx, v->ny, v->nz, v->sigma_t4);
   return BK_OK;
 }
 

@@ -26,8 +26,9 @@ typedef struct view_volume {
   double i2w[3][4], w2i[3][4]; /* index (cell centre) <-> world */
   double voxel_size;           /* world length of one index step */
   int empty;                   /* no grid has active voxels: the image is the background */
-  float *medium;               /* 4 per voxel: S = σs L̄ (RGB), σt when grey; per voxel length */
-  float *sigma_t4;             /* 4 per voxel: σt (RGB) when RGB and not homogeneous */
+  float *medium;               /* 4 per voxel: S = σs L̄ (RGB), σt when grey; per voxel length;
+                                  padded (field.h), packed so by the read */
+  float *sigma_t4;             /* 4 per voxel: σt (RGB) when RGB and not homogeneous; padded */
   float *aniso, *aniso_s;      /* 4 per voxel: the phase lobes (view_march.h), index space */
   int anisotropic;             /* some lobe is not isotropic (radiance_flux and phase_g) */
   int sigma_ch;                /* 1: grey coefficients, 3: RGB */

@@ -408,11 +408,29 @@ static void test_pyramid(void) {
         for (int c = 0; c < 4; c++) b[4 * v + c] = 0.25f;
         if ((k >= 18 && k < 20) || k == 35) b[4 * v + 2] = 0.25f + 1e-3f * (float)i;
       }
-  const oct_source_t one = {a, 1, 1}, two[2] = {{a, 1, 1}, {b, 4, 3}};
+  const oct_source_t one = {a, 1, 1, 0}, two[2] = {{a, 1, 1, 0}, {b, 4, 3, 0}};
   for (int halo = 1; halo <= OCT_MAX_HALO; halo++) {
     check_pyramid(n, &one, 1, halo);
     check_pyramid(n, two, 2, halo);
   }
+  /* b stored padded (field.h's layout, the view's medium) with another
+   * value in the padding, which the scan must not read: the same pyramid */
+  static float bp[4 * (NX + 2) * (NY + 2) * (NZ + 2)];
+  for (size_t q = 0; q < sizeof bp / sizeof bp[0]; q++) bp[q] = 7.0f;
+  for (int k = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      memcpy(bp + 4 * (1 + (NX + 2) * ((size_t)j + 1 + (NY + 2) * ((size_t)k + 1))),
+             b + 4 * (size_t)NX * (j + (size_t)NY * k), 4 * sizeof(float) * NX);
+  const oct_source_t padded[2] = {{a, 1, 1, 0}, {bp, 4, 3, 1}};
+  oct_pyramid_t p0, p1;
+  bk_error_t err = {0};
+  REQUIRE(oct_build_fields(NX, NY, NZ, two, 2, 1, &p0, &err) == BK_OK &&
+              oct_build_fields(NX, NY, NZ, padded, 2, 1, &p1, &err) == BK_OK,
+          "%s", err.msg);
+  EXPECT(!memcmp(p0.level, p1.level, (size_t)p0.bx * p0.by * p0.bz),
+         "a padded source gives another pyramid");
+  oct_free(&p0);
+  oct_free(&p1);
 }
 
 int main(int argc, char **argv) {
