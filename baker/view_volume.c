@@ -529,15 +529,19 @@ typedef struct pack_ctx {
   float *medium, *sigma_t4; /* padded (field.h): the kernel's layout */
 } pack_ctx_t;
 
+/* The padded entry (field.h) of the first voxel of row j + ny k. */
+static size_t padded_row(const pack_ctx_t *x, size_t row) {
+  const size_t j = row % (size_t)x->ny, k = row / (size_t)x->ny;
+  return 1 + ((size_t)x->nx + 2) * (j + 1 + ((size_t)x->ny + 2) * (k + 1));
+}
+
 /* {S = σs L̄, σt (grey; 0 for RGB, whose σt goes to sigma_t4)} of the rows
  * [lo, hi) (row j + ny k), written straight into the padded layout. */
 static void pack_source(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
   const int sc = x->sc;
-  const size_t px = (size_t)x->nx + 2, py = (size_t)x->ny + 2;
   for (size_t row = lo; row < hi; row++) {
-    const size_t j = row % (size_t)x->ny, k = row / (size_t)x->ny;
-    float *m = x->medium + 4 * (1 + px * (j + 1 + py * (k + 1)));
+    float *m = x->medium + 4 * padded_row(x, row);
     for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, m += 4) {
       for (int c = 0; c < 3; c++)
         m[c] = x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] * x->rad[3 * i + c] : 0.0f;
@@ -548,10 +552,8 @@ static void pack_source(void *arg, size_t lo, size_t hi) {
 
 static void pack_sigma_t(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
-  const size_t px = (size_t)x->nx + 2, py = (size_t)x->ny + 2;
   for (size_t row = lo; row < hi; row++) {
-    const size_t j = row % (size_t)x->ny, k = row / (size_t)x->ny;
-    float *s = x->sigma_t4 + 4 * (1 + px * (j + 1 + py * (k + 1)));
+    float *s = x->sigma_t4 + 4 * padded_row(x, row);
     for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, s += 4)
       for (int c = 0; c < 3; c++) s[c] = x->scale * x->ext[3 * i + c];
   }

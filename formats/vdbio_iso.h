@@ -21,6 +21,15 @@ struct iso_job {
 /* The pipe: whole writes and reads (false: the other end went away). */
 bool iso_write(int fd, const void *p, size_t n);
 bool iso_read(int fd, void *p, size_t n);
+
+/* A job whose result is a caller's array of known size: the child fills
+ * its copy of `out`, the parent receives exactly bytes() into its own. */
+struct iso_fill_job : iso_job {
+  float *out = nullptr;
+  virtual size_t bytes() const = 0;
+  bool send(int fd) override { return iso_write(fd, out, bytes()); }
+  int recv(int fd, bk_error_t *) override { return iso_read(fd, out, bytes()) ? BK_OK : -1; }
+};
 bool iso_write_string(int fd, const char *s);
 /* A string of at most `max` bytes (the child is trusted with nothing). */
 bool iso_read_string(int fd, std::string &s, uint32_t max);

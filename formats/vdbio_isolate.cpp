@@ -486,17 +486,13 @@ int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_d
   return rc;
 }
 
-/* A caller's array of known size: the child fills its copy of it. */
-struct iso_array_job : iso_job {
+/* A float grid resampled into the caller's array. */
+struct iso_array_job : iso_fill_job {
   const char *path, *name, *where;
   const grid_dims_t *dims;
-  float *out;
+  size_t bytes() const override { return grid_count(dims) * sizeof(float); }
   int work(bk_error_t *err) override {
     return vdbio_resample_float_direct(path, name, dims, out, where, err);
-  }
-  bool send(int fd) override { return iso_write(fd, out, grid_count(dims) * sizeof(float)); }
-  int recv(int fd, bk_error_t *) override {
-    return iso_read(fd, out, grid_count(dims) * sizeof(float)) ? BK_OK : -1;
   }
 };
 

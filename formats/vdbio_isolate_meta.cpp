@@ -99,17 +99,14 @@ int vdbio_read_meta(const char *path, const char *key, char *out, size_t len, bk
 }
 
 /* An exact box of a grid into the caller's array (vdbio_box.cpp). */
-struct iso_box_job : iso_job {
+struct iso_box_job : iso_fill_job {
   const char *path, *name;
   const grid_dims_t *dims;
   int channels;
-  float *out;
-  size_t bytes() const { return grid_count(dims) * (size_t)channels * sizeof(float); }
+  size_t bytes() const override { return grid_count(dims) * (size_t)channels * sizeof(float); }
   int work(bk_error_t *err) override {
     return vdbio_read_box_direct(path, name, dims, channels, out, err);
   }
-  bool send(int fd) override { return iso_write(fd, out, bytes()); }
-  int recv(int fd, bk_error_t *) override { return iso_read(fd, out, bytes()) ? BK_OK : -1; }
 };
 
 int vdbio_read_box(const char *path, const char *grid_name, const grid_dims_t *dims, int channels,
