@@ -380,8 +380,8 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
   } else {
     rc = unpack_phase(r, acc, radiance, count, weight, err);
   }
-  /* the twins are the error estimate's row */
-  stats->ms_march = bk_now_ms() - t0 - stats->error.ms_twin;
+  /* the twins and the batch statistics are the error estimate's row */
+  stats->ms_march = bk_now_ms() - t0 - stats->error.ms_twin - stats->error.ms_track;
 error:
   ad_loop_free(&loop);
   free(acc);

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "adaptive_internal.h"
+#include "base/select.h"
 
 int ad_grid_voxels(const grid_dims_t *d, size_t per_voxel, const char *what, size_t *voxels,
                    bk_error_t *err) {
@@ -116,37 +117,6 @@ error:
 
 /* --- automatic thresholds ----------------------------------------------------- */
 
-/* The k-th smallest of a[0..n) (n > 0), reordering a: Hoare quickselect with
- * a median-of-three pivot, O(n) on average. */
-static float select_kth(float *a, size_t n, size_t k) {
-  ptrdiff_t lo = 0, hi = (ptrdiff_t)n - 1, kk = (ptrdiff_t)k;
-  while (lo < hi) {
-    float x = a[lo], y = a[lo + (hi - lo) / 2], z = a[hi];
-    float pivot = x < y ? (y < z ? y : (x < z ? z : x)) : (x < z ? x : (y < z ? z : y));
-    ptrdiff_t i = lo, j = hi;
-    while (i <= j) {
-      while (a[i] < pivot) i++;
-      while (a[j] > pivot) j--;
-      if (i <= j) {
-        float t = a[i];
-        a[i] = a[j];
-        a[j] = t;
-        i++;
-        j--;
-      }
-    }
-    if (kk <= j) hi = j;
-    else if (kk >= i) lo = i;
-    else return a[kk];
-  }
-  return a[kk];
-}
-
-/* Value at quantile q of a[0..n) (the lower nearest rank), reordering a. */
-static float quantile(float *a, size_t n, float q) {
-  return select_kth(a, n, (size_t)floor((double)q * (double)(n - 1)));
-}
-
 /* Why these rules. The pilot is a few thousand photon tracks, so its
  * gradients are mostly noise and the scene's scale is unknown; both rules are
  * relative to the pilot itself and scale with the light's power.
@@ -177,15 +147,19 @@ static int thresholds_from_fields(const grid_dims_t *d, const float *pilot_radia
   }
   float med_lum = 0.0f, med_grad = 0.0f, g = 0.0f, l = 0.0f;
   if (n > 0) {
-    med_lum = quantile(vals, n, 0.5f);
+    med_lum = bk_quantile(vals, n, 0.5f);
     n = 0;
     for (size_t v = 0; v < voxels; v++) {
       if (scattering && !(scattering[v] > 0.0f)) continue;
       const float *c = pilot_radiance + 3 * v;
       if (ad_luminance(c[0], c[1], c[2]) > 0.0f) vals[n++] = grad[v];
     }
-    med_grad = quantile(vals, n, 0.5f);
-    float p = quantile(vals, n, AD_AUTO_GRADIENT_PERCENTILE);
+    med_grad = bk_quantile(vals, n, 0.5f);
+    float p = bk_quantile(vals, n, AD_AUTO_GRADIENT_PERCENTILE);
+    if (isnan(med_lum) || isnan(med_grad) || isnan(p)) {
+      free(vals);
+      return bk_fail(err, BK_ERR_RUNTIME, "adaptive thresholds: out of memory");
+    }
     g = fmaxf(p, AD_AUTO_GRADIENT_OUTLIER * med_grad);
     l = AD_AUTO_SHADOW_FRACTION * med_lum;
   }
@@ -228,7 +202,7 @@ int ad_select_voxels(const grid_dims_t *d, const float *pilot_radiance, const fl
   if (!lum || !grad) goto error;
   rc = ad_pilot_fields(d, pilot_radiance, opt->smooth_radius, lum, grad, err);
   if (rc != BK_OK) goto error;
-  float g_auto, l_auto;
+  float g_auto = 0.0f, l_auto = 0.0f;
   rc = thresholds_from_fields(d, pilot_radiance, scattering, lum, grad, &g_auto, &l_auto, &st,
                               err);
   if (rc != BK_OK) goto error;

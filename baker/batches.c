@@ -241,20 +241,27 @@ static void track_half(bt_run_t *x, int done, const uint64_t *acc) {
   }
 }
 
+/* The statistics after batch `done`; returns the batches that count (0
+ * when target mode restarts after its pilot). */
+static int track_batch(bt_run_t *x, int done, uint64_t *acc) {
+  double t = bk_now_ms();
+  ee_after_batch(x->tr, x->s, acc);
+  if (x->grid) ee_after_batch(x->grid, x->s, acc);
+  track_half(x, done, acc);
+  if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
+  if (!x->planned && x->pilot_split && done >= BT_MIN_BATCHES && x->terms.estimate > x->target &&
+      plan_batches(x, acc))
+    done = 0;
+  x->ms_track += bk_now_ms() - t;
+  return done;
+}
+
 /* pm_run_batches' callback; `all` counts the pilot batches too. */
 static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_error_t *err) {
   bt_run_t *x = ctx;
   int done = x->done = all - x->pilot;
   if (done > 0) {
-    double t = bk_now_ms();
-    ee_after_batch(x->tr, x->s, acc);
-    if (x->grid) ee_after_batch(x->grid, x->s, acc);
-    track_half(x, done, acc);
-    if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
-    if (!x->planned && x->pilot_split && done >= BT_MIN_BATCHES &&
-        x->terms.estimate > x->target && plan_batches(x, acc))
-      done = 0;
-    x->ms_track += bk_now_ms() - t;
+    if (x->batches != 1) done = track_batch(x, done, acc); /* one batch has no spread */
     show_progress(x, done);
   }
   if (!keep_going(x, done)) return 0;
@@ -363,7 +370,7 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
   bk_progress_begin(&x->prog, x->label, 1000000);
   rc = pm_run_batches(cl, s, acc, stats, main_next, x, err);
   bk_progress_end(&x->prog);
-  *ms_march = bk_now_ms() - x->t_main;
+  *ms_march = bk_now_ms() - x->t_main - x->ms_track; /* the statistics are the estimate's */
   return rc;
 }
 
@@ -478,6 +485,8 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
     pm_to_radiance(&s, acc, radiance);
     if ((rc = make_flux(&s, acc, res, err))) goto done;
   }
+  stats->ms_march = res->ms_march += bk_now_ms() - t; /* the sums made radiance: the march's end */
+  t = bk_now_ms();
   if (o->error_grid) res->error_grid = ee_take_error_grid(&res->full, res->batches);
   ee_tracker_free(&res->full);
   res->ms_track += bk_now_ms() - t;

@@ -96,7 +96,7 @@ typedef struct bt_result {
   ee_terms_t terms;
   int batches;         /* batches traced */
   uint64_t batch_photons;
-  double ms_twin, ms_track; /* the step twin; the per-batch statistics */
+  double ms_twin, ms_track; /* the step twin; the per-batch statistics and error terms */
   float *error_grid;   /* opts.error_grid and >= 2 batches: the caller frees */
   float *flux, *uncollided; /* some g != 0 (not a shard): pm_to_flux's grids; the caller frees */
   int budget_short;    /* the time budget ended the bake before 2 batches */
@@ -104,7 +104,8 @@ typedef struct bt_result {
   integrator_t integrator; /* what marched: the scene's, or target mode's choice */
   float step;
   int step_exact;          /* the step needs no twin */
-  double ms_march;         /* the batches, twins included */
+  double ms_march;         /* the batches' tracing and the sums made radiance, not the
+                            * twins or the statistics (ms_twin, ms_track) */
   /* bt_march with opts.error_grid: every voxel's statistics (the caller
    * frees them with ee_tracker_free) */
   ee_tracker_t full;

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "base/parallel.h"
+#include "base/select.h"
 
 static const double lum_w[3] = {EE_LUM_R, EE_LUM_G, EE_LUM_B};
 
@@ -39,12 +40,11 @@ void ee_tracker_free(ee_tracker_t *t) {
   memset(t, 0, sizeof *t);
 }
 
-/* Tracked voxel k's index in the grid. */
-static size_t voxel_of(const ee_tracker_t *t, const pm_setup_t *s, size_t k) {
-  size_t a = k % (size_t)t->mx, b = (k / (size_t)t->mx) % (size_t)t->my;
-  size_t c = k / ((size_t)t->mx * t->my);
-  a <<= t->shift, b <<= t->shift, c <<= t->shift;
-  return a + (size_t)s->dims.nx * (b + (size_t)s->dims.ny * c);
+/* The grid index of the first tracked voxel of tracked row r (rows run
+ * along x; the next voxel of a row is 2^shift further). */
+static size_t row_start(const ee_tracker_t *t, const pm_setup_t *s, size_t r) {
+  size_t b = (r % (size_t)t->my) << t->shift, c = (r / (size_t)t->my) << t->shift;
+  return (size_t)s->dims.nx * (b + (size_t)s->dims.ny * c);
 }
 
 static float lum_at(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, size_t v) {
@@ -54,28 +54,51 @@ static float lum_at(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *
   return (float)((double)a[0] * t->lum[0] + (double)a[1] * t->lum[1] + (double)a[2] * t->lum[2]);
 }
 
+/* What a pass over the tracked voxels does with each one's luminance. */
+typedef enum { EE_PASS_BATCH, EE_PASS_READ, EE_PASS_TWIN } ee_pass_t;
+
 typedef struct ee_ctx {
   ee_tracker_t *t;
   const pm_setup_t *s;
   const uint64_t *acc;
   const float *fine;
   float *out;
+  ee_pass_t pass;
 } ee_ctx_t;
 
-static void after_batch_range(void *arg, size_t lo, size_t hi) {
+static void pass_rows(void *arg, size_t lo, size_t hi) {
   ee_ctx_t *x = arg;
   ee_tracker_t *t = x->t;
-  for (size_t k = lo; k < hi; k++) {
-    float cur = lum_at(t, x->s, x->acc, voxel_of(t, x->s, k));
-    float b = cur - t->prev[k];
-    t->sumsq[k] += b * b;
-    t->prev[k] = cur;
+  const size_t dv = (size_t)1 << t->shift, mx = (size_t)t->mx;
+  for (size_t r = lo; r < hi; r++) {
+    size_t v = row_start(t, x->s, r);
+    for (size_t k = r * mx; k < (r + 1) * mx; k++, v += dv) {
+      float cur = lum_at(t, x->s, x->acc, v), d;
+      switch (x->pass) {
+      case EE_PASS_BATCH: /* this batch's sum: the running sum's growth */
+        d = cur - t->prev[k];
+        t->sumsq[k] += d * d;
+        t->prev[k] = cur;
+        break;
+      case EE_PASS_READ: x->out[k] = cur; break;
+      case EE_PASS_TWIN:
+        d = cur - x->fine[k];
+        t->dsum[k] += d;
+        t->dsumsq[k] += d * d;
+        break;
+      }
+    }
   }
 }
 
+static void run_pass(ee_ctx_t *x) {
+  size_t rows = (size_t)x->t->my * x->t->mz;
+  bk_parallel(rows, BK_GRAIN / (size_t)x->t->mx + 1, pass_rows, x);
+}
+
 void ee_after_batch(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc) {
-  ee_ctx_t x = {t, s, acc, NULL, NULL};
-  bk_parallel(t->count, BK_GRAIN, after_batch_range, &x);
+  ee_ctx_t x = {t, s, acc, NULL, NULL, EE_PASS_BATCH};
+  run_pass(&x);
 }
 
 typedef struct lum_ctx {
@@ -96,24 +119,9 @@ void ee_add_lum(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc,
   bk_parallel(s->voxels, BK_GRAIN, add_lum_range, &x);
 }
 
-static void read_range(void *arg, size_t lo, size_t hi) {
-  ee_ctx_t *x = arg;
-  for (size_t k = lo; k < hi; k++) x->out[k] = lum_at(x->t, x->s, x->acc, voxel_of(x->t, x->s, k));
-}
-
 void ee_read(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, float *out) {
-  ee_ctx_t x = {(ee_tracker_t *)t, s, acc, NULL, out};
-  bk_parallel(t->count, BK_GRAIN, read_range, &x);
-}
-
-static void twin_range(void *arg, size_t lo, size_t hi) {
-  ee_ctx_t *x = arg;
-  ee_tracker_t *t = x->t;
-  for (size_t k = lo; k < hi; k++) {
-    float d = lum_at(t, x->s, x->acc, voxel_of(t, x->s, k)) - x->fine[k];
-    t->dsum[k] += d;
-    t->dsumsq[k] += d * d;
-  }
+  ee_ctx_t x = {(ee_tracker_t *)t, s, acc, NULL, out, EE_PASS_READ};
+  run_pass(&x);
 }
 
 int ee_twin_add(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, const float *fine,
@@ -123,45 +131,51 @@ int ee_twin_add(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, const
     t->dsumsq = bk_calloc_touched(t->count, sizeof(float), "error estimate: twin squares", err);
     if (!t->dsum || !t->dsumsq) return BK_ERR_RUNTIME;
   }
-  ee_ctx_t x = {t, s, acc, fine, NULL};
-  bk_parallel(t->count, BK_GRAIN, twin_range, &x);
+  ee_ctx_t x = {t, s, acc, fine, NULL, EE_PASS_TWIN};
+  run_pass(&x);
   t->twins++;
   return BK_OK;
 }
 
-/* The value of rank floor(q (n - 1)) of v (reordered), by quickselect. */
-static float quantile(float *v, size_t n, double q) {
-  if (n == 0) return 0.0f;
-  size_t want = (size_t)(q * (double)(n - 1)), lo = 0, hi = n - 1;
-  while (lo < hi) {
-    float pivot = v[lo + (hi - lo) / 2];
-    size_t i = lo, j = hi;
-    while (i <= j) {
-      while (v[i] < pivot) i++;
-      while (v[j] > pivot) j--;
-      if (i <= j) {
-        float tmp = v[i];
-        v[i] = v[j], v[j] = tmp;
-        i++;
-        if (j == 0) break;
-        j--;
-      }
-    }
-    if (want <= j) hi = j;
-    else if (want >= i) lo = i;
-    else break;
-  }
-  return v[want];
-}
-
 /* 2% of the 99.9th percentile of lum (n values); 0 when it cannot be had. */
 static double lit_threshold(const float *lum, size_t n) {
-  float *tmp = malloc(n * sizeof *tmp);
-  if (!tmp) return 0.0;
-  memcpy(tmp, lum, n * sizeof *tmp);
-  double p = quantile(tmp, n, EE_LIT_PERCENTILE);
-  free(tmp);
-  return EE_LIT_FRACTION * p;
+  double p = bk_quantile(lum, n, EE_LIT_PERCENTILE);
+  return isnan(p) ? 0.0 : EE_LIT_FRACTION * p;
+}
+
+/* ee_terms' sums over the lit tracked voxels, in fixed chunks added in
+ * order: the same bits on every thread count. */
+#define EE_TERM_CHUNKS 16
+typedef struct ee_sums {
+  double m, var, b2;
+  size_t lit;
+} ee_sums_t;
+
+typedef struct terms_ctx {
+  const ee_tracker_t *t;
+  const float *mean;
+  double thr, B, T;
+  double var_b, inv_t, var_t; /* the divisions, hoisted */
+  ee_sums_t part[EE_TERM_CHUNKS];
+} terms_ctx_t;
+
+/* The variance of a mean of n is (Σx² − n x̄²) / ((n − 1) n). */
+static void terms_chunk(void *arg, size_t c, size_t lo, size_t hi) {
+  terms_ctx_t *x = arg;
+  const ee_tracker_t *t = x->t;
+  ee_sums_t p = {0.0, 0.0, 0.0, 0};
+  for (size_t k = lo; k < hi; k++) {
+    double m = x->mean[k];
+    if (!(x->thr > 0.0) || m < x->thr) continue;
+    p.lit++;
+    p.m += m;
+    if (x->B > 1) p.var += fmax(0.0, t->sumsq[k] - x->B * m * m) * x->var_b;
+    if (x->T > 1) {
+      double dbar = t->dsum[k] * x->inv_t;
+      p.b2 += dbar * dbar - fmax(0.0, t->dsumsq[k] - x->T * dbar * dbar) * x->var_t;
+    }
+  }
+  x->part[c] = p;
 }
 
 void ee_terms(const ee_tracker_t *t, int batches, int step_exact, ee_terms_t *out) {
@@ -170,27 +184,24 @@ void ee_terms(const ee_tracker_t *t, int batches, int step_exact, ee_terms_t *ou
   out->twin_batches = step_exact ? 0 : t->twins;
   out->noise = out->step = out->estimate = EE_UNKNOWN;
   out->filter = 0.0;
+  if (batches < 2 && (step_exact || T < 2)) { /* no spread and no twins: nothing to sum */
+    if (step_exact && batches == 1) out->step = 0.0;
+    return;
+  }
   float *mean = calloc(t->count ? t->count : 1, sizeof *mean);
   if (!mean || batches < 1) {
     free(mean);
     return;
   }
   for (size_t k = 0; k < t->count; k++) mean[k] = (float)(t->prev[k] / B);
-  double thr = lit_threshold(mean, t->count);
+  terms_ctx_t x = {.t = t, .mean = mean, .thr = lit_threshold(mean, t->count), .B = B, .T = T,
+                   .var_b = batches > 1 ? 1.0 / ((B - 1.0) * B) : 0.0,
+                   .inv_t = T > 1 ? 1.0 / T : 0.0, .var_t = T > 1 ? 1.0 / ((T - 1.0) * T) : 0.0};
+  bk_parallel_chunks(t->count, EE_TERM_CHUNKS, terms_chunk, &x);
   double sum_m = 0.0, sum_var = 0.0, sum_b2 = 0.0;
   size_t lit = 0;
-  for (size_t k = 0; k < t->count; k++) {
-    double m = mean[k];
-    if (!(thr > 0.0) || m < thr) continue;
-    lit++;
-    sum_m += m;
-    if (batches > 1) sum_var += fmax(0.0, (t->sumsq[k] - B * m * m) / (B - 1.0)) / B;
-    if (T > 1) {
-      double dbar = t->dsum[k] / T;
-      double var_d = fmax(0.0, (t->dsumsq[k] - T * dbar * dbar) / (T - 1.0)) / T;
-      sum_b2 += dbar * dbar - var_d;
-    }
-  }
+  for (int c = 0; c < EE_TERM_CHUNKS; c++)
+    sum_m += x.part[c].m, sum_var += x.part[c].var, sum_b2 += x.part[c].b2, lit += x.part[c].lit;
   free(mean);
   if (!lit || !(sum_m > 0.0)) { /* nothing lit: nothing to be wrong about */
     out->noise = batches > 1 ? 0.0 : EE_UNKNOWN;

@@ -18,7 +18,10 @@
  *           reproducible; photons.target_error met (ε̂ <= E, true ε <= 1.3 E);
  *           photons.time_budget_s ends with >= 2 batches and an estimate;
  *           the command's error metadata, radiance_error and JSON;
- *           adaptive.tables "measured" (refused with --shard) */
+ *           adaptive.tables "measured" (refused with --shard)
+ *  rank     bk_rank_value (base/select.h, the lit threshold's percentile)
+ *           against a sorted copy: ties, zeros of both signs, negatives,
+ *           one value, the first and last rank */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -27,6 +30,7 @@
 
 #include "adaptive.h"
 #include "bake.h"
+#include "base/select.h"
 #include "batches.h"
 #include "vdbio.h"
 #include "voxelize.h"
@@ -284,14 +288,61 @@ static int test_adaptive(void) {
   return tu_failures ? 1 : 0;
 }
 
+static int cmp_float(const void *a, const void *b) {
+  float x = *(const float *)a, y = *(const float *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* Every rank of v[0..n) (n <= 4096) or a spread of them, against a sort. */
+static void check_ranks(const float *v, size_t n, const char *what) {
+  float *sorted = malloc(n * sizeof *sorted), *copy = malloc(n * sizeof *copy);
+  REQUIRE(sorted && copy, "out of memory");
+  memcpy(sorted, v, n * sizeof *v);
+  memcpy(copy, v, n * sizeof *v);
+  qsort(sorted, n, sizeof *sorted, cmp_float);
+  size_t step = n > 4096 ? n / 997 : 1;
+  for (size_t r = 0; r < n; r += step) {
+    float got = bk_rank_value(v, n, r);
+    EXPECT(got == sorted[r], "%s: rank %zu of %zu: %g, expected %g", what, r, n, (double)got,
+           (double)sorted[r]);
+  }
+  EXPECT(bk_rank_value(v, n, n - 1) == sorted[n - 1], "%s: the largest", what);
+  EXPECT(memcmp(copy, v, n * sizeof *v) == 0, "%s: the input was changed", what);
+  free(sorted);
+  free(copy);
+}
+
+static int test_rank(void) {
+  const size_t n = 200000;
+  float *v = malloc(n * sizeof *v);
+  REQUIRE(v, "out of memory");
+  uint32_t h = 12345u;
+  for (size_t i = 0; i < n; i++) { /* a luminance-like spread: zeros, ties, decades, negatives */
+    h = h * 1664525u + 1013904223u;
+    uint32_t u = h >> 8;
+    v[i] = u % 5 == 0 ? 0.0f : u % 7 == 0 ? -0.0f : u % 11 == 0 ? 3.0f
+         : (float)((u % 1000) * pow(10.0, (double)(u % 9) - 4.0)) * (u % 13 == 0 ? -1.0f : 1.0f);
+  }
+  check_ranks(v, n, "mixed");
+  check_ranks(v, 3000, "mixed, every rank");
+  for (size_t i = 0; i < 5000; i++) v[i] = 0.25f;
+  check_ranks(v, 5000, "all equal");
+  check_ranks(v, 1, "one value");
+  EXPECT(isnan(bk_rank_value(v, 0, 0)), "no values: NaN");
+  EXPECT(bk_quantile(v + 5000, 3000, 0.999) == bk_rank_value(v + 5000, 3000, 2996), "quantile");
+  free(v);
+  return tu_failures ? 1 : 0;
+}
+
 int main(int argc, char **argv) {
   if (argc != 4) {
-    fprintf(stderr, "usage: %s SCENE_DIR OUT_DIR honest|bits|cli|adaptive\n", argv[0]);
+    fprintf(stderr, "usage: %s SCENE_DIR OUT_DIR honest|bits|cli|adaptive|rank\n", argv[0]);
     return 2;
   }
   scene_dir = argv[1], out_dir = argv[2];
   const char *t = argv[3];
   if (!strcmp(t, "cli")) return test_cli();
+  if (!strcmp(t, "rank")) return test_rank();
   setup();
   if (!strcmp(t, "honest")) return test_honest();
   if (!strcmp(t, "bits")) return test_bits();
