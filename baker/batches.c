@@ -65,7 +65,6 @@ static int twin_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_err
   return load_batch(x, 0x40000000 + done, x->photons, run, err);
 }
 
-/* The truth integrator's twins, kept in x->fine. acc is zero before and after. */
 /* A deterministic price of a twin run (measured time would make target
  * mode's choice, and so its bits, depend on the machine's load): field
  * evaluations (1 per Euler step, 4 per RK4 step) plus voxel deposits. */
@@ -74,6 +73,7 @@ static double twin_cost(const pm_stats_t *st, unsigned integ) {
   return (double)st->steps * evals + (double)st->voxels;
 }
 
+/* The truth integrator's twins, kept in x->fine. acc is zero before and after. */
 static int twin_truth(clh_context_t *cl, bt_run_t *x, uint64_t *acc, double *ms, bk_error_t *err) {
   pm_stats_t st;
   memset(&st, 0, sizeof st);
