@@ -388,41 +388,40 @@ error:
   return rc;
 }
 
-/* Luminance per voxel of an RGB grid. */
-static void luminance_range(void *arg, size_t lo, size_t hi) {
-  const scale_job_t *j = arg;
-  for (size_t v = lo; v < hi; v++)
-    j->out[v] = j->in[3 * v] * j->k[0] + j->in[3 * v + 1] * j->k[1] + j->in[3 * v + 2] * j->k[2];
-}
-
 /* The two halves of the batches filtered as the whole was (at its radii:
- * a linear map, ad_filter_fixed), and the filter's terms (ee_filter_terms)
- * from them and the filtered radiance. */
+ * a linear map, ad_filter_fixed_lattice) and the filter's terms
+ * (ee_filter_terms) from them and the filtered radiance, on the even
+ * lattice that the noise term samples too (an eighth of the voxels). */
 static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
                         bk_error_t *err) {
   bt_result_t *res = &r->stats->error;
+  const grid_dims_t *d = &r->base.dims;
   const size_t V = r->base.voxels;
+  const size_t L = (size_t)((d->nx + 1) / 2) * ((d->ny + 1) / 2) * ((d->nz + 1) / 2);
   const int B = res->batches;
   const float na = (float)((B + 1) / 2), nb = (float)(B / 2);
-  float *a = bk_calloc(V, sizeof(float), "adaptive error: half", err);
-  float *fa = bk_calloc(V, sizeof(float), "adaptive error: half A filtered", err);
-  float *fb = bk_calloc(V, sizeof(float), "adaptive error: half B filtered", err);
+  float *half = bk_calloc(V, sizeof(float), "adaptive error: half", err);
+  float *lat = bk_calloc(5 * L, sizeof(float), "adaptive error: lattice", err);
   int rc = BK_ERR_RUNTIME;
-  if (!a || !fa || !fb) goto done;
-  for (size_t v = 0; v < V; v++) a[v] = res->half_a[v] / na;
-  if ((rc = ad_filter_fixed(&r->base.dims, a, radius, r->levels, fa, err)) != BK_OK) goto done;
-  for (size_t v = 0; v < V; v++) a[v] = (res->all[v] - res->half_a[v]) / nb;
-  if ((rc = ad_filter_fixed(&r->base.dims, a, radius, r->levels, fb, err)) != BK_OK) goto done;
-  scale_job_t job = {NULL, radiance, a, {(float)EE_LUM_R, (float)EE_LUM_G, (float)EE_LUM_B}};
-  bk_parallel(V, BK_GRAIN, luminance_range, &job);
-  ee_filter_terms(V, B, res->all, res->half_a, a, fa, fb, &res->terms.noise, &res->terms.filter);
+  if (!half || !lat) goto done;
+  float *fa = lat, *fb = lat + L, *all = lat + 2 * L, *half_a = lat + 3 * L, *f = lat + 4 * L;
+  for (size_t v = 0; v < V; v++) half[v] = res->half_a[v] / na;
+  if ((rc = ad_filter_fixed_lattice(d, half, radius, r->levels, fa, err)) != BK_OK) goto done;
+  for (size_t v = 0; v < V; v++) half[v] = (res->all[v] - res->half_a[v]) / nb;
+  if ((rc = ad_filter_fixed_lattice(d, half, radius, r->levels, fb, err)) != BK_OK) goto done;
+  for (size_t k = 0; k < L; k++) {
+    const size_t v = ee_lattice_voxel(d, k);
+    const float *c = radiance + 3 * v;
+    all[k] = res->all[v], half_a[k] = res->half_a[v];
+    f[k] = c[0] * (float)EE_LUM_R + c[1] * (float)EE_LUM_G + c[2] * (float)EE_LUM_B;
+  }
+  ee_filter_terms(L, B, all, half_a, f, fa, fb, &res->terms.noise, &res->terms.filter);
   ee_terms_t *e = &res->terms;
   if (e->noise >= 0.0 && e->step >= 0.0)
     e->estimate = sqrt(e->noise * e->noise + e->filter * e->filter + e->step * e->step);
 done:
-  free(a);
-  free(fa);
-  free(fb);
+  free(half);
+  free(lat);
   return rc;
 }
 

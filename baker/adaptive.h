@@ -52,7 +52,7 @@
  *     radius grid is a debug output.
  *  6. The error (docs/error.md "Adaptive mode"): the batches' noise and
  *     step terms, and with the filter its noise and bias from the two
- *     halves of the batches filtered at the filter's radii (ad_filter_fixed).
+ *     halves of the batches filtered at the filter's radii (ad_filter_fixed_lattice).
  * Timing rows: "octree", "pilot marching", "photon distribution" (selection
  * and PDFs), "photon generation" (light set-up; the photons themselves are
  * made in the kernel), "photon marching" (with the unpacking of the
@@ -192,10 +192,13 @@ int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const fl
 
 /* The filter's means at given radii (radius: voxels per voxel, as the
  * filter's out_radius; level round(2 r), at most `levels`) of one channel
- * `in` into out: a linear map, so the error estimate can filter the two
- * halves of the batches exactly as the whole was (ad_bake). On the host. */
-int ad_filter_fixed(const grid_dims_t *d, const float *in, const float *radius, int levels,
-                    float *out, bk_error_t *err);
+ * `in`, at the even lattice only (ee_lattice_voxel: the voxels the error
+ * estimate samples) into out: a linear map, so the error estimate can
+ * filter the two halves of the batches exactly as the whole was (ad_bake),
+ * each value bit for bit what the whole grid's filter gives there, at about
+ * a third of its passes' work. On the host. */
+int ad_filter_fixed_lattice(const grid_dims_t *d, const float *in, const float *radius,
+                            int levels, float *out, bk_error_t *err);
 
 /* --- the allocation loop (adaptive_loop.c) --------------------------------- */
 

@@ -12,6 +12,7 @@
 #include "base/parallel.h"
 
 #include "adaptive_internal.h"
+#include "error_est.h"
 
 /* The 1D Gaussian weights (kernels/adaptive_filter.h): row q (level), column |d|. */
 #define AD_WEIGHT_COUNT (AD_WROW * AD_WROW)
@@ -265,86 +266,98 @@ error:
   return rc;
 }
 
-/* --- the filter at given radii (the error estimate's halves) --------------- */
+/* --- the filter at given radii, on the even lattice (the error estimate's halves) --- */
 
 typedef struct fixed_job {
   const grid_dims_t *d;
-  int axis, q;
+  int axis, q, mx, my;
   const float *in, *w;
   float *out;
 } fixed_job_t;
 
-/* Slices [lo, hi) of one axis of the level-q Gaussian, its weights
- * renormalised over the taps inside the grid (the filter's own): along x
- * per row, along y and z as weighted sums of whole rows and slices (so
- * every inner loop runs over contiguous voxels). */
+/* Weight of tap t around c, renormalised over the taps inside [0, n). */
+static float tap_sum(const float *w, int c, int q, int n) {
+  float ws = 0.0f;
+  for (int t = c - q < 0 ? 0 : c - q; t <= c + q && t < n; t++) ws += w[t > c ? t - c : c - t];
+  return ws;
+}
+
+/* One axis of the level-q Gaussian, evaluated only where the lattice needs
+ * it: along x at even x of every row (slices k = z), along y at even y
+ * (slices k = z), along z at even z (k = z / 2). The arithmetic of each
+ * value is the full-grid filter's (x: Σ w·v / Σ w; y, z: Σ (w / Σ w)·v in
+ * tap order), so every lattice value equals that filter's there bit for bit. */
 static void fixed_slices(void *arg, size_t lo, size_t hi) {
   const fixed_job_t *j = arg;
-  const int nx = j->d->nx, ny = j->d->ny, nz = j->d->nz, q = j->q;
-  const size_t nxy = (size_t)nx * ny;
+  const int nx = j->d->nx, ny = j->d->ny, nz = j->d->nz, q = j->q, mx = j->mx, my = j->my;
   const float *w = j->w + q * AD_WROW;
   for (size_t k = lo; k < hi; k++) {
-    const float *in = j->in + k * nxy;
-    float *out = j->out + k * nxy;
     if (j->axis == 0) {
-      for (int y = 0; y < ny; y++)
-        for (int i = 0; i < nx; i++) {
+      for (int y = 0; y < ny; y++) {
+        const float *in = j->in + (k * ny + y) * nx;
+        float *out = j->out + (k * ny + y) * mx;
+        for (int e = 0; e < mx; e++) {
+          const int i = 2 * e;
           float s = 0.0f, ws = 0.0f;
           for (int t = i - q < 0 ? 0 : i - q; t <= i + q && t < nx; t++) {
             float wt = w[t > i ? t - i : i - t];
-            s += wt * in[(size_t)y * nx + t], ws += wt;
+            s += wt * in[t], ws += wt;
           }
-          out[(size_t)y * nx + i] = s / ws;
+          out[e] = s / ws;
         }
+      }
       continue;
     }
-    const int n = j->axis == 1 ? ny : nz, rows = j->axis == 1 ? ny : 1;
-    const size_t len = j->axis == 1 ? (size_t)nx : nxy, stride = j->axis == 1 ? (size_t)nx : nxy;
-    for (int r = 0; r < rows; r++) {
-      const int c = j->axis == 1 ? r : (int)k; /* the position along the axis */
-      const float *src = j->axis == 1 ? in + (size_t)r * nx : j->in;
-      float *dst = out + (j->axis == 1 ? (size_t)r * nx : 0);
-      float ws = 0.0f;
-      for (int t = c - q < 0 ? 0 : c - q; t <= c + q && t < n; t++) ws += w[t > c ? t - c : c - t];
+    /* y: rows of mx from slice k's ny rows; z: slices of my * mx from nz */
+    const int n = j->axis == 1 ? ny : nz, outs = j->axis == 1 ? my : 1;
+    const size_t len = j->axis == 1 ? (size_t)mx : (size_t)my * mx;
+    for (int r = 0; r < outs; r++) {
+      const int c = j->axis == 1 ? 2 * r : 2 * (int)k;
+      const float *src = j->axis == 1 ? j->in + k * ny * mx : j->in;
+      float *dst = j->out + (j->axis == 1 ? (k * my + r) * mx : k * len);
+      const float ws = tap_sum(w, c, q, n);
       for (size_t v = 0; v < len; v++) dst[v] = 0.0f;
       for (int t = c - q < 0 ? 0 : c - q; t <= c + q && t < n; t++) {
-        const float wt = w[t > c ? t - c : c - t] / ws;
-        const float *row = j->axis == 1 ? src + (ptrdiff_t)(t - c) * (ptrdiff_t)stride
-                                        : src + (size_t)t * stride;
+        const float wt = w[t > c ? t - c : c - t] / ws, *row = src + (size_t)t * len;
         for (size_t v = 0; v < len; v++) dst[v] += wt * row[v];
       }
     }
   }
 }
 
-int ad_filter_fixed(const grid_dims_t *d, const float *in, const float *radius, int levels,
-                    float *out, bk_error_t *err) {
-  const size_t V = grid_count(d);
+/* The filter level of a radius (half voxels). */
+static int level_of(float radius) { return (int)(2.0f * radius + 0.5f); }
+
+int ad_filter_fixed_lattice(const grid_dims_t *d, const float *in, const float *radius,
+                            int levels, float *out, bk_error_t *err) {
+  const int mx = (d->nx + 1) / 2, my = (d->ny + 1) / 2, mz = (d->nz + 1) / 2;
   float w[AD_WEIGHT_COUNT];
   filter_weights(w);
-  float *a = bk_calloc(V, sizeof(float), "filter at given radii", err);
-  float *b = bk_calloc(V, sizeof(float), "filter at given radii", err);
-  if (!a || !b) {
-    free(a), free(b);
+  float *a = bk_calloc((size_t)d->nz * d->ny * mx, sizeof(float), "filter at given radii", err);
+  float *b = bk_calloc((size_t)d->nz * my * mx, sizeof(float), "filter at given radii", err);
+  float *c = bk_calloc((size_t)mz * my * mx, sizeof(float), "filter at given radii", err);
+  if (!a || !b || !c) {
+    free(a), free(b), free(c);
     return BK_ERR_RUNTIME;
   }
   int used[AD_FILTER_MAX_LEVEL + 1] = {0};
-  for (size_t v = 0; v < V; v++) {
-    int q = (int)(2.0f * radius[v] + 0.5f);
+  for (size_t k = 0; k < (size_t)mz * my * mx; k++) {
+    size_t v = ee_lattice_voxel(d, k);
+    int q = level_of(radius[v]);
     used[q < 0 ? 0 : q > AD_FILTER_MAX_LEVEL ? AD_FILTER_MAX_LEVEL : q] = 1;
-    out[v] = in[v];
+    out[k] = in[v];
   }
   for (int q = 1; q <= levels && q <= AD_FILTER_MAX_LEVEL; q++) {
     if (!used[q]) continue;
-    fixed_job_t j = {d, 0, q, in, w, a};
+    fixed_job_t j = {d, 0, q, mx, my, in, w, a};
     bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
     j.axis = 1, j.in = a, j.out = b;
     bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
-    j.axis = 2, j.in = b, j.out = a;
-    bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
-    for (size_t v = 0; v < V; v++)
-      if ((int)(2.0f * radius[v] + 0.5f) == q) out[v] = a[v];
+    j.axis = 2, j.in = b, j.out = c;
+    bk_parallel((size_t)mz, 1, fixed_slices, &j);
+    for (size_t k = 0; k < (size_t)mz * my * mx; k++)
+      if (level_of(radius[ee_lattice_voxel(d, k)]) == q) out[k] = c[k];
   }
-  free(a), free(b);
+  free(a), free(b), free(c);
   return BK_OK;
 }

@@ -40,6 +40,12 @@ void ee_tracker_free(ee_tracker_t *t) {
   memset(t, 0, sizeof *t);
 }
 
+size_t ee_lattice_voxel(const grid_dims_t *d, size_t k) {
+  const size_t mx = ((size_t)d->nx + 1) / 2, my = ((size_t)d->ny + 1) / 2;
+  const size_t a = k % mx, b = (k / mx) % my, c = k / (mx * my);
+  return 2 * a + (size_t)d->nx * (2 * b + (size_t)d->ny * 2 * c);
+}
+
 /* The grid index of the first tracked voxel of tracked row r (rows run
  * along x; the next voxel of a row is 2^shift further). */
 static size_t row_start(const ee_tracker_t *t, const pm_setup_t *s, size_t r) {

@@ -69,6 +69,9 @@ typedef struct ee_tracker {
   double lum[3];      /* luminance per accumulator quantum, per channel (one batch) */
 } ee_tracker_t;
 
+/* The even lattice (x, y, z even: ((nx + 1) / 2) × ((ny + 1) / 2) ×
+ * ((nz + 1) / 2) voxels, x fastest): its k-th voxel's index in the grid. */
+size_t ee_lattice_voxel(const grid_dims_t *d, size_t k);
 /* Tracks every voxel (all = 1, for the error grid) or the even lattice. */
 int ee_tracker_init(ee_tracker_t *t, const pm_setup_t *s, int all, bk_error_t *err);
 void ee_tracker_free(ee_tracker_t *t);

@@ -7,7 +7,7 @@
 # the baker bake command's grids and metadata.
 add_executable(test_adaptive ${BAKER_TEST_DIR}/test_adaptive.c)
 target_link_libraries(test_adaptive PRIVATE bakercore)
-foreach(t cells warp pdf thresholds chain filter filter_cl device)
+foreach(t cells warp pdf thresholds chain filter filter_cl fixed device)
   add_test(NAME adaptive_${t} COMMAND test_adaptive ${t})
 endforeach()
 

@@ -1,5 +1,5 @@
 /* test_adaptive.c: the adaptive pipeline's parts that do not need the march.
- * Usage: test_adaptive cells|warp|pdf|thresholds|chain|filter|filter_cl|device
+ * Usage: test_adaptive cells|warp|pdf|thresholds|chain|filter|filter_cl|fixed|device
  *  cells      light-domain cells and origin masks on the host
  *  warp       the PDF warp: histogram, normalisation, E[f/pdf] = ∫f, inverse
  *  pdf        ad_build_pdf: floor, importance spreading, uniform fallback
@@ -9,6 +9,8 @@
  *  filter     the reconstruction filter on a noisy fog with a caustic step,
  *             against a brute-force evaluation of its definition
  *  filter_cl  kernels/filter.cl against the host path and the brute force
+ *  fixed      the error estimate's filter at given radii on the even lattice
+ *             (ad_filter_fixed_lattice) against its definition, odd sizes
  *  device     the warp and origin marking of kernels/adaptive_filter.h on OpenCL */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -17,6 +19,7 @@
 
 #include "adaptive.h"
 #include "clhost.h"
+#include "error_est.h"
 #include "kernels/light_sample.h" /* ph_radical_inverse2: the march's own Hammersley */
 #include "scene.h"
 #include "test_util.h"
@@ -1047,9 +1050,76 @@ error:
   return tu_failures;
 }
 
+/* --- fixed: the halves' filter on the lattice ---------------------------------- */
+
+/* One axis of the level-q Gaussian at c along n taps, renormalised inside. */
+static double axis_weight(int q, int c, int t, int n, double *ws) {
+  double sigma = (double)AD_FILTER_SIGMA * q, sum = 0.0;
+  for (int u = c - q; u <= c + q; u++)
+    if (u >= 0 && u < n) sum += (float)exp(-(double)((u - c) * (u - c)) / (2.0 * sigma * sigma));
+  *ws = sum;
+  return (float)exp(-(double)((t - c) * (t - c)) / (2.0 * sigma * sigma));
+}
+
+/* The separable Gaussian's definition at voxel (x, y, z), level q, in double. */
+static double fixed_reference(const grid_dims_t *d, const float *in, int x, int y, int z, int q) {
+  double sz = 0.0, ws;
+  for (int tz = z - q; tz <= z + q; tz++) {
+    if (tz < 0 || tz >= d->nz) continue;
+    double wz = axis_weight(q, z, tz, d->nz, &ws) / ws, sy = 0.0;
+    for (int ty = y - q; ty <= y + q; ty++) {
+      if (ty < 0 || ty >= d->ny) continue;
+      double wy = axis_weight(q, y, ty, d->ny, &ws) / ws, sx = 0.0;
+      for (int tx = x - q; tx <= x + q; tx++) {
+        if (tx < 0 || tx >= d->nx) continue;
+        sx += axis_weight(q, x, tx, d->nx, &ws) / ws * in[tx + d->nx * (ty + d->ny * tz)];
+      }
+      sy += wy * sx;
+    }
+    sz += wz * sy;
+  }
+  return sz;
+}
+
+static int test_fixed(void) {
+  grid_dims_t d = cube_dims(13);
+  d.ny = 10, d.nz = 7;
+  const size_t V = (size_t)d.nx * d.ny * d.nz, L = 7 * 5 * 4;
+  const float radii[] = {0.0f, 0.25f, 0.5f, 0.75f, 1.0f, 1.5f, 2.0f}; /* levels 0 1 1 2 2 3 4 */
+  float *in = malloc(V * sizeof *in), *radius = malloc(V * sizeof *radius);
+  float *out = malloc(L * sizeof *out);
+  REQUIRE(in && radius && out, "out of memory");
+  for (size_t v = 0; v < V; v++) {
+    in[v] = (float)(1.0 + rng_gauss());
+    radius[v] = radii[(size_t)(rng_uniform() * 7.0) % 7];
+  }
+  bk_error_t err;
+  memset(&err, 0, sizeof err);
+  REQUIRE(ad_filter_fixed_lattice(&d, in, radius, 3, out, &err) == BK_OK, "%s", err.msg);
+  double worst = 0.0;
+  size_t k = 0, filtered = 0;
+  for (int z = 0; z < d.nz; z += 2)
+    for (int y = 0; y < d.ny; y += 2)
+      for (int x = 0; x < d.nx; x += 2, k++) {
+        size_t v = (size_t)x + (size_t)d.nx * (y + (size_t)d.ny * z);
+        int q = (int)(2.0f * radius[v] + 0.5f);
+        double want = q >= 1 && q <= 3 ? fixed_reference(&d, in, x, y, z, q) : in[v];
+        filtered += q >= 1 && q <= 3;
+        worst = fmax(worst, fabs(out[k] - want) / fmax(1e-3, fabs(want)));
+        EXPECT(ee_lattice_voxel(&d, k) == v, "lattice voxel %zu is %zu, expected %zu", k,
+               ee_lattice_voxel(&d, k), v);
+      }
+  printf("fixed: %zu lattice voxels (%zu filtered), worst relative difference %.2e\n", k,
+         filtered, worst);
+  EXPECT(k == L, "lattice of %zu voxels, expected %zu", k, L);
+  EXPECT(worst <= 1e-5 && filtered > L / 2, "lattice filter differs from its definition");
+  free(in), free(radius), free(out);
+  return tu_failures;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
-    fprintf(stderr, "usage: %s cells|warp|pdf|thresholds|chain|filter|filter_cl|device\n", argv[0]);
+    fprintf(stderr, "usage: %s cells|warp|pdf|thresholds|chain|filter|filter_cl|fixed|device\n", argv[0]);
     return 2;
   }
   const char *t = argv[1];
@@ -1061,6 +1131,7 @@ int main(int argc, char **argv) {
   else if (!strcmp(t, "chain")) rc = test_chain();
   else if (!strcmp(t, "filter")) rc = test_filter();
   else if (!strcmp(t, "filter_cl")) rc = test_filter_cl();
+  else if (!strcmp(t, "fixed")) rc = test_fixed();
   else if (!strcmp(t, "device")) rc = test_device();
   else {
     fprintf(stderr, "unknown test '%s'\n", t);
