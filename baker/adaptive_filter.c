@@ -275,7 +275,9 @@ typedef struct fixed_job {
   float *out;
 } fixed_job_t;
 
-/* Weight of tap t around c, renormalised over the taps inside [0, n). */
+/* The sum of the level's weights over the taps around c inside [0, n): what
+ * each tap's weight is divided by in the y and z passes (the renormalisation
+ * at the grid's faces). */
 static float tap_sum(const float *w, int c, int q, int n) {
   float ws = 0.0f;
   for (int t = c - q < 0 ? 0 : c - q; t <= c + q && t < n; t++) ws += w[t > c ? t - c : c - t];
