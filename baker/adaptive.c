@@ -337,6 +337,18 @@ static int start_loop(ad_run_t *r, ad_loop_t *loop, bk_error_t *err) {
                       r->opt->floor_fraction, err);
 }
 
+/* The loop rebuilds the tables from 2 batches' spread before a third: a
+ * fixed bake of fewer than 3 batches never does (2 is the default). */
+static void warn_no_retable(const scene_t *scene, const bt_options_t *bo) {
+  const int open = scene->target_error > 0.0f || scene->time_budget_s > 0.0f;
+  const int b = scene_batches(scene, bt_per_voxel(bo->error_grid, bo->shard_count));
+  if (!open && b < 3)
+    bk_warn("%s: adaptive.tables \"measured\" rebuilds the sampling tables from the spread of "
+            "2 batches before the next: with %d batch(es) it never does, and the pilot's "
+            "tables are used; set photons.batches to 3 or more, or a target error or time "
+            "budget", scene->path, b);
+}
+
 /* Phase 2: warped Hammersley photons of weight 1/pdf in independent
  * batches (batches.h: each a rotated Hammersley set, a whole estimate), then
  * unpack_phase; a shard marches its share of every batch and keeps the
@@ -360,6 +372,7 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
   if (r->opt->retable && r->have_pilot && !shard) {
     bo.w_max = 1.0 / r->opt->floor_fraction; /* every table keeps the floor */
     bo.retable = ad_loop_retable, bo.retable_ctx = &loop;
+    warn_no_retable(r->scene, &bo);
   }
   rc = pm_sample_tables(&r->main, r->tables, bo.w_max, bt_photons_at_most(r->scene, &bo), err);
   if (rc == BK_OK && bo.retable) rc = start_loop(r, &loop, err);
