@@ -4,11 +4,14 @@
  * look at its state afterwards; a std::ofstream on a full disk just goes
  * quiet. This stream keeps the errno of the first failed write(2) (ENOSPC,
  * EDQUOT, EIO) so the caller can refuse to rename the file into place and
- * say why. Header-only: formats/ C++ files include it. */
+ * say why. It also starts the disk writing as it goes, so that the fsync
+ * before the rename has little left to wait for. Header-only: formats/ C++
+ * files include it. */
 #ifndef BAKER_FDSTREAM_H
 #define BAKER_FDSTREAM_H
 
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <fcntl.h>
 #include <ostream>
@@ -70,12 +73,30 @@ private:
       }
       p += n;
       left -= (size_t)n;
+      written_ += (uint64_t)n;
     }
     setp(buf_, buf_ + sizeof buf_);
+    start_writeback();
     return !error_;
   }
+  /* Every WRITEBACK_BYTES written (2 MB: 1-2 MB gave the shortest 256³
+   * write, 4-32 MB longer ones), the disk starts writing the file's
+   * dirty pages (Linux: sync_file_range without waiting), so that the
+   * fsync before the rename waits for the last stretch only, not for the
+   * whole file (~100 ms for a 250 MB bake). Where the call is missing this
+   * does nothing. */
+  void start_writeback() {
+#ifdef SYNC_FILE_RANGE_WRITE
+    if (fd_ >= 0 && written_ - kicked_ >= WRITEBACK_BYTES) {
+      (void)sync_file_range(fd_, 0, 0, SYNC_FILE_RANGE_WRITE); /* 0, 0: the whole file */
+      kicked_ = written_;
+    }
+#endif
+  }
+  static constexpr uint64_t WRITEBACK_BYTES = 2u << 20;
   int fd_;
   int error_;
+  uint64_t written_ = 0, kicked_ = 0; /* bytes written, and at the last start */
   char buf_[1 << 16];
 };
 
