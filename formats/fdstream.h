@@ -73,7 +73,7 @@ private:
       }
       p += n;
       left -= (size_t)n;
-      written_ += (uint64_t)n;
+      unkicked_ += (uint64_t)n;
     }
     setp(buf_, buf_ + sizeof buf_);
     start_writeback();
@@ -87,16 +87,16 @@ private:
    * does nothing. */
   void start_writeback() {
 #ifdef SYNC_FILE_RANGE_WRITE
-    if (fd_ >= 0 && written_ - kicked_ >= WRITEBACK_BYTES) {
+    if (fd_ >= 0 && unkicked_ >= WRITEBACK_BYTES) {
       (void)sync_file_range(fd_, 0, 0, SYNC_FILE_RANGE_WRITE); /* 0, 0: the whole file */
-      kicked_ = written_;
+      unkicked_ = 0;
     }
 #endif
   }
   static constexpr uint64_t WRITEBACK_BYTES = 2u << 20;
   int fd_;
   int error_;
-  uint64_t written_ = 0, kicked_ = 0; /* bytes written, and at the last start */
+  uint64_t unkicked_ = 0; /* bytes written since the last start */
   char buf_[1 << 16];
 };
 
