@@ -73,6 +73,21 @@ template <typename LeafT> struct vdbio_block_out {
   typename LeafT::ValueType tile;
 };
 
+/* Whether every voxel of a full block has its first voxel's bits: a
+ * constant medium's blocks, found with a row compare instead of the scan
+ * below. Bit-equal voxels are equal and share their background state, so
+ * the scan would find the same tile, or nothing. */
+template <typename LeafT, typename RowF>
+static bool vdbio_block_uniform(const float *first, RowF row) {
+  const int C = sizeof(typename LeafT::ValueType) / sizeof(float), D = (int)LeafT::DIM;
+  float pattern[3 * LeafT::DIM];
+  for (int x = 0; x < D; x++) std::memcpy(pattern + C * x, first, C * sizeof(float));
+  for (int z = 0; z < D; z++)
+    for (int y = 0; y < D; y++)
+      if (std::memcmp(row(y, z), pattern, C * D * sizeof(float)) != 0) return false;
+  return true;
+}
+
 /* `slab`: the voxels of z slices z0.. (vdbio_slices), the block's among them. */
 template <typename LeafT>
 static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
@@ -89,6 +104,12 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
   const float *first = row(0, 0);
   const bool first_bg = B::is_background(first);
   bool mixed = ex < D || ey < D || ez < D, equal = true, any_on = false;
+  if (!mixed && vdbio_block_uniform<LeafT>(first, row)) { /* the scan's result, sooner */
+    if (first_bg) return;
+    out.tile_on = true;
+    out.tile = *reinterpret_cast<const ValueT *>(first);
+    return;
+  }
   for (int z = 0; z < ez; z++)
     for (int y = 0; y < ey; y++) {
       const float *r = row(y, z);
