@@ -104,12 +104,12 @@ int ad_loop_retable(void *ctx, int done, const ee_tracker_t *t, bk_error_t *err)
   if (!var) return BK_ERR_RUNTIME;
   ee_lit_spread(t, done, var);
   memset(L->cellvar, 0, L->cv * sizeof(double));
-  const int ts = t->shift, s = L->shift; /* lattice index -> voxel -> pilot cell */
+  const int s = L->shift; /* lattice index -> voxel -> pilot cell */
   for (size_t k = 0; k < t->count; k++) {
     if (!(var[k] > 0.0f)) continue;
-    int a = (int)(k % (size_t)t->mx), b = (int)(k / (size_t)t->mx % (size_t)t->my);
-    int c = (int)(k / ((size_t)t->mx * t->my));
-    L->cellvar[grid_index(&L->cd, (a << ts) >> s, (b << ts) >> s, (c << ts) >> s)] += var[k];
+    int v[3];
+    ee_lattice_ijk(k, (size_t)t->mx, (size_t)t->my, t->shift, v);
+    L->cellvar[grid_index(&L->cd, v[0] >> s, v[1] >> s, v[2] >> s)] += var[k];
   }
   free(var);
   int rc = BK_OK;

@@ -41,16 +41,17 @@ void ee_tracker_free(ee_tracker_t *t) {
 }
 
 size_t ee_lattice_voxel(const grid_dims_t *d, size_t k) {
-  const size_t mx = ((size_t)d->nx + 1) / 2, my = ((size_t)d->ny + 1) / 2;
-  const size_t a = k % mx, b = (k / mx) % my, c = k / (mx * my);
-  return 2 * a + (size_t)d->nx * (2 * b + (size_t)d->ny * 2 * c);
+  int ijk[3];
+  ee_lattice_ijk(k, ((size_t)d->nx + 1) / 2, ((size_t)d->ny + 1) / 2, 1, ijk);
+  return grid_index(d, ijk[0], ijk[1], ijk[2]);
 }
 
 /* The grid index of the first tracked voxel of tracked row r (rows run
  * along x; the next voxel of a row is 2^shift further). */
 static size_t row_start(const ee_tracker_t *t, const pm_setup_t *s, size_t r) {
-  size_t b = (r % (size_t)t->my) << t->shift, c = (r / (size_t)t->my) << t->shift;
-  return (size_t)s->dims.nx * (b + (size_t)s->dims.ny * c);
+  int ijk[3];
+  ee_lattice_ijk(r * (size_t)t->mx, (size_t)t->mx, (size_t)t->my, t->shift, ijk);
+  return grid_index(&s->dims, ijk[0], ijk[1], ijk[2]);
 }
 
 static float lum_at(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc, size_t v) {

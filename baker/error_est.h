@@ -69,6 +69,14 @@ typedef struct ee_tracker {
   double lum[3];      /* luminance per accumulator quantum, per channel (one batch) */
 } ee_tracker_t;
 
+/* Entry k of a tracked lattice (every 2^shift-th voxel along each axis,
+ * mx per row and mx × my per plane, x fastest): its voxel's coordinates.
+ * The one decoding of the layout, for every reader of a tracker's arrays. */
+static inline void ee_lattice_ijk(size_t k, size_t mx, size_t my, int shift, int ijk[3]) {
+  ijk[0] = (int)(k % mx) << shift;
+  ijk[1] = (int)(k / mx % my) << shift;
+  ijk[2] = (int)(k / (mx * my)) << shift;
+}
 /* The even lattice (x, y, z even: ((nx + 1) / 2) × ((ny + 1) / 2) ×
  * ((nz + 1) / 2) voxels, x fastest): its k-th voxel's index in the grid. */
 size_t ee_lattice_voxel(const grid_dims_t *d, size_t k);
