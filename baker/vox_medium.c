@@ -163,10 +163,44 @@ static inline void scan_scattering(const volume_t *v, size_t i, const float s0[3
   if (v->g) p->g_varies |= v->g[i] != v->g[0], p->g_set |= v->g[i] != 0.0f;
 }
 
+/* scan_chunk for a volume grey from the start (one value per voxel stands
+ * for every channel): scan_scattering's channel sums are then 3·σs and
+ * 3·σt, which double holds exactly, so the sums keep their bits without
+ * the per-channel adds; nothing is coloured. */
+static void scan_chunk_grey(vox_chunks_t *S, size_t k, size_t lo, size_t hi) {
+  const volume_t *v = S->v;
+  const float *ss = v->sigma_s, *sa = v->sigma_a, s0 = ss[0], a0 = sa[0], t0 = s0 + a0;
+  float n_min = v->ior[lo], n_max = v->ior[lo];
+  int varies = 0, t_varies = 0, s_varies = 0, g_varies = 0, g_set = 0;
+  vox_scan_t p = S->slot[k]; /* zero sums */
+  for (size_t i = lo; i < hi; i++) {
+    const float n = v->ior[i], t = ss[i] + sa[i];
+    n_min = n < n_min ? n : n_min;
+    n_max = n > n_max ? n : n_max;
+    const double s3 = 3.0 * (double)ss[i], t3 = 3.0 * (double)t;
+    p.ss += s3;
+    p.st += t3;
+    if (s3 > 0.0) p.st_scattering += t3, p.scattering++;
+    s_varies |= ss[i] != s0;
+    varies |= (ss[i] != s0) | (sa[i] != a0);
+    t_varies |= t != t0;
+    if (v->g) g_varies |= v->g[i] != v->g[0], g_set |= v->g[i] != 0.0f;
+  }
+  p.n_min = n_min, p.n_max = n_max;
+  p.varies = varies, p.t_varies = t_varies, p.s_varies = s_varies;
+  p.coloured = p.t_coloured = p.s_coloured = 0;
+  p.g_varies = g_varies, p.g_set = g_set;
+  S->slot[k] = p;
+}
+
 static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   vox_chunks_t *S = ctx;
   const volume_t *v = S->v;
   if (lo >= hi) return;
+  if (v->sigma_channels == 1) {
+    scan_chunk_grey(S, k, lo, hi);
+    return;
+  }
   float n_min = v->ior[lo], n_max = v->ior[lo];
   const float *s0 = v->sigma_s, *a0 = v->sigma_a;
   /* branch-free accumulation: this runs over every voxel of the grid */

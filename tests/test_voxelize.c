@@ -13,6 +13,8 @@
  *   ties       vertices on voxel centres: rays through vertices and edges
  *   open       a bottomless cube fills like the closed one; clipped objects
  *   medium     constants, ior_vdb and density_vdb; kernel-specialisation flags
+ *   scan       the summary of a grey volume (one value per voxel) equals, bit
+ *              for bit, the summary of the same values stored as RGB
  *   bad_input  missing, empty, NaN/Inf meshes: BK_ERR_INPUT naming the file */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -25,6 +27,7 @@
 #include "mesh_io.h"
 #include "vdbio.h"
 #include "voxelize.h"
+#include "vox_medium.h"
 #include "test_util.h"
 
 static const double PI = 3.14159265358979323846;
@@ -794,6 +797,60 @@ static void case_medium(void) {
   free(rho);
 }
 
+/* vox_scan's grey path (sigma_channels 1) against its RGB path on the same
+ * values: every flag, extreme and double sum must be identical, with and
+ * without a g grid, where σs is 0 in places and varies elsewhere. */
+static void scan_pair(int with_g, int uniform) {
+  volume_t grey, rgb;
+  memset(&grey, 0, sizeof grey);
+  grey.dims.nx = 13, grey.dims.ny = 11, grey.dims.nz = 17;
+  grey.dims.voxel_size = 0.1f;
+  const size_t n = grid_count(&grey.dims);
+  grey.ior = calloc(n, sizeof(float));
+  grey.sigma_s = calloc(n, sizeof(float));
+  grey.sigma_a = calloc(n, sizeof(float));
+  grey.g = with_g ? calloc(n, sizeof(float)) : NULL;
+  grey.sigma_channels = 1;
+  for (size_t i = 0; i < n; i++) {
+    grey.ior[i] = uniform ? 1.0f : 1.0f + 0.001f * (float)(i % 97);
+    grey.sigma_s[i] = uniform || i % 7 == 0 ? 0.0f : 0.3f + 1e-3f * (float)(i % 31);
+    grey.sigma_a[i] = uniform ? 0.02f : 0.01f * (float)(i % 5);
+    if (with_g) grey.g[i] = i % 11 ? 0.3f : 0.0f;
+  }
+  rgb = grey;
+  rgb.sigma_channels = 3;
+  rgb.sigma_s = malloc(3 * n * sizeof(float));
+  rgb.sigma_a = malloc(3 * n * sizeof(float));
+  for (size_t i = 0; i < 3 * n; i++) {
+    rgb.sigma_s[i] = grey.sigma_s[i / 3];
+    rgb.sigma_a[i] = grey.sigma_a[i / 3];
+  }
+  vox_scan_t a, b;
+  vox_scan(&grey, &a);
+  vox_scan(&rgb, &b);
+  EXPECT(a.n_min == b.n_min && a.n_max == b.n_max, "n range %g..%g vs %g..%g", a.n_min, a.n_max,
+         b.n_min, b.n_max);
+  EXPECT(a.varies == b.varies && a.t_varies == b.t_varies && a.s_varies == b.s_varies);
+  EXPECT(!a.coloured && !b.coloured && !a.t_coloured && !b.t_coloured && !a.s_coloured &&
+         !b.s_coloured);
+  EXPECT(a.g_varies == b.g_varies && a.g_set == b.g_set);
+  EXPECT(a.varies == !uniform && a.g_varies == with_g);
+  EXPECT(memcmp(&a.ss, &b.ss, sizeof a.ss) == 0 && memcmp(&a.st, &b.st, sizeof a.st) == 0 &&
+             memcmp(&a.st_scattering, &b.st_scattering, sizeof a.st_scattering) == 0,
+         "sums %a %a %a vs %a %a %a", a.ss, a.st, a.st_scattering, b.ss, b.st, b.st_scattering);
+  EXPECT(a.scattering == b.scattering, "%zu vs %zu scattering voxels", a.scattering, b.scattering);
+  printf("scan (g grid %d, uniform %d): ss %.9g st %.9g, %zu scattering voxels\n", with_g, uniform,
+         a.ss, a.st, a.scattering);
+  free(rgb.sigma_s), free(rgb.sigma_a);
+  vox_free(&grey);
+}
+
+static void case_scan(void) {
+  scan_pair(0, 0);
+  scan_pair(1, 0);
+  scan_pair(0, 1);
+}
+
 /* mesh_io_read and vox_build must both refuse with BK_ERR_INPUT, naming the
  * file and the problem (and, through vox_build, the scene key). */
 static void expect_refusal(const char *path, const char *problem) {
@@ -925,6 +982,7 @@ int main(int argc, char **argv) {
   else if (!strcmp(c, "bunny") && argc > 3) case_bunny(argv[3]);
   else if (!strcmp(c, "objects")) case_objects();
   else if (!strcmp(c, "medium")) case_medium();
+  else if (!strcmp(c, "scan")) case_scan();
   else if (!strcmp(c, "ties")) case_ties();
   else if (!strcmp(c, "open")) case_open();
   else if (!strcmp(c, "bad_input")) case_bad_input();
