@@ -404,7 +404,9 @@ error:
 /* The two halves of the batches filtered as the whole was (at its radii:
  * a linear map, ad_filter_fixed_lattice) and the filter's terms
  * (ee_filter_terms) from them and the filtered radiance, on the even
- * lattice that the noise term samples too (an eighth of the voxels). */
+ * lattice that the noise term samples too (an eighth of the voxels). The
+ * halves' means are made in place of the sums they come from (res->all,
+ * res->half_a), once the lattice has its copy of the sums: no third grid. */
 static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
                         bk_error_t *err) {
   bt_result_t *res = &r->stats->error;
@@ -413,27 +415,29 @@ static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
   const size_t L = (size_t)((d->nx + 1) / 2) * ((d->ny + 1) / 2) * ((d->nz + 1) / 2);
   const int B = res->batches;
   const float na = (float)((B + 1) / 2), nb = (float)(B / 2);
-  float *half = bk_calloc(V, sizeof(float), "adaptive error: half", err);
   float *lat = bk_calloc(5 * L, sizeof(float), "adaptive error: lattice", err);
-  int rc = BK_ERR_RUNTIME;
-  if (!half || !lat) goto done;
+  if (!lat) return BK_ERR_RUNTIME;
   float *fa = lat, *fb = lat + L, *all = lat + 2 * L, *half_a = lat + 3 * L, *f = lat + 4 * L;
-  for (size_t v = 0; v < V; v++) half[v] = res->half_a[v] / na;
-  if ((rc = ad_filter_fixed_lattice(d, half, radius, r->levels, fa, err)) != BK_OK) goto done;
-  for (size_t v = 0; v < V; v++) half[v] = (res->all[v] - res->half_a[v]) / nb;
-  if ((rc = ad_filter_fixed_lattice(d, half, radius, r->levels, fb, err)) != BK_OK) goto done;
   for (size_t k = 0; k < L; k++) {
     const size_t v = ee_lattice_voxel(d, k);
     const float *c = radiance + 3 * v;
     all[k] = res->all[v], half_a[k] = res->half_a[v];
     f[k] = c[0] * (float)EE_LUM_R + c[1] * (float)EE_LUM_G + c[2] * (float)EE_LUM_B;
   }
-  ee_filter_terms(L, B, all, half_a, f, fa, fb, &res->terms.noise, &res->terms.filter);
-  ee_terms_t *e = &res->terms;
-  if (e->noise >= 0.0 && e->step >= 0.0)
-    e->estimate = sqrt(e->noise * e->noise + e->filter * e->filter + e->step * e->step);
-done:
-  free(half);
+  for (size_t v = 0; v < V; v++) {
+    const float sum_all = res->all[v], sum_a = res->half_a[v];
+    res->half_a[v] = sum_a / na;          /* half A's mean */
+    res->all[v] = (sum_all - sum_a) / nb; /* half B's mean */
+  }
+  const float *in[2] = {res->half_a, res->all};
+  float *out[2] = {fa, fb};
+  int rc = ad_filter_fixed_lattice(d, in, 2, radius, r->levels, out, err);
+  if (rc == BK_OK) {
+    ee_filter_terms(L, B, all, half_a, f, fa, fb, &res->terms.noise, &res->terms.filter);
+    ee_terms_t *e = &res->terms;
+    if (e->noise >= 0.0 && e->step >= 0.0)
+      e->estimate = sqrt(e->noise * e->noise + e->filter * e->filter + e->step * e->step);
+  }
   free(lat);
   return rc;
 }

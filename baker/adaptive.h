@@ -191,14 +191,15 @@ int ad_filter_cl(clh_context_t *cl, const grid_dims_t *d, int channels, const fl
                  int levels, float *out_radiance, float *out_radius, bk_error_t *err);
 
 /* The filter's means at given radii (radius: voxels per voxel, as the
- * filter's out_radius; level round(2 r), at most `levels`) of one channel
- * `in`, at the even lattice only (ee_lattice_voxel: the voxels the error
- * estimate samples) into out: a linear map, so the error estimate can
- * filter the two halves of the batches exactly as the whole was (ad_bake),
- * each value bit for bit what the whole grid's filter gives there, at about
- * a third of its passes' work. On the host. */
-int ad_filter_fixed_lattice(const grid_dims_t *d, const float *in, const float *radius,
-                            int levels, float *out, bk_error_t *err);
+ * filter's out_radius; level round(2 r), at most `levels`) of `count`
+ * one-channel grids in[i], at the even lattice only (ee_lattice_voxel: the
+ * voxels the error estimate samples) into out[i]: a linear map, so the error
+ * estimate can filter the two halves of the batches exactly as the whole
+ * was (ad_bake), each value bit for bit what the whole grid's filter gives
+ * there, at about a third of its passes' work. On the host. */
+int ad_filter_fixed_lattice(const grid_dims_t *d, const float *const *in, int count,
+                            const float *radius, int levels, float *const *out,
+                            bk_error_t *err);
 
 /* --- the allocation loop (adaptive_loop.c) --------------------------------- */
 

@@ -330,36 +330,49 @@ static void fixed_slices(void *arg, size_t lo, size_t hi) {
 /* The filter level of a radius (half voxels). */
 static int level_of(float radius) { return (int)(2.0f * radius + 0.5f); }
 
-int ad_filter_fixed_lattice(const grid_dims_t *d, const float *in, const float *radius,
-                            int levels, float *out, bk_error_t *err) {
+/* Each lattice voxel's filter level, clamped to [0, AD_FILTER_MAX_LEVEL], in
+ * lev; used[q] set for each level present. */
+static void lattice_levels(const grid_dims_t *d, const float *radius, size_t L, bk_uchar *lev,
+                           int used[AD_FILTER_MAX_LEVEL + 1]) {
+  for (size_t k = 0; k < L; k++) {
+    int q = level_of(radius[ee_lattice_voxel(d, k)]);
+    lev[k] = (bk_uchar)(q < 0 ? 0 : q > AD_FILTER_MAX_LEVEL ? AD_FILTER_MAX_LEVEL : q);
+    used[lev[k]] = 1;
+  }
+}
+
+int ad_filter_fixed_lattice(const grid_dims_t *d, const float *const *in, int count,
+                            const float *radius, int levels, float *const *out,
+                            bk_error_t *err) {
   const int mx = (d->nx + 1) / 2, my = (d->ny + 1) / 2, mz = (d->nz + 1) / 2;
+  const size_t L = (size_t)mz * my * mx;
   float w[AD_WEIGHT_COUNT];
   filter_weights(w);
+  /* one set of pass buffers and one level map for every input */
   float *a = bk_calloc((size_t)d->nz * d->ny * mx, sizeof(float), "filter at given radii", err);
   float *b = bk_calloc((size_t)d->nz * my * mx, sizeof(float), "filter at given radii", err);
-  float *c = bk_calloc((size_t)mz * my * mx, sizeof(float), "filter at given radii", err);
-  if (!a || !b || !c) {
-    free(a), free(b), free(c);
+  float *c = bk_calloc(L, sizeof(float), "filter at given radii", err);
+  bk_uchar *lev = bk_calloc(L, 1, "filter at given radii", err);
+  if (!a || !b || !c || !lev) {
+    free(a), free(b), free(c), free(lev);
     return BK_ERR_RUNTIME;
   }
   int used[AD_FILTER_MAX_LEVEL + 1] = {0};
-  for (size_t k = 0; k < (size_t)mz * my * mx; k++) {
-    size_t v = ee_lattice_voxel(d, k);
-    int q = level_of(radius[v]);
-    used[q < 0 ? 0 : q > AD_FILTER_MAX_LEVEL ? AD_FILTER_MAX_LEVEL : q] = 1;
-    out[k] = in[v];
+  lattice_levels(d, radius, L, lev, used);
+  for (int i = 0; i < count; i++) {
+    for (size_t k = 0; k < L; k++) out[i][k] = in[i][ee_lattice_voxel(d, k)];
+    for (int q = 1; q <= levels && q <= AD_FILTER_MAX_LEVEL; q++) {
+      if (!used[q]) continue;
+      fixed_job_t j = {d, 0, q, mx, my, in[i], w, a};
+      bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
+      j.axis = 1, j.in = a, j.out = b;
+      bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
+      j.axis = 2, j.in = b, j.out = c;
+      bk_parallel((size_t)mz, 1, fixed_slices, &j);
+      for (size_t k = 0; k < L; k++)
+        if (lev[k] == q) out[i][k] = c[k];
+    }
   }
-  for (int q = 1; q <= levels && q <= AD_FILTER_MAX_LEVEL; q++) {
-    if (!used[q]) continue;
-    fixed_job_t j = {d, 0, q, mx, my, in, w, a};
-    bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
-    j.axis = 1, j.in = a, j.out = b;
-    bk_parallel((size_t)d->nz, 1, fixed_slices, &j);
-    j.axis = 2, j.in = b, j.out = c;
-    bk_parallel((size_t)mz, 1, fixed_slices, &j);
-    for (size_t k = 0; k < (size_t)mz * my * mx; k++)
-      if (level_of(radius[ee_lattice_voxel(d, k)]) == q) out[k] = c[k];
-  }
-  free(a), free(b), free(c);
+  free(a), free(b), free(c), free(lev);
   return BK_OK;
 }

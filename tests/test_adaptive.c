@@ -1095,7 +1095,9 @@ static int test_fixed(void) {
   }
   bk_error_t err;
   memset(&err, 0, sizeof err);
-  REQUIRE(ad_filter_fixed_lattice(&d, in, radius, 3, out, &err) == BK_OK, "%s", err.msg);
+  const float *ins[1] = {in};
+  float *outs[1] = {out};
+  REQUIRE(ad_filter_fixed_lattice(&d, ins, 1, radius, 3, outs, &err) == BK_OK, "%s", err.msg);
   double worst = 0.0;
   size_t k = 0, filtered = 0;
   for (int z = 0; z < d.nz; z += 2)
