@@ -197,7 +197,7 @@ static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   vox_chunks_t *S = ctx;
   const volume_t *v = S->v;
   if (lo >= hi) return;
-  if (v->sigma_channels == 1) {
+  if (v->sigma_channels == 1) { /* grey from the start */
     scan_chunk_grey(S, k, lo, hi);
     return;
   }
@@ -205,7 +205,6 @@ static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   const float *s0 = v->sigma_s, *a0 = v->sigma_a;
   /* branch-free accumulation: this runs over every voxel of the grid */
   int varies = 0, coloured = 0, t_varies = 0, t_coloured = 0;
-  const int grey = v->sigma_channels == 1; /* grey from the start */
   const float t0[3] = {vol_sigma_t(v, 0, 0), vol_sigma_t(v, 0, 1), vol_sigma_t(v, 0, 2)};
   float ms0[3];
   for (int c = 0; c < 3; c++) ms0[c] = v->sigma_s[vox_sigma_index(v, 0, c)];
@@ -215,11 +214,6 @@ static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
     n_min = n < n_min ? n : n_min;
     n_max = n > n_max ? n : n_max;
     scan_scattering(v, i, ms0, &p);
-    if (grey) {
-      varies |= (v->sigma_s[i] != s0[0]) | (v->sigma_a[i] != a0[0]);
-      t_varies |= v->sigma_s[i] + v->sigma_a[i] != t0[0];
-      continue;
-    }
     const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
     const float t[3] = {s[0] + a[0], s[1] + a[1], s[2] + a[2]};
     varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
