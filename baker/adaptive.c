@@ -418,12 +418,9 @@ static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
   float *lat = bk_calloc(5 * L, sizeof(float), "adaptive error: lattice", err);
   if (!lat) return BK_ERR_RUNTIME;
   float *fa = lat, *fb = lat + L, *all = lat + 2 * L, *half_a = lat + 3 * L, *f = lat + 4 * L;
-  for (size_t k = 0; k < L; k++) {
-    const size_t v = ee_lattice_voxel(d, k);
-    const float *c = radiance + 3 * v;
-    all[k] = res->all[v], half_a[k] = res->half_a[v];
-    f[k] = c[0] * (float)EE_LUM_R + c[1] * (float)EE_LUM_G + c[2] * (float)EE_LUM_B;
-  }
+  ee_lattice_gather(d, res->all, 1, all);
+  ee_lattice_gather(d, res->half_a, 1, half_a);
+  ee_lattice_gather(d, radiance, 3, f);
   for (size_t v = 0; v < V; v++) {
     const float sum_all = res->all[v], sum_a = res->half_a[v];
     res->half_a[v] = sum_a / na;          /* half A's mean */

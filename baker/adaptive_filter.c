@@ -331,11 +331,12 @@ static void fixed_slices(void *arg, size_t lo, size_t hi) {
 static int level_of(float radius) { return (int)(2.0f * radius + 0.5f); }
 
 /* Each lattice voxel's filter level, clamped to [0, AD_FILTER_MAX_LEVEL], in
- * lev; used[q] set for each level present. */
-static void lattice_levels(const grid_dims_t *d, const float *radius, size_t L, bk_uchar *lev,
-                           int used[AD_FILTER_MAX_LEVEL + 1]) {
+ * lev; used[q] set for each level present. tmp: L floats of scratch. */
+static void lattice_levels(const grid_dims_t *d, const float *radius, size_t L, float *tmp,
+                           bk_uchar *lev, int used[AD_FILTER_MAX_LEVEL + 1]) {
+  ee_lattice_gather(d, radius, 1, tmp);
   for (size_t k = 0; k < L; k++) {
-    int q = level_of(radius[ee_lattice_voxel(d, k)]);
+    int q = level_of(tmp[k]);
     lev[k] = (bk_uchar)(q < 0 ? 0 : q > AD_FILTER_MAX_LEVEL ? AD_FILTER_MAX_LEVEL : q);
     used[lev[k]] = 1;
   }
@@ -358,9 +359,9 @@ int ad_filter_fixed_lattice(const grid_dims_t *d, const float *const *in, int co
     return BK_ERR_RUNTIME;
   }
   int used[AD_FILTER_MAX_LEVEL + 1] = {0};
-  lattice_levels(d, radius, L, lev, used);
+  lattice_levels(d, radius, L, c, lev, used);
   for (int i = 0; i < count; i++) {
-    for (size_t k = 0; k < L; k++) out[i][k] = in[i][ee_lattice_voxel(d, k)];
+    ee_lattice_gather(d, in[i], 1, out[i]);
     for (int q = 1; q <= levels && q <= AD_FILTER_MAX_LEVEL; q++) {
       if (!used[q]) continue;
       fixed_job_t j = {d, 0, q, mx, my, in[i], w, a};

@@ -46,6 +46,33 @@ size_t ee_lattice_voxel(const grid_dims_t *d, size_t k) {
   return grid_index(d, ijk[0], ijk[1], ijk[2]);
 }
 
+typedef struct gather_ctx {
+  const grid_dims_t *d;
+  const float *grid;
+  int ch;
+  float *out;
+  size_t mx, my;
+} gather_ctx_t;
+
+static void gather_rows(void *arg, size_t lo, size_t hi) {
+  const gather_ctx_t *x = arg;
+  for (size_t r = lo; r < hi; r++) {
+    int ijk[3];
+    ee_lattice_ijk(r * x->mx, x->mx, x->my, 1, ijk);
+    const float *g = x->grid + (size_t)x->ch * grid_index(x->d, ijk[0], ijk[1], ijk[2]);
+    float *o = x->out + r * x->mx;
+    for (size_t e = 0; e < x->mx; e++, g += 2 * x->ch)
+      o[e] = x->ch == 1 ? g[0]
+                        : g[0] * (float)EE_LUM_R + g[1] * (float)EE_LUM_G + g[2] * (float)EE_LUM_B;
+  }
+}
+
+void ee_lattice_gather(const grid_dims_t *d, const float *grid, int ch, float *out) {
+  gather_ctx_t x = {d, grid, ch, out, ((size_t)d->nx + 1) / 2, ((size_t)d->ny + 1) / 2};
+  const size_t rows = x.my * (((size_t)d->nz + 1) / 2);
+  bk_parallel(rows, BK_GRAIN / x.mx + 1, gather_rows, &x);
+}
+
 /* The grid index of the first tracked voxel of tracked row r (rows run
  * along x; the next voxel of a row is 2^shift further). */
 static size_t row_start(const ee_tracker_t *t, const pm_setup_t *s, size_t r) {

@@ -80,6 +80,10 @@ static inline void ee_lattice_ijk(size_t k, size_t mx, size_t my, int shift, int
 /* The even lattice (x, y, z even: ((nx + 1) / 2) × ((ny + 1) / 2) ×
  * ((nz + 1) / 2) voxels, x fastest): its k-th voxel's index in the grid. */
 size_t ee_lattice_voxel(const grid_dims_t *d, size_t k);
+/* out[k] = grid's value at the even lattice's entry k, for every k (the
+ * lattice walked row by row, not divided out per entry); grid holds ch = 1
+ * float per voxel, or ch = 3 (RGB), whose luminance is taken. */
+void ee_lattice_gather(const grid_dims_t *d, const float *grid, int ch, float *out);
 /* Tracks every voxel (all = 1, for the error grid) or the even lattice. */
 int ee_tracker_init(ee_tracker_t *t, const pm_setup_t *s, int all, bk_error_t *err);
 void ee_tracker_free(ee_tracker_t *t);
