@@ -209,7 +209,7 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
 
 /* Stage 3: the grids of DESIGN.md §5 in file order (bake_grid_list), for a
  * shard the medium grids and the raw sums (shard.h); *count of them. The
- * derived ones (extinction, density, emission, ...) are made by the writer
+ * derived ones (density, emission, ...) are made by the writer
  * a few slices at a time (out_grids.h), never whole. For grey media the Vec3
  * grids collapse to floats (DESIGN §5 allows it, and renderers read a float
  * `extinction` more widely). */
@@ -219,9 +219,11 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   size_t n = grid_count(&vol->dims);
   og_source_t *src = &j->derived;
   const int sca_channels = vol->sigma_channels == 1 ? 1 : 3;
-  *src = (og_source_t){vol->sigma_s, vol->sigma_a, vol->sigma_channels, vol->sigma_s, sca_channels,
+  *src = (og_source_t){vol->sigma_s, vol->sigma_t, vol->sigma_channels, vol->sigma_s, sca_channels,
                        j->radiance, vol->ior, vol->ior_rb, n, vol->g, j->scene.medium_g};
-  bake_arrays_t a = {vol->ior, j->radiance, og_made(og_extinction, src),
+  /* sigma_s and sigma_t are the scattering and extinction grids as they
+   * stand: Vec3, or floats when the volume is grey (vox_summarise) */
+  bake_arrays_t a = {vol->ior, j->radiance, og_dense(vol->sigma_t),
                      og_dense(vol->sigma_s), og_made(og_density, src), og_dense(NULL),
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
                      j->scene.medium_ior, og_dense(NULL), j->error.flux, j->error.uncollided,
@@ -231,11 +233,7 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   if (vol->ior_rb) a.ior_rgb = og_made(og_ior_rgb, src);
   if (j->error.flux || j->shard.sums.flux) /* a shard's flux is in its sums */
     a.phase_g = og_made(og_phase_g, src);
-  if (vol->grey) {
-    a.extinction = og_made(og_extinction_grey, src);
-    a.scattering = og_made(og_scattering_grey, src);
-    a.sca_channels = 1;
-  }
+  if (vol->grey) a.sca_channels = 1; /* sigma_s and sigma_t hold one value per voxel */
   *count = bake_grid_list(&a, grids);
   if (j->error.error_grid)
     grids[(*count)++] =

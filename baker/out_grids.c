@@ -3,28 +3,9 @@
 
 #include "voxelize.h"
 
-/* Where channel c of voxel i lies in sigma_s and sigma_a. */
+/* Where channel c of voxel i lies in sigma_s and sigma_t. */
 static inline size_t at(const og_source_t *s, size_t i, int c) {
   return vox_channel_at(s->sigma_channels, i, c);
-}
-
-/* sigma_t = sigma_s + sigma_a per channel */
-void og_extinction(const void *src, size_t lo, size_t hi, float *out) {
-  const og_source_t *s = src;
-  for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < 3; c++) *out++ = s->sigma_s[at(s, i, c)] + s->sigma_a[at(s, i, c)];
-}
-
-/* For grey media the Vec3 grids collapse to floats (DESIGN §5 allows it, and
- * renderers read a float `extinction` more widely). */
-void og_extinction_grey(const void *src, size_t lo, size_t hi, float *out) {
-  const og_source_t *s = src;
-  for (size_t i = lo; i < hi; i++) *out++ = s->sigma_s[at(s, i, 0)] + s->sigma_a[at(s, i, 0)];
-}
-
-void og_scattering_grey(const void *src, size_t lo, size_t hi, float *out) {
-  const og_source_t *s = src;
-  for (size_t i = lo; i < hi; i++) *out++ = s->sigma_s[at(s, i, 0)];
 }
 
 /* The grey density: the mean of the channels' sigma_t, summed in order. */
@@ -32,7 +13,7 @@ void og_density(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
   for (size_t i = lo; i < hi; i++) {
     float sum = 0.0f;
-    for (int c = 0; c < 3; c++) sum += s->sigma_s[at(s, i, c)] + s->sigma_a[at(s, i, c)];
+    for (int c = 0; c < 3; c++) sum += s->sigma_t[at(s, i, c)];
     *out++ = sum / 3.0f;
   }
 }

@@ -1,5 +1,4 @@
-/* out_grids.h: the grids a bake writes that follow from others (extinction,
- * density, the grey copies, emission, ior_rgb, phase_g), made a run of voxels
+/* out_grids.h: the grids a bake writes that follow from others (density, the grey copies, emission, ior_rgb, phase_g), made a run of voxels
  * at a time while the writer builds each OpenVDB tree (vdbio_fill_fn) instead
  * of as whole arrays: at the write, the peak of a bake, they cost a few z
  * slices instead of 4-12 bytes per voxel each. Each value is computed exactly
@@ -13,7 +12,7 @@
 
 /* What the fills read; each uses only its own fields. */
 typedef struct og_source {
-  const float *sigma_s, *sigma_a; /* sigma_channels per voxel */
+  const float *sigma_s, *sigma_t; /* sigma_channels per voxel */
   int sigma_channels;             /* 3, or 1: grey (voxelize.h) */
   const float *scattering;        /* emission: sca_channels per voxel */
   int sca_channels;
@@ -41,10 +40,7 @@ static inline og_values_t og_made(vdbio_fill_fn fill, const og_source_t *src) {
 }
 static inline int og_present(og_values_t v) { return v.data || v.fill; }
 
-void og_extinction(const void *src, size_t lo, size_t hi, float *out);      /* σs + σa, RGB */
-void og_extinction_grey(const void *src, size_t lo, size_t hi, float *out); /* its channel 0 */
-void og_scattering_grey(const void *src, size_t lo, size_t hi, float *out); /* σs channel 0 */
-void og_density(const void *src, size_t lo, size_t hi, float *out);  /* mean of σs + σa */
+void og_density(const void *src, size_t lo, size_t hi, float *out);  /* mean of σt */
 void og_emission(const void *src, size_t lo, size_t hi, float *out); /* scattering ⊙ radiance */
 void og_ior_rgb(const void *src, size_t lo, size_t hi, float *out);  /* n per channel */
 void og_phase_g(const void *src, size_t lo, size_t hi, float *out);  /* g where σs > 0 */

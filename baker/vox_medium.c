@@ -21,10 +21,11 @@ static void fill_ior_range(void *ctx, size_t lo, size_t hi) {
   for (size_t v = lo; v < hi; v++) f->out->ior[v] = f->scene->medium_ior;
 }
 
+/* σs and σa: sigma_t holds σa until vox_summarise makes it σs + σa */
 static void fill_sigma_range(void *ctx, size_t lo, size_t hi) {
   const medium_fill_t *f = ctx;
   const float *ms = f->scene->medium_sigma_s, *ma = f->scene->medium_sigma_a;
-  float *s = f->out->sigma_s, *a = f->out->sigma_a;
+  float *s = f->out->sigma_s, *a = f->out->sigma_t;
   const int C = f->out->sigma_channels;
   for (size_t v = lo; v < hi; v++)
     for (int ch = 0; ch < C; ch++) {
@@ -88,7 +89,7 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
       }
       for (int ch = 0; ch < out->sigma_channels; ch++) {
         out->sigma_s[vox_sigma_index(out, v, ch)] = scene->medium_sigma_s[ch] * rho;
-        out->sigma_a[vox_sigma_index(out, v, ch)] = scene->medium_sigma_a[ch] * rho;
+        out->sigma_t[vox_sigma_index(out, v, ch)] = scene->medium_sigma_a[ch] * rho;
       }
     }
     if (clamped)
@@ -128,53 +129,46 @@ static void vox_store_grey(volume_t *v) {
   const size_t n = grid_count(&v->dims);
   for (size_t i = 0; i < n; i++) {
     v->sigma_s[i] = v->sigma_s[3 * i];
-    v->sigma_a[i] = v->sigma_a[3 * i];
+    v->sigma_t[i] = v->sigma_t[3 * i];
   }
-  float *s = realloc(v->sigma_s, n * sizeof(float)), *a = realloc(v->sigma_a, n * sizeof(float));
+  float *s = realloc(v->sigma_s, n * sizeof(float)), *a = realloc(v->sigma_t, n * sizeof(float));
   if (s) v->sigma_s = s; /* a failed shrink keeps the larger block: still valid */
-  if (a) v->sigma_a = a;
+  if (a) v->sigma_t = a;
   v->sigma_channels = 1;
 }
 
 /* The scan in VOX_SUMMARY_CHUNKS chunks of the grid, each with its own
- * slot. Combining min, max and OR is exact in any order. */
+ * slot. Combining min, max and OR is exact in any order. With `to_sum`
+ * (vox_summarise) the sigma_t array still holds σa and each chunk turns it
+ * into σs + σa as it goes; voxel 0's values, which every chunk compares
+ * with, are taken before any chunk writes. */
 typedef struct vox_chunks {
   const volume_t *v;
+  float *t_out;      /* to_sum: v->sigma_t, written; else NULL */
+  float s0[3], t0[3]; /* voxel 0 per channel */
   vox_scan_t slot[VOX_SUMMARY_CHUNKS];
 } vox_chunks_t;
 
-/* Voxel i's part of the sums and flags multiple scattering decides on
- * (the sums in bounces.c's former order: the channels, then the voxels). */
-static inline void scan_scattering(const volume_t *v, size_t i, const float s0[3],
-                                   vox_scan_t *p) {
-  double s = 0.0, t = 0.0;
-  float sc[3];
-  for (int c = 0; c < 3; c++) {
-    const size_t at = vox_sigma_index(v, i, c);
-    sc[c] = v->sigma_s[at];
-    s += sc[c];
-    t += v->sigma_s[at] + v->sigma_a[at];
-  }
-  p->ss += s;
-  p->st += t;
-  if (s > 0.0) p->st_scattering += t, p->scattering++;
-  p->s_varies |= (sc[0] != s0[0]) | (sc[1] != s0[1]) | (sc[2] != s0[2]);
-  p->s_coloured |= (sc[0] != sc[1]) | (sc[0] != sc[2]);
-  if (v->g) p->g_varies |= v->g[i] != v->g[0], p->g_set |= v->g[i] != 0.0f;
+/* σt at index at: the stored value, or with to_sum σs + σa, stored. */
+static inline float scan_t(const vox_chunks_t *S, const float *ss, const float *st, size_t at) {
+  if (!S->t_out) return st[at];
+  const float t = ss[at] + st[at];
+  S->t_out[at] = t;
+  return t;
 }
 
 /* scan_chunk for a volume grey from the start (one value per voxel stands
- * for every channel): scan_scattering's channel sums are then 3·σs and
- * 3·σt, which double holds exactly, so the sums keep their bits without
- * the per-channel adds; nothing is coloured. */
+ * for every channel): the channel sums are then 3·σs and 3·σt, which double
+ * holds exactly, so they keep their bits without per-channel adds; nothing
+ * is coloured. */
 static void scan_chunk_grey(vox_chunks_t *S, size_t k, size_t lo, size_t hi) {
   const volume_t *v = S->v;
-  const float *ss = v->sigma_s, *sa = v->sigma_a, s0 = ss[0], a0 = sa[0], t0 = s0 + a0;
+  const float *ss = v->sigma_s, *st = v->sigma_t, s0 = S->s0[0], t0 = S->t0[0];
   float n_min = v->ior[lo], n_max = v->ior[lo];
-  int varies = 0, t_varies = 0, s_varies = 0, g_varies = 0, g_set = 0;
+  int t_varies = 0, s_varies = 0, g_varies = 0, g_set = 0;
   vox_scan_t p = S->slot[k]; /* zero sums */
   for (size_t i = lo; i < hi; i++) {
-    const float n = v->ior[i], t = ss[i] + sa[i];
+    const float n = v->ior[i], t = scan_t(S, ss, st, i);
     n_min = n < n_min ? n : n_min;
     n_max = n > n_max ? n : n_max;
     const double s3 = 3.0 * (double)ss[i], t3 = 3.0 * (double)t;
@@ -182,17 +176,18 @@ static void scan_chunk_grey(vox_chunks_t *S, size_t k, size_t lo, size_t hi) {
     p.st += t3;
     if (s3 > 0.0) p.st_scattering += t3, p.scattering++;
     s_varies |= ss[i] != s0;
-    varies |= (ss[i] != s0) | (sa[i] != a0);
     t_varies |= t != t0;
     if (v->g) g_varies |= v->g[i] != v->g[0], g_set |= v->g[i] != 0.0f;
   }
   p.n_min = n_min, p.n_max = n_max;
-  p.varies = varies, p.t_varies = t_varies, p.s_varies = s_varies;
+  p.varies = s_varies | t_varies, p.t_varies = t_varies, p.s_varies = s_varies;
   p.coloured = p.t_coloured = p.s_coloured = 0;
   p.g_varies = g_varies, p.g_set = g_set;
   S->slot[k] = p;
 }
 
+/* Three channels per voxel: the channel sums in bounces.c's former order
+ * (the channels, then the voxels). */
 static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   vox_chunks_t *S = ctx;
   const volume_t *v = S->v;
@@ -201,35 +196,47 @@ static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
     scan_chunk_grey(S, k, lo, hi);
     return;
   }
+  const float *s0 = S->s0, *t0 = S->t0;
   float n_min = v->ior[lo], n_max = v->ior[lo];
-  const float *s0 = v->sigma_s, *a0 = v->sigma_a;
   /* branch-free accumulation: this runs over every voxel of the grid */
-  int varies = 0, coloured = 0, t_varies = 0, t_coloured = 0;
-  const float t0[3] = {vol_sigma_t(v, 0, 0), vol_sigma_t(v, 0, 1), vol_sigma_t(v, 0, 2)};
-  float ms0[3];
-  for (int c = 0; c < 3; c++) ms0[c] = v->sigma_s[vox_sigma_index(v, 0, c)];
+  int s_varies = 0, s_coloured = 0, t_varies = 0, t_coloured = 0, g_varies = 0, g_set = 0;
   vox_scan_t p = S->slot[k]; /* zero sums */
   for (size_t i = lo; i < hi; i++) {
     float n = v->ior[i];
     n_min = n < n_min ? n : n_min;
     n_max = n > n_max ? n : n_max;
-    scan_scattering(v, i, ms0, &p);
-    const float *s = v->sigma_s + 3 * i, *a = v->sigma_a + 3 * i;
-    const float t[3] = {s[0] + a[0], s[1] + a[1], s[2] + a[2]};
-    varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]) | (a[0] != a0[0]) |
-              (a[1] != a0[1]) | (a[2] != a0[2]);
-    coloured |= (s[0] != s[1]) | (s[1] != s[2]) | (a[0] != a[1]) | (a[1] != a[2]);
+    const float *s = v->sigma_s + 3 * i;
+    const float t[3] = {scan_t(S, v->sigma_s, v->sigma_t, 3 * i),
+                        scan_t(S, v->sigma_s, v->sigma_t, 3 * i + 1),
+                        scan_t(S, v->sigma_s, v->sigma_t, 3 * i + 2)};
+    const double sum_s = ((double)s[0] + s[1]) + s[2], sum_t = ((double)t[0] + t[1]) + t[2];
+    p.ss += sum_s;
+    p.st += sum_t;
+    if (sum_s > 0.0) p.st_scattering += sum_t, p.scattering++;
+    s_varies |= (s[0] != s0[0]) | (s[1] != s0[1]) | (s[2] != s0[2]);
+    s_coloured |= (s[0] != s[1]) | (s[0] != s[2]);
     t_varies |= (t[0] != t0[0]) | (t[1] != t0[1]) | (t[2] != t0[2]);
     t_coloured |= (t[0] != t[1]) | (t[1] != t[2]);
+    if (v->g) g_varies |= v->g[i] != v->g[0], g_set |= v->g[i] != 0.0f;
   }
   p.n_min = n_min, p.n_max = n_max;
-  p.varies = varies, p.coloured = coloured, p.t_varies = t_varies, p.t_coloured = t_coloured;
+  p.varies = s_varies | t_varies, p.coloured = s_coloured | t_coloured;
+  p.t_varies = t_varies, p.t_coloured = t_coloured;
+  p.s_varies = s_varies, p.s_coloured = s_coloured;
+  p.g_varies = g_varies, p.g_set = g_set;
   S->slot[k] = p;
 }
 
-void vox_scan(const volume_t *v, vox_scan_t *out) {
+/* vox_scan; with to_sum, the σa in sigma_t made σs + σa on the way. */
+static void scan_volume(volume_t *v, int to_sum, vox_scan_t *out) {
   vox_chunks_t S;
   S.v = v;
+  S.t_out = to_sum ? v->sigma_t : NULL;
+  for (int c = 0; c < 3; c++) {
+    const size_t at = vox_sigma_index(v, 0, c);
+    S.s0[c] = v->sigma_s[at];
+    S.t0[c] = to_sum ? v->sigma_s[at] + v->sigma_t[at] : v->sigma_t[at];
+  }
   /* an empty chunk (a grid of fewer voxels) reads as the first voxel */
   vox_scan_t first;
   memset(&first, 0, sizeof first);
@@ -252,6 +259,10 @@ void vox_scan(const volume_t *v, vox_scan_t *out) {
   }
 }
 
+void vox_scan(const volume_t *v, vox_scan_t *out) {
+  scan_volume((volume_t *)v, 0, out); /* to_sum 0: nothing is written */
+}
+
 const vox_scan_t *vox_scan_of(const volume_t *v, vox_scan_t *own) {
   if (v->scanned) return &v->scan;
   vox_scan(v, own);
@@ -259,7 +270,7 @@ const vox_scan_t *vox_scan_of(const volume_t *v, vox_scan_t *own) {
 }
 
 void vox_summarise(volume_t *v) {
-  vox_scan(v, &v->scan);
+  scan_volume(v, 1, &v->scan);
   v->scanned = 1;
   v->n_min = v->scan.n_min;
   v->n_max = v->scan.n_max;

@@ -1,4 +1,4 @@
-/* voxelize.c: meshes and the medium -> n, sigma_s, sigma_a on the grid.
+/* voxelize.c: meshes and the medium -> n, sigma_s, sigma_t on the grid.
  *
  * Per object, in voxel index space (voxel (i,j,k) centred at integer (i,j,k)):
  * 1. unsigned distance: every triangle visits the voxels of its bounding box
@@ -372,7 +372,8 @@ static void vox_blend(const scene_object_t *obj, const vox_region_t *r, float ba
         }
         if (w <= 0.0f) continue;
         const int C = out->sigma_channels;
-        float *s = out->sigma_s + (size_t)C * gv, *a = out->sigma_a + (size_t)C * gv;
+        /* sigma_t holds σa until vox_summarise */
+        float *s = out->sigma_s + (size_t)C * gv, *a = out->sigma_t + (size_t)C * gv;
         if (out->g) out->g[gv] = w >= 1.0f ? obj->g : out->g[gv] + w * (obj->g - out->g[gv]);
         if (out->ior_rb) vox_blend_dispersion(obj, w, gv, grid_count(d), out->ior_rb);
         if (w >= 1.0f) { /* exactly the object's values, so interiors stay homogeneous */
@@ -432,8 +433,8 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
   const size_t C = (size_t)(out->sigma_channels = scene_is_grey(scene) ? 1 : 3);
   out->ior = bk_calloc(count, sizeof(float), "voxelize: ior grid", err);
   out->sigma_s = bk_calloc(count, C * sizeof(float), "voxelize: sigma_s grid", err);
-  out->sigma_a = bk_calloc(count, C * sizeof(float), "voxelize: sigma_a grid", err);
-  if (!out->ior || !out->sigma_s || !out->sigma_a) return BK_ERR_RUNTIME;
+  out->sigma_t = bk_calloc(count, C * sizeof(float), "voxelize: sigma_t grid", err);
+  if (!out->ior || !out->sigma_s || !out->sigma_t) return BK_ERR_RUNTIME;
   if (g_grid) {
     out->g = bk_calloc(count, sizeof(float), "voxelize: g grid", err);
     if (!out->g) return BK_ERR_RUNTIME;
@@ -631,8 +632,8 @@ void vox_free(volume_t *v) {
   if (!v) return;
   free(v->ior);
   free(v->sigma_s);
-  free(v->sigma_a);
+  free(v->sigma_t);
   free(v->g);
   free(v->ior_rb);
-  v->ior = v->sigma_s = v->sigma_a = v->g = v->ior_rb = NULL;
+  v->ior = v->sigma_s = v->sigma_t = v->g = v->ior_rb = NULL;
 }

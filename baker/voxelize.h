@@ -1,7 +1,7 @@
 /* voxelize.h: scene -> refractive-index and medium-coefficient grids.
  *
  * In: a validated scene (its meshes, medium, optional ior_vdb/density_vdb).
- * Out: per voxel n, sigma_s and sigma_a. Inside an object n = object IOR and
+ * Out: per voxel n, sigma_s and sigma_t = sigma_s + sigma_a. Inside an object n = object IOR and
  * sigma = object coefficients; outside, the medium's. The boundary is smoothed
  * over s = `ior_smoothing` voxels from the exact signed distance d to the
  * triangles (in voxels, negative inside): the object's weight is
@@ -36,10 +36,10 @@
 extern "C" {
 #endif
 
-/* One pass over every voxel (vox_scan): n's exact range; whether σs or σa
+/* One pass over every voxel (vox_scan): n's exact range; whether σs or σt
  * differ anywhere from voxel 0 (varies) or between channels (coloured); the
- * same for σt = σs + σa, as floats (t_varies, t_coloured), which is what
- * the march specialises on; and what multiple scattering decides on
+ * same for σt alone (t_varies, t_coloured), which is what the march
+ * specialises on; and what multiple scattering decides on
  * (baker/bounces.c): the sums of σs and σt over the channels, of σt where
  * σs > 0 and the count of those voxels, whether σs alone varies or is
  * coloured, whether g varies or is set. */
@@ -55,7 +55,11 @@ typedef struct volume {
   grid_dims_t dims;
   float *ior;      /* n per voxel, >= 1 */
   float *sigma_s;  /* sigma_channels per voxel (RGB interleaved, or one), 1/m */
-  float *sigma_a;  /* sigma_channels per voxel */
+  /* σt = σs + σa, sigma_channels per voxel, 1/m: the float sum of the two
+   * coefficients, which is all any later stage needs of σa (the march's
+   * extinction, the `extinction` grid). While voxelize composites the
+   * objects it holds σa; vox_summarise makes it the sum. */
+  float *sigma_t;
   /* 3, or 1 once vox_build found the medium grey (R = G = B for both
    * coefficients everywhere): its one value stands for every channel, 16
    * bytes per voxel less through every phase of the bake. 0 reads as 3 (a
@@ -68,7 +72,7 @@ typedef struct volume {
   float *ior_rb;
   /* What the scene contains, for kernel specialisation (DESIGN §3). */
   int has_refraction;  /* n varies somewhere */
-  int homogeneous;     /* sigma_s and sigma_a the same in every voxel */
+  int homogeneous;     /* sigma_s and sigma_t the same in every voxel */
   int grey;            /* R = G = B for both coefficients everywhere */
   float n_min, n_max;
   /* the pass these came from, when `scanned` (vox_summarise; a volume
@@ -86,15 +90,14 @@ static inline size_t vox_channel_at(int channels, size_t i, int c) {
   return channels == 1 ? i : 3 * i + (size_t)c;
 }
 
-/* Where channel c of voxel i lies in sigma_s and sigma_a. */
+/* Where channel c of voxel i lies in sigma_s and sigma_t. */
 static inline size_t vox_sigma_index(const volume_t *v, size_t i, int c) {
   return vox_channel_at(v->sigma_channels, i, c);
 }
 
-/* sigma_s + sigma_a of channel c at voxel i, as a float. */
+/* σt of channel c at voxel i. */
 static inline float vol_sigma_t(const volume_t *v, size_t i, int c) {
-  const size_t at = vox_sigma_index(v, i, c);
-  return v->sigma_s[at] + v->sigma_a[at];
+  return v->sigma_t[vox_sigma_index(v, i, c)];
 }
 
 /* Bytes per voxel the volume needs (for grid_check_memory). */

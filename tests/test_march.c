@@ -216,7 +216,7 @@ static int test_energy(clh_context_t *cl, int grid_sigma) {
   tv_alloc(&v, N, N, N, h, -1, -1, -1);
   const float ss[3] = {1.0f, 0.5f, 0.25f}, sa[3] = {2.0f, 1.5f, 0.75f}; /* σt = 3, 2, 1 */
   tv_fill(&v, 1.2f, ss, sa);
-  if (grid_sigma) v.sigma_a[0] *= 1.0001f;
+  if (grid_sigma) v.sigma_t[0] *= 1.0001f; /* σa until tv_summarise */
   tv_summarise(&v);
   scene_light_t lights[3] = {tl_spot(0.2f, 0.1f, -2.0f, 0, 0, 1, 30, 10, 5, 2),
                              tl_point(0.3f, -0.2f, 0.1f, 1, 2, 3),

@@ -11,7 +11,8 @@
 #include "test_util.h"
 
 /* A volume of nx*ny*nz cubes of side h with its corner at origin, filled
- * with n and the given coefficients (per metre). */
+ * with n and the given coefficients (per metre). Like the voxelizer's, its
+ * sigma_t holds σa while objects are composited, until tv_summarise. */
 static inline void tv_alloc(volume_t *v, int nx, int ny, int nz, float h, float ox, float oy,
                             float oz) {
   memset(v, 0, sizeof *v);
@@ -21,8 +22,8 @@ static inline void tv_alloc(volume_t *v, int nx, int ny, int nz, float h, float 
   size_t n = grid_count(&v->dims);
   v->ior = calloc(n, sizeof(float));
   v->sigma_s = malloc(3 * n * sizeof(float));
-  v->sigma_a = malloc(3 * n * sizeof(float));
-  REQUIRE(v->ior && v->sigma_s && v->sigma_a, "out of memory for a %dx%dx%d volume", nx, ny, nz);
+  v->sigma_t = malloc(3 * n * sizeof(float));
+  REQUIRE(v->ior && v->sigma_s && v->sigma_t, "out of memory for a %dx%dx%d volume", nx, ny, nz);
 }
 
 static inline void tv_fill(volume_t *v, float n, const float ss[3], const float sa[3]) {
@@ -31,24 +32,26 @@ static inline void tv_fill(volume_t *v, float n, const float ss[3], const float 
     v->ior[i] = n;
     for (int c = 0; c < 3; c++) {
       v->sigma_s[3 * i + c] = ss[c];
-      v->sigma_a[3 * i + c] = sa[c];
+      v->sigma_t[3 * i + c] = sa[c];
     }
   }
 }
 
-/* Recomputes the volume's summary flags the way the voxelizer does. */
+/* Makes sigma_t σs + σa and the volume's summary flags, the way the
+ * voxelizer does. */
 static inline void tv_summarise(volume_t *v) {
   size_t count = grid_count(&v->dims);
+  for (size_t i = 0; i < 3 * count; i++) v->sigma_t[i] += v->sigma_s[i];
   v->n_min = v->n_max = v->ior[0];
   v->homogeneous = v->grey = 1;
   for (size_t i = 0; i < count; i++) {
     v->n_min = fminf(v->n_min, v->ior[i]);
     v->n_max = fmaxf(v->n_max, v->ior[i]);
     for (int c = 0; c < 3; c++)
-      if (v->sigma_s[3 * i + c] != v->sigma_s[c] || v->sigma_a[3 * i + c] != v->sigma_a[c])
+      if (v->sigma_s[3 * i + c] != v->sigma_s[c] || v->sigma_t[3 * i + c] != v->sigma_t[c])
         v->homogeneous = 0;
     if (v->sigma_s[3 * i] != v->sigma_s[3 * i + 1] || v->sigma_s[3 * i] != v->sigma_s[3 * i + 2] ||
-        v->sigma_a[3 * i] != v->sigma_a[3 * i + 1] || v->sigma_a[3 * i] != v->sigma_a[3 * i + 2])
+        v->sigma_t[3 * i] != v->sigma_t[3 * i + 1] || v->sigma_t[3 * i] != v->sigma_t[3 * i + 2])
       v->grey = 0;
   }
   v->has_refraction = v->n_max > v->n_min;
@@ -58,7 +61,7 @@ static inline void tv_free(volume_t *v) {
   free(v->ior);
   free(v->ior_rb);
   free(v->sigma_s);
-  free(v->sigma_a);
+  free(v->sigma_t);
 }
 
 /* The voxelizer's smoothing profile (baker/voxelize.c): weight of the object
@@ -89,7 +92,7 @@ static inline void tv_ball(volume_t *v, const float c[3], float r, float n_obj, 
         v->ior[idx] += w * (n_obj - v->ior[idx]);
         for (int ch = 0; ch < 3; ch++) {
           if (ss) v->sigma_s[3 * idx + ch] += w * (ss[ch] - v->sigma_s[3 * idx + ch]);
-          if (sa) v->sigma_a[3 * idx + ch] += w * (sa[ch] - v->sigma_a[3 * idx + ch]);
+          if (sa) v->sigma_t[3 * idx + ch] += w * (sa[ch] - v->sigma_t[3 * idx + ch]);
         }
       }
 }

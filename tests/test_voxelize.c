@@ -305,8 +305,8 @@ static void case_profile(void) {
           double w = (v.ior[idx] - 1.0) / 0.5;
           if (fabs(w - w_expect) > worst) worst = fabs(w - w_expect);
           if (w > 0.0 && w < 1.0) transition++;
-          /* sigma follows the same weight */
-          EXPECT_NEAR(v.sigma_a[3 * idx + 2], 0.75 * w, 1e-5);
+          /* sigma follows the same weight (σt = σa: σs is 0) */
+          EXPECT_NEAR(v.sigma_t[3 * idx + 2], 0.75 * w, 1e-5);
         }
     printf("smoothing %.1f voxels: worst |w - w(d_sphere)| = %.5f (tolerance %.5f from r - r_in = "
            "%.4f voxels), %zu voxels in transition\n",
@@ -557,17 +557,17 @@ static void case_objects(void) {
         double ro = sqrt(pow(c[0] - SPHERE_C[0], 2) + pow(c[1] - SPHERE_C[1], 2) +
                          pow(c[2] - SPHERE_C[2], 2)) / d->voxel_size;
         size_t idx = grid_index(d, i, j, k);
-        const float *sa = v.sigma_a + 3 * idx, *ss = v.sigma_s + 3 * idx;
+        const float *st = v.sigma_t + 3 * idx, *ss = v.sigma_s + 3 * idx;
         /* 1.5 voxels clear of each surface (s/2 plus the icospheres' sag) */
         if (ri < 0.3 / d->voxel_size - 1.5) {
           in_inner++;
-          if (v.ior[idx] != 1.2f || sa[0] != 0.0f || ss[0] != 0.0f) bad++;
+          if (v.ior[idx] != 1.2f || st[0] != 0.0f || ss[0] != 0.0f) bad++;
         } else if (ri > 0.3 / d->voxel_size + 1.5 && ro < 0.7 / d->voxel_size - 1.5) {
           in_shell++;
-          if (v.ior[idx] != 1.5f || sa[2] != 0.3f || ss[1] != 0.0f) bad++;
+          if (v.ior[idx] != 1.5f || st[2] != 0.3f || ss[1] != 0.0f) bad++;
         } else if (ro > 0.7 / d->voxel_size + 1.5) {
           outside++;
-          if (v.ior[idx] != 1.0f || sa[1] != 0.0f || ss[2] != 0.5f) bad++;
+          if (v.ior[idx] != 1.0f || st[1] != 0.5f || ss[2] != 0.5f) bad++;
         }
       }
   printf("nested spheres: %zu inner, %zu shell, %zu outside voxels checked, %zu wrong\n", in_inner,
@@ -730,7 +730,7 @@ static void case_medium(void) {
   s.medium_sigma_a[1] = 0.03f;
   if (build(&s, &v)) {
     EXPECT(v.homogeneous && !v.grey && v.sigma_channels == 3);
-    EXPECT_NEAR(v.sigma_a[vox_sigma_index(&v, grid_count(&v.dims) - 1, 1)], 0.03f, 0.0);
+    EXPECT_NEAR(vol_sigma_t(&v, grid_count(&v.dims) - 1, 1), s.medium_sigma_s[1] + 0.03f, 0.0);
     vox_free(&v);
   }
 
@@ -776,7 +776,8 @@ static void case_medium(void) {
       worst_n = fmax(worst_n, fabs(v.ior[idx] - n_expect));
       for (int ch = 0; ch < 3; ch++) {
         worst_s = fmax(worst_s, fabs(v.sigma_s[3 * idx + ch] - s.medium_sigma_s[ch] * rho[idx]));
-        worst_s = fmax(worst_s, fabs(v.sigma_a[3 * idx + ch] - 0.1 * rho[idx]));
+        worst_s = fmax(worst_s, fabs(v.sigma_t[3 * idx + ch] -
+                                     (s.medium_sigma_s[ch] + 0.1) * rho[idx]));
       }
     }
     printf("medium from VDB: worst |n - written| %.2e, worst |sigma - sigma*density| %.2e\n",
@@ -808,22 +809,22 @@ static void scan_pair(int with_g, int uniform) {
   const size_t n = grid_count(&grey.dims);
   grey.ior = calloc(n, sizeof(float));
   grey.sigma_s = calloc(n, sizeof(float));
-  grey.sigma_a = calloc(n, sizeof(float));
+  grey.sigma_t = calloc(n, sizeof(float));
   grey.g = with_g ? calloc(n, sizeof(float)) : NULL;
   grey.sigma_channels = 1;
   for (size_t i = 0; i < n; i++) {
     grey.ior[i] = uniform ? 1.0f : 1.0f + 0.001f * (float)(i % 97);
     grey.sigma_s[i] = uniform || i % 7 == 0 ? 0.0f : 0.3f + 1e-3f * (float)(i % 31);
-    grey.sigma_a[i] = uniform ? 0.02f : 0.01f * (float)(i % 5);
+    grey.sigma_t[i] = grey.sigma_s[i] + (uniform ? 0.02f : 0.01f * (float)(i % 5));
     if (with_g) grey.g[i] = i % 11 ? 0.3f : 0.0f;
   }
   rgb = grey;
   rgb.sigma_channels = 3;
   rgb.sigma_s = malloc(3 * n * sizeof(float));
-  rgb.sigma_a = malloc(3 * n * sizeof(float));
+  rgb.sigma_t = malloc(3 * n * sizeof(float));
   for (size_t i = 0; i < 3 * n; i++) {
     rgb.sigma_s[i] = grey.sigma_s[i / 3];
-    rgb.sigma_a[i] = grey.sigma_a[i / 3];
+    rgb.sigma_t[i] = grey.sigma_t[i / 3];
   }
   vox_scan_t a, b;
   vox_scan(&grey, &a);
@@ -841,14 +842,58 @@ static void scan_pair(int with_g, int uniform) {
   EXPECT(a.scattering == b.scattering, "%zu vs %zu scattering voxels", a.scattering, b.scattering);
   printf("scan (g grid %d, uniform %d): ss %.9g st %.9g, %zu scattering voxels\n", with_g, uniform,
          a.ss, a.st, a.scattering);
-  free(rgb.sigma_s), free(rgb.sigma_a);
+  free(rgb.sigma_s), free(rgb.sigma_t);
   vox_free(&grey);
+}
+
+/* vox_summarise makes sigma_t, which held σa while the objects were
+ * composited, the float sum σs + σa in every voxel and channel, and scans
+ * it as vox_scan scans a volume that holds σt already (grey and RGB). */
+static void summarise_pair(int channels) {
+  volume_t v, t;
+  memset(&v, 0, sizeof v);
+  v.dims.nx = 9, v.dims.ny = 14, v.dims.nz = 11;
+  v.dims.voxel_size = 0.1f;
+  const size_t n = grid_count(&v.dims), m = n * (size_t)channels;
+  v.sigma_channels = channels;
+  v.ior = calloc(n, sizeof(float));
+  v.sigma_s = malloc(m * sizeof(float));
+  v.sigma_t = malloc(m * sizeof(float));
+  for (size_t i = 0; i < n; i++) v.ior[i] = 1.0f + 0.01f * (float)(i % 13);
+  for (size_t i = 0; i < m; i++) {
+    v.sigma_s[i] = i % 5 ? 0.3f + 1e-3f * (float)(i % 29) : 0.0f;
+    v.sigma_t[i] = 0.017f * (float)(i % 7); /* σa */
+  }
+  t = v;
+  t.sigma_s = malloc(m * sizeof(float));
+  t.sigma_t = malloc(m * sizeof(float));
+  for (size_t i = 0; i < m; i++) {
+    t.sigma_s[i] = v.sigma_s[i];
+    t.sigma_t[i] = v.sigma_s[i] + v.sigma_t[i];
+  }
+  vox_scan_t b;
+  vox_scan(&t, &b);
+  vox_summarise(&v);
+  const vox_scan_t *a = &v.scan;
+  EXPECT(v.sigma_channels == channels && memcmp(v.sigma_t, t.sigma_t, m * sizeof(float)) == 0,
+         "%d channels: sigma_t is not sigma_s + sigma_a", channels);
+  EXPECT(a->varies == b.varies && a->coloured == b.coloured && a->t_varies == b.t_varies &&
+         a->t_coloured == b.t_coloured && a->s_varies == b.s_varies &&
+         a->s_coloured == b.s_coloured && a->n_min == b.n_min && a->n_max == b.n_max);
+  EXPECT(a->ss == b.ss && a->st == b.st && a->st_scattering == b.st_scattering &&
+             a->scattering == b.scattering,
+         "%d channels: sums %a %a vs %a %a", channels, a->ss, a->st, b.ss, b.st);
+  EXPECT(a->t_varies && a->coloured == (channels == 3));
+  free(t.sigma_s), free(t.sigma_t);
+  vox_free(&v);
 }
 
 static void case_scan(void) {
   scan_pair(0, 0);
   scan_pair(1, 0);
   scan_pair(0, 1);
+  summarise_pair(1);
+  summarise_pair(3);
 }
 
 /* mesh_io_read and vox_build must both refuse with BK_ERR_INPUT, naming the
