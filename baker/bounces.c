@@ -47,49 +47,15 @@ void ms_decide(const scene_t *scene, const volume_t *vol, ms_setup_t *ms, int *g
   ms->hg = scene->medium_g != 0.0f || m->g_set;
 }
 
-typedef struct scat_ctx {
-  const volume_t *vol;
-  ms_setup_t *ms;
-  int channels;
-  double h;
-} scat_ctx_t;
-
-/* The scatter grid of voxels [lo, hi): σs per voxel length, then g. */
-static void scat_range(void *arg, size_t lo, size_t hi) {
-  const scat_ctx_t *x = arg;
-  const volume_t *vol = x->vol;
-  for (size_t i = lo; i < hi; i++) {
-    float *o = x->ms->scat + x->ms->stride * i;
-    for (int c = 0; c < x->channels; c++)
-      o[c] = (float)(vol->sigma_s[vox_sigma_index(vol, i, c)] * x->h);
-    if (x->ms->g_grid) o[x->channels] = vol->g[i];
-  }
-}
-
-int ms_build(const scene_t *scene, const volume_t *vol, int channels, ms_setup_t *ms,
-             bk_error_t *err) {
+void ms_build(const scene_t *scene, const volume_t *vol, ms_setup_t *ms) {
   ms_params *M = &ms->params;
   const double h = vol->dims.voxel_size;
-  const size_t count = grid_count(&vol->dims);
   M->seed = scene->seed;
   M->g = vol->g ? vol->g[0] : scene->medium_g;
   M->grid = (bk_uint)ms->sigma_grid;
   M->g_grid = (bk_uint)ms->g_grid;
   /* one channel carries the sum of RGB, and σs is grey: any channel's */
   for (int c = 0; c < 3; c++) M->sigma_s[c] = (float)(vol->sigma_s[vox_sigma_index(vol, 0, c)] * h);
-  ms->stride = channels + (ms->g_grid ? 1 : 0);
-  if (!ms->sigma_grid && !ms->g_grid) return BK_OK;
-  ms->scat = bk_calloc(count, ms->stride * sizeof(float), "march: scatter grid", err);
-  if (!ms->scat) return BK_ERR_RUNTIME;
-  scat_ctx_t x = {vol, ms, channels, h};
-  bk_parallel(count, BK_GRAIN, scat_range, &x);
-  return BK_OK;
-}
-
-void ms_free(ms_setup_t *ms) {
-  if (!ms) return;
-  free(ms->scat);
-  ms->scat = NULL;
 }
 
 void ms_kernel_defines(const ms_setup_t *ms, char *buf, size_t len) {

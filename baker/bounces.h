@@ -40,11 +40,9 @@ typedef struct ms_setup {
   ms_params params;  /* max_bounces 0: single scattering, nothing else set */
   int auto_chosen;   /* bounces came from the "auto" rule */
   double ratio;      /* the rule's r (computed for every scene) */
-  int sigma_grid;    /* σs varies: the scatter grid holds it */
-  int g_grid;        /* g varies: the scatter grid holds it after σs */
+  int sigma_grid;    /* σs varies: the march reads the volume's */
+  int g_grid;        /* g varies: the march reads the volume's */
   int hg;            /* g != 0 somewhere */
-  int stride;        /* floats per voxel of the scatter grid */
-  float *scat;       /* sigma_grid || g_grid: the scatter grid, else NULL */
 } ms_setup_t;
 
 /* The rule's r for a volume (see above). */
@@ -56,12 +54,10 @@ int ms_auto_bounces(double r);
  * vary. Sets *grey_scatter: σs has R = G = B everywhere (a one-channel march
  * then still holds, as for σt). */
 void ms_decide(const scene_t *scene, const volume_t *vol, ms_setup_t *ms, int *grey_scatter);
-/* When events are allowed: the parameters and the scatter grid for
- * `channels` channels (1: the march carries the sum of RGB). g: the
- * medium's, or per voxel from vol->g when that is set. */
-int ms_build(const scene_t *scene, const volume_t *vol, int channels, ms_setup_t *ms,
-             bk_error_t *err);
-void ms_free(ms_setup_t *ms);
+/* When events are allowed: the parameters (the uniform σs per voxel
+ * length and g, when they do not vary; otherwise the march reads the
+ * volume's). */
+void ms_build(const scene_t *scene, const volume_t *vol, ms_setup_t *ms);
 
 /* -D flags of the scattering kernel (empty when max_bounces is 0). */
 void ms_kernel_defines(const ms_setup_t *ms, char *buf, size_t len);

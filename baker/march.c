@@ -119,6 +119,11 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
   P->dispersion = vol->ior_rb != NULL;
   P->mode = PM_MODE_REFERENCE;
   P->flux = (bk_uint)s->ms.hg; /* the view's anisotropic phase needs the flux */
+  P->sigma_stride = vol->sigma_channels == 1 ? 1u : 3u;
+  P->h = d->voxel_size;
+  s->sigma_t = vol->sigma_t;
+  s->sigma_s = vol->sigma_s;
+  s->g = vol->g;
   set_scale(s, 1.0);
   return BK_OK;
 }
@@ -191,12 +196,11 @@ int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t 
   if (s->channels == 1) ph_make_grey(&s->lights);
   s->seed = scene->seed;
   pm_set_range(s, 0, s->lights.photons);
-  /* what the march holds per voxel: n/∇n, the pyramid, σt, the counters */
+  /* what the march holds per voxel beside the volume: n/∇n, the pyramid,
+   * the counters (σ is read from the volume) */
   const size_t field = (size_t)ceil(FLD_WORST_BYTES_PER_VOXEL);
   size_t per_voxel = (s->has_refraction ? (vol->ior_rb ? 3 : 1) * field + 1 : 0) +
-                     (s->homogeneous ? 0 : s->channels * sizeof(float)) +
                      s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
-                     (s->ms.sigma_grid || s->ms.g_grid ? (s->channels + 1) * sizeof(float) : 0) +
                      (s->ms.hg ? PM_FLUX_SLOTS * (sizeof(uint64_t) + sizeof(float)) + 4 : 0);
   rc = grid_check_memory(d, per_voxel, scene->path, err);
   if (rc != BK_OK) return rc;
@@ -207,8 +211,7 @@ int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t 
   double ms_octree = bk_now_ms() - t0 + ms_scan;
   t0 = bk_now_ms();
   if ((rc = set_params(scene, vol, s, err)) != BK_OK) goto error;
-  if (s->ms.params.max_bounces && (rc = ms_build(scene, vol, s->channels, &s->ms, err)) != BK_OK)
-    goto error;
+  if (s->ms.params.max_bounces) ms_build(scene, vol, &s->ms);
   ms_generate += bk_now_ms() - t0;
   if (timings) report_prepare(s, timings, ms_octree, ms_generate);
   if (stats) {
@@ -224,17 +227,14 @@ error:
 void pm_setup_free_fields(pm_setup_t *s) {
   if (!s->fields_kept) { /* kept fields belong to their pm_field_cache_t */
     free(s->ng);
-    free(s->sigma);
     oct_free(&s->pyramid);
   }
   s->ng = NULL;
-  s->sigma = NULL;
 }
 
 void pm_setup_free(pm_setup_t *s) {
   if (!s) return;
   pm_setup_free_fields(s);
-  ms_free(&s->ms);
 }
 
 void pm_disable_octree(pm_setup_t *s) {
@@ -332,11 +332,12 @@ int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_
     pm_result r;
     if (s->ms.params.max_bounces) {
       ms_tally t;
+      const ms_medium med = {s->sigma_s, s->g};
       pm_march_scattered(&s->params, &s->ms.params, s->lights.lights, s->ng, s->pyramid.level,
-                         s->sigma, s->ms.scat, acc, s->masks, s->tables, (bk_uint)i, &r, &t, NULL);
+                         s->sigma_t, med, acc, s->masks, s->tables, (bk_uint)i, &r, &t, NULL);
       if (stats) pm_stats_add_tally(stats, &t);
     } else {
-      pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma, acc,
+      pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma_t, acc,
                       s->masks, s->tables, (bk_uint)i, &r, NULL);
     }
     if (stats) pm_stats_add(stats, &r);
@@ -550,7 +551,7 @@ static int trace(const pm_setup_t *s, const pm_params *P, const ph_light *lights
   if (!scratch) return BK_ERR_RUNTIME;
   pm_path_rec rec = {points, max_points, 0};
   pm_result r;
-  pm_march_photon(P, lights, s->ng, s->pyramid.level, s->sigma, scratch, NULL, NULL, index, &r,
+  pm_march_photon(P, lights, s->ng, s->pyramid.level, s->sigma_t, scratch, NULL, NULL, index, &r,
                   &rec);
   free(scratch);
   const grid_dims_t *d = &s->dims;

@@ -76,7 +76,11 @@ typedef struct pm_setup {
   int has_refraction, homogeneous, grey;
   float *ng;             /* has_refraction: the padded {∇n, n} field (baker/field.h) */
   oct_pyramid_t pyramid; /* has_refraction */
-  float *sigma;          /* !homogeneous: channels floats per voxel, σt per voxel length */
+  /* The volume's σ per metre (params.sigma_stride floats per voxel; the
+   * kernels scale it by h), not owned: σt, read unless homogeneous; σs and
+   * g, read by scattering events where they vary (ms.sigma_grid, ms.g_grid;
+   * g NULL: uniform). */
+  const float *sigma_t, *sigma_s, *g;
   double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
   int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
   unsigned seed;         /* photons.seed, for pm_derive */
@@ -90,14 +94,14 @@ typedef struct pm_setup {
   /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */
   uint64_t *masks;       /* origin recorder: pm_mask_count masks, zeroed by the caller */
   const float *tables;   /* sampling tables: LD_TABLE_FLOATS(8, 8) floats per light */
-  /* ng, pyramid and sigma belong to a pm_field_cache_t (not freed with the
+  /* ng and pyramid belong to a pm_field_cache_t (not freed with the
    * setup): 1 built by this prepare, 2 taken from an earlier frame's
    * (fields_frame); 0: owned */
   int fields_kept, fields_frame;
 } pm_setup_t;
 
-/* The march's fields of one volume (the pyramid, the {∇n, n} field, the σt
- * grid and what the volume scan found), kept by a batch of frames
+/* The march's fields of one volume (the pyramid, the {∇n, n} field and
+ * what the volume scan found), kept by a batch of frames
  * (baker/frame_reuse.h) for the next frame whose volume has the same key
  * (volume_t.key: the hash of the voxelize stage's inputs, so the same n and
  * σ voxel for voxel) and the march the same channel count. */
@@ -112,7 +116,6 @@ typedef struct pm_field_cache {
   int channels;          /* of the fields below; 0: none built yet */
   float *ng;
   oct_pyramid_t pyramid;
-  float *sigma;
 } pm_field_cache_t;
 void pm_field_cache_free(pm_field_cache_t *c);
 /* march_fields.c, for pm_prepare: the volume's specialisations (has_refraction,

@@ -29,9 +29,8 @@ static int holds_volume(const pm_field_cache_t *c, const volume_t *vol) {
 
 static void free_fields(pm_field_cache_t *c) {
   free(c->ng);
-  free(c->sigma);
   oct_free(&c->pyramid);
-  c->ng = c->sigma = NULL;
+  c->ng = NULL;
   c->channels = 0;
 }
 
@@ -73,27 +72,12 @@ void pm_fields_decide(const scene_t *scene, const volume_t *vol, pm_field_cache_
   if (!holds) return;
   kept->decided = 1;
   kept->bounces = scene->bounces;
-  kept->ms = *ms; /* no scatter grid yet: ms_build makes it per march */
+  kept->ms = *ms;
   kept->grey_scatter = *grey_scatter;
 }
 
-typedef struct sigma_ctx {
-  const volume_t *vol;
-  pm_setup_t *s;
-  double h;
-} sigma_ctx_t;
-
-/* σt per voxel length of voxels [lo, hi). */
-static void sigma_range(void *arg, size_t lo, size_t hi) {
-  const sigma_ctx_t *x = arg;
-  const int nch = x->s->channels;
-  for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < nch; c++)
-      x->s->sigma[(size_t)nch * i + c] = (float)(vol_sigma_t(x->vol, i, c) * x->h);
-}
-
-/* The pyramid and the {∇n, n} field, only where n varies, and the
- * extinction grid unless the medium is homogeneous (σt per voxel length). */
+/* The pyramid and the {∇n, n} field, only where n varies (σ is read from
+ * the volume). */
 static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
   const grid_dims_t *d = &s->dims;
   const double h = d->voxel_size;
@@ -114,12 +98,6 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
            bk_now_ms() - t1,
            (double)fld_floats(d->nx, d->ny, d->nz, s->ng, vol->ior_rb ? 3 : 1) * 4.0 / 1048576.0);
   }
-  if (s->homogeneous) return BK_OK;
-  s->sigma = bk_calloc(s->voxels, s->channels * sizeof(float), "march: extinction grid", err);
-  if (!s->sigma) return BK_ERR_RUNTIME;
-  double t0 = bk_now_ms();
-  bk_parallel(s->voxels, BK_GRAIN, sigma_range, (void *)&(sigma_ctx_t){vol, s, h});
-  bk_log(2, "octree: extinction grid %.0f ms", bk_now_ms() - t0);
   return BK_OK;
 }
 
@@ -129,7 +107,6 @@ int pm_fields_build(const volume_t *vol, pm_field_cache_t *kept, pm_setup_t *s,
   if (holds && kept->channels == s->channels) {
     s->ng = kept->ng;
     s->pyramid = kept->pyramid;
-    s->sigma = kept->sigma;
     s->fields_kept = 2;
     s->fields_frame = kept->frame;
     s->octree_enabled = s->has_refraction;
@@ -142,7 +119,6 @@ int pm_fields_build(const volume_t *vol, pm_field_cache_t *kept, pm_setup_t *s,
   kept->channels = s->channels;
   kept->ng = s->ng;
   kept->pyramid = s->pyramid;
-  kept->sigma = s->sigma;
   s->fields_kept = 1;
   s->fields_frame = kept->frame;
   return BK_OK;

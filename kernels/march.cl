@@ -11,8 +11,9 @@
 
 #include "kernels/photon_march.h"
 
-/* masks and tables serve the adaptive modes (PM_MODE, march.h); the
- * reference march never reads them. */
+/* sigma: the volume's σt per metre (PM_SIGMA_STRIDE floats per voxel),
+ * unread when HOMOGENEOUS. masks and tables serve the adaptive modes
+ * (PM_MODE, march.h); the reference march never reads them. */
 __kernel void pm_march(__constant pm_params *P, __constant ph_light *lights,
                        __global const float *ng, __global const uchar *pyr,
                        __global const float *sigma, __global ulong *acc, uint first, uint count,

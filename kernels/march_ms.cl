@@ -19,12 +19,14 @@ __kernel void pm_march_ms(__constant pm_params *P, __constant ph_light *lights,
                           __global const float *sigma, __global ulong *acc, uint first,
                           uint count, __global pm_result *out, __global ulong *masks,
                           __global const float *tables, __constant ms_params *M,
-                          __global const float *scat, __global ms_tally *tally) {
+                          __global const float *sigma_s, __global const float *g,
+                          __global ms_tally *tally) {
   uint i = (uint)get_global_id(0);
   if (i >= count) return;
   pm_result r;
   ms_tally t;
-  pm_march_scattered(P, M, lights, ng, pyr, sigma, scat, acc, masks, tables,
+  ms_medium med = {sigma_s, g};
+  pm_march_scattered(P, M, lights, ng, pyr, sigma, med, acc, masks, tables,
                   ph_photon_of_slot(lights, P->light_count, first + i), &r, &t);
   out[i] = r;
   tally[i] = t;

@@ -2,7 +2,7 @@
  *
  * In: the photon's index (its light and origin come from light_sample.h), the
  * refractive field {∇n, n} and the constant-block pyramid of n
- * (kernels/ray_core.h), the extinction grid (or constant
+ * (kernels/ray_core.h), the volume's σt per metre (or a constant
  * extinction), and a fixed-point accumulator. Out: the accumulator gains
  * Φ·ℓ·S per voxel crossed (ℓ the path length in that voxel, in voxels, S the
  * fixed-point scale); the photon's fate, steps and path length.
@@ -126,6 +126,10 @@
 #define DISPERSION 0
 #endif
 #define PM_DISPERSION(P) (DISPERSION)
+#ifndef PM_SIGMA_STRIDE
+#define PM_SIGMA_STRIDE 3
+#endif
+#define PM_SIGMA_STRIDE_OF(P) (PM_SIGMA_STRIDE)
 #ifndef PM_FLUX
 #define PM_FLUX 0
 #endif
@@ -147,6 +151,7 @@
 #define PM_NCH(P) ((int)(P)->channels)
 #define PM_MODE_OF(P) ((int)(P)->mode)
 #define PM_DISPERSION(P) ((P)->dispersion)
+#define PM_SIGMA_STRIDE_OF(P) ((int)(P)->sigma_stride)
 #define PM_FLUX_COMPILED 1
 #define PM_FLUX_OF(P) ((P)->flux && (P)->mode != PM_MODE_ORIGINS)
 /* The host path marches one photon at a time on one thread. */
@@ -186,13 +191,13 @@ typedef struct pm_params {
   bk_uint integrator;
   bk_uint dispersion;     /* host path only: the device uses -D DISPERSION */
   bk_uint flux;           /* host path only: the device uses -D PM_FLUX */
-  int pad3;
+  bk_uint sigma_stride;   /* floats per voxel of the volume's σ (1 grey, 3): host path only (-D PM_SIGMA_STRIDE) */
   bk_uint mode;               /* PM_MODE_*: host path only (the device uses -D PM_MODE) */
   int coarse_shift;           /* pilot: deposits and marks at voxel >> coarse_shift */
   int cnx, cny, cnz;          /* pilot: the coarse grid */
   float weight_scale;         /* weighted: quanta of the packed weight sum per unit w */
   bk_uint count_shift;        /* weighted: the count's lowest bit in the packed counter */
-  bk_uint pad0;
+  float h;                    /* the voxel size: σ per metre -> per voxel length */
 } pm_params;
 BK_STATIC_ASSERT(sizeof(pm_params) == 128, "pm_params layout is shared with kernels");
 
@@ -273,6 +278,15 @@ BK_INLINE int pm_acc_stride(int mode, int channels) {
   return mode == PM_MODE_TABLES ? channels + 1 : channels;
 }
 
+/* σ per voxel length of channel ch at voxel idx from the volume's σ per
+ * metre (one value per voxel for a grey medium, three interleaved
+ * otherwise). The float product is the host's (float)(σ · (double)h) bit
+ * for bit: two floats multiply exactly in double, so both round once. */
+BK_INLINE float pm_sigma_at(const pm_params *P, BK_GLOBAL const float *sigma, bk_long idx,
+                            int ch) {
+  return sigma[PM_SIGMA_STRIDE_OF(P) == 1 ? idx : 3 * idx + ch] * P->h;
+}
+
 /* The photon crosses length seg (voxels) of voxel idx (at c): deposits the
  * exact integral of its attenuated power and attenuates it. Returns 1 when
  * it is absorbed (every channel below its threshold). */
@@ -304,7 +318,7 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
   if (ph->fl.state == MS_FLYING) {
     float st[3], sbar = 0.0f;
     for (int ch = 0; ch < nch; ch++) {
-      st[ch] = PM_HOMOGENEOUS(P) ? P->sigma_t[ch] : sigma[nch * idx + ch];
+      st[ch] = PM_HOMOGENEOUS(P) ? P->sigma_t[ch] : pm_sigma_at(P, sigma, idx, ch);
       sbar += st[ch];
     }
     ms_flight_cross(&ph->fl, ph->power, ph->path, st, nch, sbar / (float)nch, seg, idx, c);
@@ -320,7 +334,7 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
 #endif
     float sg, trans;
     if (PM_HOMOGENEOUS(P)) sg = P->sigma_t[ch];
-    else sg = sigma[nch * idx + ch];
+    else sg = pm_sigma_at(P, sigma, idx, ch);
     float r = rc_atten(sg * seg, &trans);
     pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
 #if PM_FLUX_COMPILED

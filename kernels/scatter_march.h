@@ -7,11 +7,10 @@
  * Specialisation (-D on the device; ms_params fields on the host):
  * MULTIPLE_SCATTERING (kernels/march_ms.cl; the events per photon are a
  * parameter, so a change of photons.bounces needs no new build), MS_SIGMA_GRID
- * (σs varies: read per voxel from the scatter grid, else ms_params.sigma_s),
- * MS_G_GRID (g varies: the scatter grid holds it after σs), MS_HG (g ≠ 0
- * somewhere: without it the phase is isotropic and no g is read). The
- * scatter grid holds per voxel PM_CHANNELS σs (per voxel length), then g
- * when MS_G_GRID. */
+ * (σs varies: read per voxel from the volume's σs, per metre, like σt in
+ * photon_march.h, else ms_params.sigma_s), MS_G_GRID (g varies: read from
+ * the volume's g), MS_HG (g ≠ 0 somewhere: without it the phase is
+ * isotropic and no g is read). */
 #ifndef BAKER_SCATTER_MARCH_H
 #define BAKER_SCATTER_MARCH_H
 
@@ -37,24 +36,30 @@
 #define MS_HG_OF(M) 1
 #endif
 
-/* σs per channel and g at the collision of the photon's last leg. */
-BK_INLINE float ms_medium_at(const ms_params *M, BK_GLOBAL const float *scat, int nch,
+/* The volume's σs (per metre, the stride of its σ) and g per voxel, as the
+ * scattering events read them. */
+typedef struct ms_medium {
+  BK_GLOBAL const float *sigma_s;
+  BK_GLOBAL const float *g;
+} ms_medium;
+
+/* σs per channel (per voxel length) and g at the collision of the photon's
+ * last leg. */
+BK_INLINE float ms_medium_at(const pm_params *P, const ms_params *M, ms_medium med, int nch,
                              bk_long idx, float *ss) {
-  const int stride = nch + (MS_G_GRID_OF(M) ? 1 : 0);
   for (int ch = 0; ch < nch; ch++)
-    ss[ch] = MS_SIGMA_GRID_OF(M) ? scat[stride * idx + ch] : M->sigma_s[ch];
+    ss[ch] = MS_SIGMA_GRID_OF(M) ? pm_sigma_at(P, med.sigma_s, idx, ch) : M->sigma_s[ch];
   if (!MS_HG_OF(M)) return 0.0f;
-  return MS_G_GRID_OF(M) ? scat[stride * idx + nch] : M->g;
+  return MS_G_GRID_OF(M) ? med.g[idx] : M->g;
 }
 
 /* The leg that follows the collision of the last one: weight (with
  * roulette), direction, position. Returns 0 when the chain ends. */
 BK_INLINE int ms_scatter(const pm_params *P, const ms_params *M, BK_GLOBAL const float *ng,
-                         BK_GLOBAL const float *scat, pm_photon *ph, float w0, bk_uint index,
-                         bk_uint leg) {
+                         ms_medium med, pm_photon *ph, float w0, bk_uint index, bk_uint leg) {
   const int nch = PM_NCH(P);
   float ss[3] = {0.0f, 0.0f, 0.0f}, w[3] = {0.0f, 0.0f, 0.0f};
-  float g = ms_medium_at(M, scat, nch, ph->fl.idx, ss);
+  float g = ms_medium_at(P, M, med, nch, ph->fl.idx, ss);
   if (!ms_next_weight(&ph->fl, ss, nch, w0, ms_uniform(M->seed, index, 4u * leg + 3u), w))
     return 0;
   float cos_t = ms_hg_cos(g, ms_uniform(M->seed, index, 4u * leg + 1u));
@@ -81,11 +86,12 @@ BK_INLINE int ms_scatter(const pm_params *P, const ms_params *M, BK_GLOBAL const
 
 /* Marches photon `index` and the legs its scattering events start, at most
  * M->max_bounces events; the arguments are pm_march_photon's and the scatter
- * parameters and grid. tally: the photon's energy accounting. */
+ * parameters and the volume's σs and g. tally: the photon's energy
+ * accounting. */
 BK_INLINE void pm_march_scattered(BK_CONSTANT const pm_params *Pc, BK_CONSTANT const ms_params *Mc,
                                   BK_CONSTANT const ph_light *lights, BK_GLOBAL const float *ng,
                                   BK_GLOBAL const bk_uchar *pyr, BK_GLOBAL const float *sigma,
-                                  BK_GLOBAL const float *scat, BK_GLOBAL bk_ulong *acc,
+                                  ms_medium med, BK_GLOBAL bk_ulong *acc,
                                   BK_GLOBAL bk_ulong *masks, BK_GLOBAL const float *tables,
                                   bk_uint index, pm_result *res, ms_tally *tally PM_REC_DECL) {
   const pm_params Pv = *Pc;
@@ -124,7 +130,7 @@ BK_INLINE void pm_march_scattered(BK_CONSTANT const pm_params *Pc, BK_CONSTANT c
       for (int ch = 0; ch < nch; ch++) tally->escaped += ph.power[ch];
     if (ph.fl.state != MS_HIT) break;
     ph.path = ph.fl.path;
-    if (!ms_scatter(P, M, ng, scat, &ph, w0, index, leg)) {
+    if (!ms_scatter(P, M, ng, med, &ph, w0, index, leg)) {
       fate = PM_FATE_ABSORBED; /* ended by the roulette */
       break;
     }
