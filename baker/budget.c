@@ -39,8 +39,6 @@ int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *e
   const int grey = budget_grey(s), adaptive = s->mode == MODE_ADAPTIVE;
   b->per_voxel = (grey ? (adaptive ? BUDGET_ADAPTIVE_GREY_BYTES : BUDGET_REFERENCE_GREY_BYTES)
                        : (adaptive ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES)) +
-                 (s->bounces != 0 ? (grey ? BUDGET_SCATTER_GREY_BYTES : BUDGET_SCATTER_BYTES)
-                                  : 0.0) +
                  (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0) +
                  (s->ior_vdb.present ? BUDGET_IOR_VDB_BYTES : 0.0) +
                  (s->mode != MODE_ADAPTIVE && budget_anisotropic(s) ? BUDGET_FLUX_BYTES : 0.0);

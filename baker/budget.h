@@ -27,17 +27,13 @@ extern "C" {
 
 #define BUDGET_FIXED_BYTES (320.0 * 1024 * 1024)
 /* per voxel, reference and adaptive mode, for an RGB medium and a grey one
- * (budget_grey). With the scatter grid below, 116, 54, 138 and 82 B: above
- * the slopes measured with multiple scattering on (docs/memory.md: 95, 47,
- * 126-133 and 72-73 B) */
-#define BUDGET_REFERENCE_BYTES 100.0
+ * (budget_grey): above the slopes measured with multiple scattering on
+ * (docs/memory.md: 61, 35, 98-103 and 56-60 B; multiple scattering keeps
+ * nothing per voxel of its own) */
+#define BUDGET_REFERENCE_BYTES 72.0
 #define BUDGET_REFERENCE_GREY_BYTES 46.0
 #define BUDGET_ADAPTIVE_BYTES 122.0
 #define BUDGET_ADAPTIVE_GREY_BYTES 74.0
-/* per voxel, the scatter grid of multiple scattering at most (σs per march
- * channel and g, baker/bounces.h); counted unless photons.bounces is 0 */
-#define BUDGET_SCATTER_BYTES 16.0
-#define BUDGET_SCATTER_GREY_BYTES 8.0
 /* dispersion: two more fields {∇n, n} (46 bytes at most, field.h), the R
  * and B planes of n and the interleaved ior_rgb grid written (20): counted,
  * not measured */

@@ -31,9 +31,9 @@
 
 /* Bytes per voxel the kept fields add to a frame's peak (they outlive the
  * march into the write): the {∇n, n} field (at most 23, FLD_WORST_BYTES_PER_VOXEL;
- * three with dispersion, counted apart), the pyramid (1/8) and σt (4 per
- * march channel, at most 12). */
-#define FR_KEPT_FIELDS_BYTES 35.125
+ * three with dispersion, counted apart) and the pyramid (1/8); σ is the
+ * volume's. */
+#define FR_KEPT_FIELDS_BYTES 23.125
 
 typedef struct bake_reuse {
   int keep_fields;              /* a batch of several frames: keep the march's fields */

@@ -21,9 +21,10 @@ peak() { # kind resolution: the peak RSS in bytes
     --photons 20000 --resolution "$2" "${extra[@]}" 2> err.txt || { cat err.txt; return 1; }
   echo $(( $(sed -n 's/^peak_kb //p' err.txt) * 1024 ))
 }
-# bytes per voxel at the peak phase now (192->256 slope, docs/memory.md) and
-# the limit asserted: measured 47 (grey) and 95 (rgb) at 200 000 photons
-for kind_limit in grey:56 rgb:104; do
+# bytes per voxel at the peak phase now (docs/memory.md) and the limit
+# asserted: measured 35-38 (grey, the write's peak) and 61-65 (rgb, the
+# march's) B, as 192->256 slopes at 200 000 photons and here
+for kind_limit in grey:44 rgb:72; do
   kind=${kind_limit%%:*} limit=${kind_limit#*:}
   peak "$kind" 32 > /dev/null || fail "$kind warm-up bake failed"
   lo=$(peak "$kind" 128) || fail "$kind bake at 128 failed"
