@@ -316,9 +316,9 @@ static int unpack_phase(ad_run_t *r, const uint64_t *acc, float *radiance, float
       scale_job_t job = {acc, NULL, r->raw, {(float)r->grey_k, 0.0f, 0.0f}};
       bk_parallel(V, BK_GRAIN, grey_range, &job);
     } else
-      pm_to_radiance(&r->main, acc, r->raw);
+      pm_to_radiance(&r->main, acc, r->raw, 3);
   } else {
-    pm_to_radiance(&r->main, acc, radiance);
+    pm_to_radiance(&r->main, acc, radiance, 3);
   }
   pm_unpack_weights(&r->main, acc, count, weight);
   return BK_OK;

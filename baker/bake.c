@@ -186,7 +186,7 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   grids[g++] = made_grid("density", VDBIO_FLOAT, a->density, 0, 0.0f);
   if (og_present(a->ior_rgb))
     grids[g++] = made_grid("ior_rgb", VDBIO_VEC3, a->ior_rgb, 0, a->medium_ior);
-  if (a->radiance) grids[g++] = made_grid("radiance", VDBIO_VEC3, og_dense(a->radiance), 1, 0.0f);
+  if (og_present(a->radiance)) grids[g++] = made_grid("radiance", VDBIO_VEC3, a->radiance, 1, 0.0f);
   if (og_present(a->emission))
     grids[g++] = made_grid("emission", VDBIO_VEC3, a->emission, 1, 0.0f);
   if (a->radiance_flux)
@@ -219,16 +219,20 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   size_t n = grid_count(&vol->dims);
   og_source_t *src = &j->derived;
   const int sca_channels = vol->sigma_channels == 1 ? 1 : 3;
+  /* grey light: one radiance value per voxel, the RGB grid made at the write */
+  const int rad_channels = j->error.radiance_channels == 1 ? 1 : 3;
   *src = (og_source_t){vol->sigma_s, vol->sigma_t, vol->sigma_channels, vol->sigma_s, sca_channels,
-                       j->radiance, vol->ior, vol->ior_rb, n, vol->g, j->scene.medium_g};
+                       j->radiance, rad_channels, vol->ior, vol->ior_rb, n, vol->g,
+                       j->scene.medium_g};
   /* sigma_s and sigma_t are the scattering and extinction grids as they
    * stand: Vec3, or floats when the volume is grey (vox_summarise) */
-  bake_arrays_t a = {vol->ior, j->radiance, og_dense(vol->sigma_t),
+  bake_arrays_t a = {vol->ior, og_dense(j->radiance), og_dense(vol->sigma_t),
                      og_dense(vol->sigma_s), og_made(og_density, src), og_dense(NULL),
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
                      j->scene.medium_ior, og_dense(NULL), j->error.flux, j->error.uncollided,
                      og_dense(NULL), NULL};
   if (j->radiance) a.emission = og_made(og_emission, src);
+  if (j->radiance && rad_channels == 1) a.radiance = og_made(og_radiance, src);
   if (j->error.uncollided) a.radiance_flux_uncollided = j->error.uncollided + n; /* after Y0 */
   if (vol->ior_rb) a.ior_rgb = og_made(og_ior_rgb, src);
   if (j->error.flux || j->shard.sums.flux) /* a shard's flux is in its sums */

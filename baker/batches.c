@@ -474,15 +474,18 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
     pm_sums_keep(&s, acc, o->sums);
     acc = NULL;
   } else {
+    res->radiance_channels = 3;
     if (o->radiance_out) { /* the fields are done with: their memory goes to radiance */
       pm_setup_free_fields(&s);
-      radiance = *o->radiance_out = bk_calloc(s.voxels, 3 * sizeof(float), "radiance grid", err);
+      res->radiance_channels = pm_radiance_channels(&s);
+      radiance = *o->radiance_out =
+          bk_calloc(s.voxels, (size_t)res->radiance_channels * sizeof(float), "radiance grid", err);
       if (!radiance) {
         rc = err->code;
         goto done;
       }
     }
-    pm_to_radiance(&s, acc, radiance);
+    pm_to_radiance(&s, acc, radiance, res->radiance_channels);
     if ((rc = make_flux(&s, acc, res, err))) goto done;
   }
   stats->ms_march = res->ms_march += bk_now_ms() - t; /* the sums made radiance: the march's end */

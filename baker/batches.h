@@ -88,7 +88,8 @@ typedef struct bt_options {
   void *retable_ctx;
   /* Not NULL: bt_bake allocates the radiance grid here (its radiance
    * argument unused) after the march, once the march's fields are freed, so
-   * the two never take memory together (docs/memory.md). */
+   * the two never take memory together (docs/memory.md), with
+   * res.radiance_channels floats per voxel. */
   float **radiance_out;
 } bt_options_t;
 
@@ -113,6 +114,8 @@ typedef struct bt_result {
    * batches and of half A (ceil(B/2) of them: the first in fixed mode, the
    * even-numbered in the open ones); the caller frees them */
   float *all, *half_a;
+  int radiance_channels;   /* floats per voxel of the radiance written: 3, or 1
+                            * when bt_bake allocated it for grey light */
 } bt_result_t;
 
 /* The march stage in batches (pm_bake's place in the pipeline): radiance as

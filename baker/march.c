@@ -368,19 +368,26 @@ typedef struct pm_unpack_ctx {
   const pm_setup_t *s;
   const uint64_t *acc;
   float *radiance, *count, *mean_weight;
+  int channels; /* of radiance */
 } pm_unpack_ctx_t;
+
+int pm_radiance_channels(const pm_setup_t *s) {
+  const double *k = s->to_radiance;
+  return s->channels == 1 && k[0] == k[1] && k[1] == k[2] ? 1 : 3;
+}
 
 static void to_radiance_range(void *arg, size_t lo, size_t hi) {
   const pm_unpack_ctx_t *u = arg;
   const int ch = u->s->channels, stride = pm_acc_stride((int)u->s->params.mode, ch);
+  const int out = u->channels; /* 1: every channel the same value */
   const double *k = u->s->to_radiance;
   for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < 3; c++)
-      u->radiance[3 * i + c] = (float)((double)u->acc[stride * i + (ch == 1 ? 0 : c)] * k[c]);
+    for (int c = 0; c < out; c++)
+      u->radiance[out * i + c] = (float)((double)u->acc[stride * i + (ch == 1 ? 0 : c)] * k[c]);
 }
 
-void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance) {
-  pm_unpack_ctx_t u = {s, acc, radiance, NULL, NULL};
+void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance, int channels) {
+  pm_unpack_ctx_t u = {s, acc, radiance, NULL, NULL, channels};
   bk_parallel(s->voxels, BK_GRAIN, to_radiance_range, &u);
 }
 
@@ -424,13 +431,13 @@ static void to_flux_range(void *arg, size_t lo, size_t hi) {
 }
 
 void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux, float *uncollided) {
-  pm_unpack_ctx_t u = {s, acc, flux, uncollided, NULL};
+  pm_unpack_ctx_t u = {s, acc, flux, uncollided, NULL, 0};
   bk_parallel(s->voxels, BK_GRAIN, to_flux_range, &u);
 }
 
 void pm_unpack_weights(const pm_setup_t *s, const uint64_t *acc, float *count,
                        float *mean_weight) {
-  pm_unpack_ctx_t u = {s, acc, NULL, count, mean_weight};
+  pm_unpack_ctx_t u = {s, acc, NULL, count, mean_weight, 0};
   bk_parallel(s->voxels, BK_GRAIN, unpack_weights_range, &u);
 }
 
@@ -514,7 +521,7 @@ int pm_bake_range(clh_context_t *cl, const scene_t *scene, const volume_t *vol, 
     pm_sums_keep(&s, acc, sums);
     acc = NULL;
   } else {
-    pm_to_radiance(&s, acc, radiance);
+    pm_to_radiance(&s, acc, radiance, 3);
   }
   stats->ms_march = bk_now_ms() - t0;
   if (timings) {

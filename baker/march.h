@@ -221,9 +221,14 @@ int pm_run_cl_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_
  * of an unbatched march. */
 void pm_scale_batches(pm_setup_t *s, double batch_cap);
 
-/* acc -> radiance (3 floats per voxel, W m^-2 sr^-1); reference and
- * weighted modes. */
-void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance);
+/* Floats per voxel radiance needs: 1 when the march carries one channel
+ * and every light has grey colour (the three channels equal, 8 B per voxel
+ * less through the write), else 3. */
+int pm_radiance_channels(const pm_setup_t *s);
+/* acc -> radiance (`channels` floats per voxel, 3, or 1 where
+ * pm_radiance_channels allows it; W m^-2 sr^-1); reference and weighted
+ * modes. */
+void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance, int channels);
 /* params.flux (some g != 0, kernels/photon_march.h PM_FLUX): the flux
  * counters after the voxels' -> `radiance_flux`, 3 floats per voxel,
  * F = ∫ L_Y ω dω / (4π) in W m^-2 sr^-1, the first moment of the luminance

@@ -25,7 +25,15 @@ void og_emission(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
   for (size_t i = lo; i < hi; i++)
     for (int c = 0; c < 3; c++)
-      *out++ = s->scattering[vox_channel_at(s->sca_channels, i, c)] * s->radiance[3 * i + c];
+      *out++ = s->scattering[vox_channel_at(s->sca_channels, i, c)] *
+               s->radiance[vox_channel_at(s->radiance_channels, i, c)];
+}
+
+/* Grey light's one value per voxel as the RGB grid `radiance`. */
+void og_radiance(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  for (size_t i = lo; i < hi; i++)
+    for (int c = 0; c < 3; c++) *out++ = s->radiance[vox_channel_at(s->radiance_channels, i, c)];
 }
 
 /* Dispersion: n per channel interleaved (R, G, B). */

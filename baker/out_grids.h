@@ -16,7 +16,8 @@ typedef struct og_source {
   int sigma_channels;             /* 3, or 1: grey (voxelize.h) */
   const float *scattering;        /* emission: sca_channels per voxel */
   int sca_channels;
-  const float *radiance;          /* emission: 3 per voxel */
+  const float *radiance;          /* emission: radiance_channels per voxel */
+  int radiance_channels;          /* 3, or 1: grey light (march.h pm_radiance_channels) */
   const float *ior, *ior_rb;      /* ior_rgb: n; n of R then B (2 * voxels) */
   size_t voxels;
   const float *g;                 /* phase_g: g per voxel, or NULL: medium_g */
@@ -42,6 +43,7 @@ static inline int og_present(og_values_t v) { return v.data || v.fill; }
 
 void og_density(const void *src, size_t lo, size_t hi, float *out);  /* mean of σt */
 void og_emission(const void *src, size_t lo, size_t hi, float *out); /* scattering ⊙ radiance */
+void og_radiance(const void *src, size_t lo, size_t hi, float *out); /* radiance as RGB */
 void og_ior_rgb(const void *src, size_t lo, size_t hi, float *out);  /* n per channel */
 void og_phase_g(const void *src, size_t lo, size_t hi, float *out);  /* g where σs > 0 */
 

@@ -51,7 +51,7 @@ static best_t run(clh_context_t *cl, const scene_t *s, const volume_t *v, int oc
     int rc = cl ? pm_run_cl(cl, &su, acc, &st, &err) : pm_run_host(&su, acc, &st, &err);
     REQUIRE(rc == BK_OK, "march: %s", err.msg);
     double t2 = bk_now_ms();
-    pm_to_radiance(&su, acc, rad);
+    pm_to_radiance(&su, acc, rad, 3);
     double t3 = bk_now_ms();
     double march = t2 - t1 - st.ms_build;
     if (march < b.march) {

@@ -312,7 +312,7 @@ static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float 
   REQUIRE(acc, "out of memory");
   int rc = cl ? pm_run_cl(cl, &setup, acc, NULL, &err) : pm_run_host(&setup, acc, NULL, &err);
   REQUIRE(rc == BK_OK, "march: %s", err.msg);
-  pm_to_radiance(&setup, acc, rad);
+  pm_to_radiance(&setup, acc, rad, 3);
   pm_to_flux(&setup, acc, flux, unc);
   pm_setup_free(&setup);
   tv_free(&v);
