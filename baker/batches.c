@@ -475,18 +475,21 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
     acc = NULL;
   } else {
     res->radiance_channels = 3;
+    if ((rc = make_flux(&s, acc, res, err))) goto done;
     if (o->radiance_out) { /* the fields are done with: their memory goes to radiance */
       pm_setup_free_fields(&s);
       res->radiance_channels = pm_radiance_channels(&s);
-      radiance = *o->radiance_out =
-          bk_calloc(s.voxels, (size_t)res->radiance_channels * sizeof(float), "radiance grid", err);
-      if (!radiance) {
+      radiance = pm_to_radiance_in_place(&s, acc, res->radiance_channels);
+      if (radiance) {
+        acc = NULL; /* it became radiance */
+      } else if (!(radiance = bk_calloc(s.voxels, (size_t)res->radiance_channels * sizeof(float),
+                                        "radiance grid", err))) {
         rc = err->code;
         goto done;
       }
+      *o->radiance_out = radiance;
     }
-    pm_to_radiance(&s, acc, radiance, res->radiance_channels);
-    if ((rc = make_flux(&s, acc, res, err))) goto done;
+    if (acc) pm_to_radiance(&s, acc, radiance, res->radiance_channels);
   }
   stats->ms_march = res->ms_march += bk_now_ms() - t; /* the sums made radiance: the march's end */
   t = bk_now_ms();

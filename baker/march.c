@@ -391,6 +391,26 @@ void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance, i
   bk_parallel(s->voxels, BK_GRAIN, to_radiance_range, &u);
 }
 
+float *pm_to_radiance_in_place(const pm_setup_t *s, uint64_t *acc, int channels) {
+  const size_t stride = (size_t)pm_acc_stride((int)s->params.mode, s->channels);
+  const size_t out = (size_t)channels, block = (size_t)1 << 20; /* voxels per step */
+  if (out * sizeof(float) > stride * sizeof(uint64_t)) return NULL;
+  float *tmp = malloc(block * out * sizeof(float));
+  if (!tmp) return NULL;
+  /* a block's floats go where its counters began or earlier, never over
+   * the counters of the blocks after it; made aside first, since they
+   * overlap the block's own counters */
+  for (size_t a = 0; a < s->voxels; a += block) {
+    const size_t n = s->voxels - a < block ? s->voxels - a : block;
+    pm_unpack_ctx_t u = {s, acc + stride * a, tmp, NULL, NULL, channels};
+    bk_parallel(n, BK_GRAIN, to_radiance_range, &u);
+    memcpy((char *)acc + out * sizeof(float) * a, tmp, n * out * sizeof(float));
+  }
+  free(tmp);
+  float *radiance = realloc(acc, s->voxels * out * sizeof(float));
+  return radiance ? radiance : (float *)acc; /* a failed shrink keeps the larger block */
+}
+
 static void unpack_weights_range(void *arg, size_t lo, size_t hi) {
   const pm_unpack_ctx_t *u = arg;
   const pm_setup_t *s = u->s;

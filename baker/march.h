@@ -229,6 +229,11 @@ int pm_radiance_channels(const pm_setup_t *s);
  * pm_radiance_channels allows it; W m^-2 sr^-1); reference and weighted
  * modes. */
 void pm_to_radiance(const pm_setup_t *s, const uint64_t *acc, float *radiance, int channels);
+/* The same, written over the accumulator itself (allocated with malloc),
+ * which is then shrunk to the radiance's size and returned: the two never
+ * take memory together. NULL (acc untouched) where a voxel's floats do not
+ * fit in its counters' bytes (3 channels of one counter) or on no memory. */
+float *pm_to_radiance_in_place(const pm_setup_t *s, uint64_t *acc, int channels);
 /* params.flux (some g != 0, kernels/photon_march.h PM_FLUX): the flux
  * counters after the voxels' -> `radiance_flux`, 3 floats per voxel,
  * F = ∫ L_Y ω dω / (4π) in W m^-2 sr^-1, the first moment of the luminance
