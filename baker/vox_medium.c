@@ -138,18 +138,18 @@ static void vox_store_grey(volume_t *v) {
 }
 
 /* The scan in VOX_SUMMARY_CHUNKS chunks of the grid, each with its own
- * slot. Combining min, max and OR is exact in any order. With `to_sum`
+ * slot. Combining min, max and OR is exact in any order. With t_out
  * (vox_summarise) the sigma_t array still holds σa and each chunk turns it
  * into σs + σa as it goes; voxel 0's values, which every chunk compares
  * with, are taken before any chunk writes. */
 typedef struct vox_chunks {
   const volume_t *v;
-  float *t_out;      /* to_sum: v->sigma_t, written; else NULL */
+  float *t_out;       /* v->sigma_t, to be written; else NULL */
   float s0[3], t0[3]; /* voxel 0 per channel */
   vox_scan_t slot[VOX_SUMMARY_CHUNKS];
 } vox_chunks_t;
 
-/* σt at index at: the stored value, or with to_sum σs + σa, stored. */
+/* σt at index at: the stored value, or with t_out σs + σa, stored. */
 static inline float scan_t(const vox_chunks_t *S, const float *ss, const float *st, size_t at) {
   if (!S->t_out) return st[at];
   const float t = ss[at] + st[at];
@@ -227,15 +227,16 @@ static void scan_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   S->slot[k] = p;
 }
 
-/* vox_scan; with to_sum, the σa in sigma_t made σs + σa on the way. */
-static void scan_volume(volume_t *v, int to_sum, vox_scan_t *out) {
+/* vox_scan; with t_out (v->sigma_t, holding σa) σs + σa written there on
+ * the way. */
+static void scan_volume(const volume_t *v, float *t_out, vox_scan_t *out) {
   vox_chunks_t S;
   S.v = v;
-  S.t_out = to_sum ? v->sigma_t : NULL;
+  S.t_out = t_out;
   for (int c = 0; c < 3; c++) {
     const size_t at = vox_sigma_index(v, 0, c);
     S.s0[c] = v->sigma_s[at];
-    S.t0[c] = to_sum ? v->sigma_s[at] + v->sigma_t[at] : v->sigma_t[at];
+    S.t0[c] = t_out ? v->sigma_s[at] + v->sigma_t[at] : v->sigma_t[at];
   }
   /* an empty chunk (a grid of fewer voxels) reads as the first voxel */
   vox_scan_t first;
@@ -259,9 +260,7 @@ static void scan_volume(volume_t *v, int to_sum, vox_scan_t *out) {
   }
 }
 
-void vox_scan(const volume_t *v, vox_scan_t *out) {
-  scan_volume((volume_t *)v, 0, out); /* to_sum 0: nothing is written */
-}
+void vox_scan(const volume_t *v, vox_scan_t *out) { scan_volume(v, NULL, out); }
 
 const vox_scan_t *vox_scan_of(const volume_t *v, vox_scan_t *own) {
   if (v->scanned) return &v->scan;
@@ -270,7 +269,7 @@ const vox_scan_t *vox_scan_of(const volume_t *v, vox_scan_t *own) {
 }
 
 void vox_summarise(volume_t *v) {
-  scan_volume(v, 1, &v->scan);
+  scan_volume(v, v->sigma_t, &v->scan);
   v->scanned = 1;
   v->n_min = v->scan.n_min;
   v->n_max = v->scan.n_max;
