@@ -259,6 +259,34 @@ static const char *error_note(const scene_t *s, const bake_options_t *opt, const
   return "relative RMS luminance error over lit voxels vs RK4 1/8-voxel truth (docs/error.md)";
 }
 
+/* What the write may free as it goes when no later frame takes this
+ * volume: n and σt once the last grid that reads each is in the file
+ * (docs/memory.md). */
+typedef struct bake_release {
+  bake_reuse_t *reuse;
+  int last_ior, last_sigma_t; /* grid indices; -1: none reads it */
+} bake_release_t;
+
+static void bake_grid_done(void *ctx, int g) {
+  bake_release_t *r = ctx;
+  volume_t *v = &r->reuse->volume;
+  if (g == r->last_ior) free(v->ior), v->ior = NULL;
+  if (g == r->last_sigma_t) free(v->sigma_t), v->sigma_t = NULL;
+  if (g == r->last_ior || g == r->last_sigma_t) r->reuse->has_volume = 0; /* not whole now */
+}
+
+/* The release plan for `grids`: which grid reads n and σt last. */
+static bake_release_t bake_release_plan(bake_reuse_t *reuse, const vdbio_grid_t *grids,
+                                        int count) {
+  bake_release_t r = {reuse, -1, -1};
+  for (int g = 0; g < count; g++) {
+    const char *n = grids[g].name;
+    if (!strcmp(n, "ior") || !strcmp(n, "ior_rgb")) r.last_ior = g;
+    if (!strcmp(n, "extinction") || !strcmp(n, "density")) r.last_sigma_t = g;
+  }
+  return r;
+}
+
 /* Stage 4: the grids and the metadata that says how they were made. */
 static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scene_path,
                       const char *out_path, int frame, const vdbio_grid_t *grids, int count,
@@ -327,6 +355,11 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
     meta_count += shard_meta(&j->shard, opt, s, &j->vol->dims, all + meta_count);
   vdbio_write_opts_t wo = opt->write;
   if (j->shard.sums.acc) wo.half_float = 0; /* sums and medium go to the merge exactly */
+  bake_release_t release = bake_release_plan(j->reuse, grids, count);
+  if (!j->reuse->keep_fields) { /* one frame: the volume is done with as the write goes */
+    wo.grid_done = bake_grid_done;
+    wo.grid_done_ctx = &release;
+  }
   return vdbio_write(out_path, &j->vol->dims, grids, count, all, meta_count, &wo, err);
 }
 

@@ -28,11 +28,11 @@ extern "C" {
 #define BUDGET_FIXED_BYTES (320.0 * 1024 * 1024)
 /* per voxel, reference and adaptive mode, for an RGB medium and a grey one
  * (budget_grey): above the slopes measured with multiple scattering on
- * (docs/memory.md: 53-56, 28.4, 98-103 and 56-60 B; multiple scattering
+ * (docs/memory.md: 53-56, 23.9, 98-103 and 56-60 B; multiple scattering
  * keeps nothing per voxel of its own); tests/memory_per_voxel.sh asserts
  * the reference ones */
 #define BUDGET_REFERENCE_BYTES 64.0
-#define BUDGET_REFERENCE_GREY_BYTES 36.0
+#define BUDGET_REFERENCE_GREY_BYTES 30.0
 #define BUDGET_ADAPTIVE_BYTES 122.0
 #define BUDGET_ADAPTIVE_GREY_BYTES 74.0
 /* dispersion: two more fields {∇n, n} (46 bytes at most, field.h), the R

@@ -341,7 +341,7 @@ static int merged_meta(const merge_shard_t *sh, int n, const merge_out_t *o, mer
 
 /* The compression and half-float choice the shards were baked with. */
 static vdbio_write_opts_t write_opts(const char *settings) {
-  vdbio_write_opts_t w = {VDBIO_COMPRESS_BLOSC, 0};
+  vdbio_write_opts_t w = {VDBIO_COMPRESS_BLOSC, 0, NULL, NULL};
   if (strstr(settings, "compression=zip")) w.compression = VDBIO_COMPRESS_ZIP;
   if (strstr(settings, "compression=none")) w.compression = VDBIO_COMPRESS_NONE;
   w.half_float = strstr(settings, " half=1") != NULL;

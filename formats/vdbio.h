@@ -61,6 +61,11 @@ typedef enum { VDBIO_COMPRESS_NONE = 0, VDBIO_COMPRESS_ZIP = 1, VDBIO_COMPRESS_B
 typedef struct vdbio_write_opts {
   vdbio_compression_t compression; /* `baker bake` defaults to blosc */
   int half_float;                  /* save floats as 16-bit */
+  /* Optional: called with g, in file order, once grid g's values are read
+   * no more (its tree written and its checksum taken), so that the caller
+   * may free what no later grid reads. */
+  void (*grid_done)(void *ctx, int g);
+  void *grid_done_ctx;
 } vdbio_write_opts_t;
 
 /* The grids' OpenVDB trees are built and written one at a time, each freed

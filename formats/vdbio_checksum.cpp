@@ -158,20 +158,44 @@ void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t
                          vdb::StringMetadata(vdbio_checksum_placeholder(key, g)));
 }
 
+void vdbio_hash_progress::done(int g) {
+  std::lock_guard<std::mutex> hold(lock);
+  hashed = g + 1;
+  changed.notify_all();
+}
+
+void vdbio_hash_progress::wait_for(int g) {
+  std::unique_lock<std::mutex> hold(lock);
+  changed.wait(hold, [&] { return hashed > g; });
+}
+
 std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
-                                         int count, bool half) {
-  /* one hash per grid, the grids side by side, a z slice at a time (a
-   * grid made by its fill is one slice here) */
+                                         int count, bool half, vdbio_hash_progress *progress) {
+  /* one hash per grid, a z slice at a time (a grid made by its fill is
+   * one slice here), the grids side by side, or in order for `progress` */
   std::vector<std::string> hex((size_t)count);
   const size_t plane = (size_t)dims->nx * (size_t)dims->ny;
-  tbb::parallel_for(0, count, [&](int g) {
+  auto hash = [&](int g) {
     const int ch = grids[g].type == VDBIO_VEC3 ? 3 : 1;
     const float bg[3] = {grids[g].background, grids[g].background, grids[g].background};
     std::vector<float> buf;
     ck_hasher hg(true);
     for (int z = 0; z < dims->nz; z++) hg.add(vdbio_slices(dims, grids[g], z, 1, buf), plane, ch, half);
     hex[(size_t)g] = ck_hex(hg.finish(bg, ch));
-  });
+  };
+  if (!progress) {
+    tbb::parallel_for(0, count, hash);
+    return hex;
+  }
+  try {
+    for (int g = 0; g < count; g++) {
+      hash(g);
+      progress->done(g);
+    }
+  } catch (...) {
+    progress->done(count - 1); /* no writer waits for what will not come; get() throws */
+    throw;
+  }
   return hex;
 }
 

@@ -7,6 +7,8 @@
 
 #include <openvdb/openvdb.h>
 
+#include <condition_variable>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -61,8 +63,18 @@ void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t
                                      int grid_count, uint64_t key, openvdb::MetaMap &file_meta);
 std::string vdbio_checksum_placeholder(uint64_t key, int g);
 uint64_t vdbio_checksum_key(void);
+/* `progress` (optional): the grids are then hashed one after the other in
+ * file order, and progress->done(g) reached as each is. */
+struct vdbio_hash_progress {
+  std::mutex lock;
+  std::condition_variable changed;
+  int hashed = 0; /* grids 0 .. hashed-1 are done */
+  void done(int g);
+  void wait_for(int g); /* until grid g is hashed */
+};
 std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
-                                         int grid_count, bool half);
+                                         int grid_count, bool half,
+                                         vdbio_hash_progress *progress);
 
 /* Whether `box` is the box the file's checksums were taken over. */
 bool vdbio_is_checksum_box(const openvdb::MetaMap *meta, const openvdb::CoordBBox &box);

@@ -290,8 +290,11 @@ static int vdbio_file_meta(const char *path, const grid_dims_t *d, const vdbio_m
  * a stream whose failures we see (Archive::write is protected). */
 class vdbio_checked_archive : public vdb::io::Archive {
 public:
-  /* key: the checksum placeholders' (vdbio_add_checksum_placeholders) */
-  explicit vdbio_checked_archive(uint64_t key) : key_(key) {}
+  /* key: the checksum placeholders' (vdbio_add_checksum_placeholders);
+   * tell: the caller's grid_done, once each grid's checksum is in
+   * progress too */
+  vdbio_checked_archive(uint64_t key, const vdbio_write_opts_t *tell, vdbio_hash_progress *progress)
+      : key_(key), tell_(tell), progress_(progress) {}
   /* 0, or the errno of the first failed write or close. */
   int write_file(const char *tmp, const grid_dims_t *dims, const vdbio_grid_t *grids, int count,
                  bool half, const vdb::MetaMap &meta,
@@ -374,6 +377,15 @@ private:
       /* per-grid compression options (mask compression) reset, as Archive::write does */
       vdb::io::setDataCompression(os, compression());
       bk_log(2, "write: grid %s %.0f ms", grids[g].name, bk_now_ms() - t);
+      grid.reset();
+      if (tell_) {
+        t = bk_now_ms();
+        progress_->wait_for(g);
+        const double waited = bk_now_ms() - t;
+        tell_->grid_done(tell_->grid_done_ctx, g);
+        bk_log(2, "write: grid %s done: %.0f ms for its checksum, %.0f ms to release", grids[g].name,
+               waited, bk_now_ms() - t - waited);
+      }
     }
     put_checksums(os, meta_at, file_meta, checksums, count);
   }
@@ -398,6 +410,8 @@ private:
   }
 
   uint64_t key_;
+  const vdbio_write_opts_t *tell_;
+  vdbio_hash_progress *progress_;
 };
 
 /* Zip by default; Blosc only where this OpenVDB was built with it. */
@@ -435,18 +449,24 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
     const bool nano = vdbio_is_nano_path(path), half = opts && opts->half_float;
     if (nano) { /* NanoVDB files carry no file metadata, so no checksums */
       vdb::GridPtrVec out;
-      for (int g = 0; g < grid_count; g++) out.push_back(vdbio_make_grid(dims, grids[g], half));
+      for (int g = 0; g < grid_count; g++) {
+        out.push_back(vdbio_make_grid(dims, grids[g], half));
+        if (opts && opts->grid_done) opts->grid_done(opts->grid_done_ctx, g); /* in its tree */
+      }
       nvdbio_write(tmp, out);
     } else {
       /* the checksums (a serial hash per grid) are taken beside the
        * grids' writing and put in place after them; the future's
        * destructor waits for them on every way out */
       double t_file = bk_now_ms();
-      std::future<std::vector<std::string>> checksums = std::async(
-          std::launch::async, [=] { return vdbio_checksums(dims, grids, grid_count, half); });
+      vdbio_hash_progress progress;
+      const bool tell = opts && opts->grid_done;
+      std::future<std::vector<std::string>> checksums = std::async(std::launch::async, [&] {
+        return vdbio_checksums(dims, grids, grid_count, half, tell ? &progress : nullptr);
+      });
       const uint64_t key = vdbio_checksum_key();
       vdbio_add_checksum_placeholders(dims, grids, grid_count, key, file_meta);
-      vdbio_checked_archive archive(key);
+      vdbio_checked_archive archive(key, tell ? opts : nullptr, &progress);
       archive.setCompression(vdbio_compression(path, opts));
       if (int e = archive.write_file(tmp, dims, grids, grid_count, half, file_meta, checksums)) {
         remove(tmp);

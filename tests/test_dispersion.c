@@ -215,7 +215,7 @@ static void view_centroids(const char *dir, int wedge, double col[3]) {
                        {"extinction", VDBIO_FLOAT, st, 0, 0.0f, NULL, NULL},
                        {"ior", VDBIO_FLOAT, ior, 0, 1.0f, NULL, NULL},
                        {"ior_rgb", VDBIO_VEC3, rgb, 0, 1.0f, NULL, NULL}};
-  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0};
+  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   bk_error_t err;
   char vdb[1024], exr[1024];
   snprintf(vdb, sizeof vdb, "%s/wedge%d.vdb", dir, wedge);

@@ -304,7 +304,7 @@ static int roundtrip(const char *dir) {
   snprintf(none, sizeof none, "%s/vdbio_roundtrip_none.vdb", dir);
   snprintf(blosc, sizeof blosc, "%s/vdbio_roundtrip_blosc.vdb", dir);
 
-  vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0};
+  vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   int rc = write_known(path, &zip, &err);
   EXPECT(rc == BK_OK, "write: %s", err.msg);
   if (rc)
@@ -356,7 +356,7 @@ static int roundtrip(const char *dir) {
   snprintf(bigf, sizeof bigf, "%s/vdbio_big_full.vdb", dir);
   snprintf(bigh, sizeof bigh, "%s/vdbio_big_half.vdb", dir);
   vdbio_grid_t g1 = {"density", VDBIO_FLOAT, f, 0, 0.0f, NULL, NULL};
-  vdbio_write_opts_t hopt = {VDBIO_COMPRESS_ZIP, 1};
+  vdbio_write_opts_t hopt = {VDBIO_COMPRESS_ZIP, 1, NULL, NULL};
   EXPECT(vdbio_write(bigf, &big, &g1, 1, NULL, 0, &zip, &err) == BK_OK, "big full: %s", err.msg);
   EXPECT(vdbio_write(bigh, &big, &g1, 1, NULL, 0, &hopt, &err) == BK_OK, "big half: %s", err.msg);
   long sf = file_size(bigf), sh = file_size(bigh);
@@ -381,7 +381,8 @@ static int roundtrip(const char *dir) {
   EXPECT(write_known(half, &hopt, &err) == BK_OK, "write half: %s", err.msg);
   printf("zip, half float (%ld bytes):\n", file_size(half));
   check_known(half, 1e-3);
-  vdbio_write_opts_t nopt = {VDBIO_COMPRESS_NONE, 0}, bopt = {VDBIO_COMPRESS_BLOSC, 0};
+  vdbio_write_opts_t nopt = {VDBIO_COMPRESS_NONE, 0, NULL, NULL};
+  vdbio_write_opts_t bopt = {VDBIO_COMPRESS_BLOSC, 0, NULL, NULL};
   EXPECT(write_known(none, &nopt, &err) == BK_OK, "write none: %s", err.msg);
   printf("uncompressed (%ld bytes):\n", file_size(none));
   check_known(none, 1e-6);
@@ -447,7 +448,7 @@ static int errors(const char *dir) {
   const vdbio_compression_t comps[3] = {VDBIO_COMPRESS_ZIP, VDBIO_COMPRESS_NONE,
                                         VDBIO_COMPRESS_BLOSC};
   for (int c = 0; c < 3; c++) {
-    vdbio_write_opts_t opt = {comps[c], 0};
+    vdbio_write_opts_t opt = {comps[c], 0, NULL, NULL};
     snprintf(path, sizeof path, "%s/vdbio_errors_%d.vdb", dir, c);
     EXPECT(write_known(path, &opt, &err) == BK_OK, "write: %s", err.msg);
     long size = file_size(path);
@@ -505,7 +506,7 @@ static int errors(const char *dir) {
 
   /* an output directory that does not exist: an error, and no file at all */
   snprintf(bad, sizeof bad, "%s/no_such_dir/out.vdb", dir);
-  vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0};
+  vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   rc = write_known(bad, &zip, &err);
   EXPECT(rc != BK_OK && strstr(err.msg, bad), "missing directory: rc %d %s", rc, err.msg);
   EXPECT(access(bad, F_OK) != 0, "a file appeared at %s", bad);
@@ -684,7 +685,7 @@ static int bench(const char *dir) {
   const vdbio_compression_t comps[3] = {VDBIO_COMPRESS_NONE, VDBIO_COMPRESS_ZIP,
                                         VDBIO_COMPRESS_BLOSC};
   for (int c = 0; c < 3; c++) {
-    vdbio_write_opts_t o = {comps[c], 0};
+    vdbio_write_opts_t o = {comps[c], 0, NULL, NULL};
     double t0 = bk_now_ms();
     int rc = vdbio_write(path, &d, &g, 1, NULL, 0, &o, &err);
     double t1 = bk_now_ms();
@@ -730,7 +731,7 @@ int main(int argc, char **argv) {
   mkdir_p(argv[2]);
   if (!strcmp(argv[1], "write")) {
     bk_error_t err = {0};
-    vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0};
+    vdbio_write_opts_t zip = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
     char path[4096];
     snprintf(path, sizeof path, "%s/known.vdb", argv[2]);
     rc = write_known(path, &zip, &err);

@@ -207,7 +207,7 @@ static int write_cube(const char *path, int kind) {
     g[ng++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, st, 0, 0.0f, NULL, NULL};
   }
   vdbio_meta_t meta[] = {{"frame", VDBIO_META_INT, NULL, 17, 0}};
-  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0};
+  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   bk_error_t err;
   int rc = vdbio_write(path, &d, g, ng, meta, 1, &wo, &err);
   if (rc) fprintf(stderr, "%s\n", err.msg);
@@ -345,7 +345,7 @@ static void test_host_device(const char *dir) {
       }
   vdbio_grid_t g[4] = {{"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL}, {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL},
                        {"extinction", VDBIO_VEC3, st, 0, 0.0f, NULL, NULL}, {"scattering", VDBIO_FLOAT, ss, 0, 0.0f, NULL, NULL}};
-  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0};
+  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   bk_error_t err;
   char vdb[4096], a[4096], b[4096];
   snprintf(vdb, sizeof vdb, "%s/view_hd.vdb", dir);
@@ -431,7 +431,7 @@ static double lens_centroid(const char *dir, int lens, int *ok) {
       }
   vdbio_grid_t g[3] = {{"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL}, {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL},
                        {"extinction", VDBIO_FLOAT, st, 0, 0.0f, NULL, NULL}};
-  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0};
+  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   bk_error_t err;
   char vdb[4096], exr[4096];
   snprintf(vdb, sizeof vdb, "%s/view_lens%d.vdb", dir, lens);
@@ -557,7 +557,7 @@ static void test_bad(const char *which, const char *dir, const char *extra) {
   grid_dims_t d = {8, 8, 8, 0.25f, {0, 0, 0}};
   static float data[8 * 8 * 8 * 3];
   for (size_t i = 0; i < sizeof data / sizeof data[0]; i++) data[i] = 0.5f;
-  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0};
+  vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   bk_error_t err;
   int rc;
   if (!strcmp(which, "no_radiance")) {

@@ -754,7 +754,7 @@ static void case_medium(void) {
   char p_ior[4096], p_rho[4096];
   tu_path(p_ior, sizeof p_ior, "field_ior.vdb");
   tu_path(p_rho, sizeof p_rho, "field_density.vdb");
-  vdbio_write_opts_t opts = {VDBIO_COMPRESS_NONE, 0};
+  vdbio_write_opts_t opts = {VDBIO_COMPRESS_NONE, 0, NULL, NULL};
   EXPECT(vdbio_write(p_ior, &d, &g_ior, 1, NULL, 0, &opts, &err) == BK_OK);
   EXPECT(vdbio_write(p_rho, &d, &g_rho, 1, NULL, 0, &opts, &err) == BK_OK);
   s.ior_vdb.present = 1;
