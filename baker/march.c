@@ -196,11 +196,14 @@ int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t 
   if (s->channels == 1) ph_make_grey(&s->lights);
   s->seed = scene->seed;
   pm_set_range(s, 0, s->lights.photons);
-  /* what the march holds per voxel beside the volume: n/∇n, the pyramid,
-   * the counters (σ is read from the volume) */
-  const size_t field = (size_t)ceil(FLD_WORST_BYTES_PER_VOXEL);
-  size_t per_voxel = (s->has_refraction ? (vol->ior_rb ? 3 : 1) * field + 1 : 0) +
-                     s->channels * sizeof(uint64_t) + 3 * sizeof(float) +
+  /* what the march holds per voxel beside the volume: the pyramid, the
+   * counters (σ is read from the volume). The sparse {∇n, n} field is
+   * not counted here: its worst case (FLD_WORST_BYTES_PER_VOXEL, every
+   * brick stored) would refuse large mesh scenes whose field is well under
+   * a byte per voxel; it is sized from the bricks it stores before they
+   * are allocated (field.c), and the bake's budget counted the whole. */
+  size_t per_voxel = (s->has_refraction ? 1 : 0) + s->channels * sizeof(uint64_t) +
+                     3 * sizeof(float) +
                      (s->ms.hg ? PM_FLUX_SLOTS * (sizeof(uint64_t) + sizeof(float)) + 4 : 0);
   rc = grid_check_memory(d, per_voxel, scene->path, err);
   if (rc != BK_OK) return rc;
