@@ -12,6 +12,7 @@
 
 #include "adaptive.h"
 #include "batches.h"
+#include "brick_grid.h"
 #include "base/common.h"
 #include "base/frames.h"
 #include "base/grid.h"
@@ -39,6 +40,7 @@ typedef struct bake_job {
   float *radiance, *photon_count, *photon_weight, *filter_radius;
   og_source_t derived; /* what the grids made at the write read (out_grids.h) */
   shard_state_t shard;  /* --shard: the raw sums written instead of radiance */
+  brick_grid_t ior_bricks; /* the volume's n once the march no longer reads it */
 } bake_job_t;
 
 static int expand_scene_paths(scene_t *s, int frame, bk_error_t *err);
@@ -104,6 +106,7 @@ static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene
   if ((rc = expand_scene_paths(&j->scene, frame, err))) return rc;
   bk_timings_add(&j->timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
                  j->scene.object_count, j->scene.light_count);
+  j->reuse->extra_bytes = opt->shard_count ? budget_shard_bytes(&j->scene) : 0.0;
   if ((rc = fr_volume(j->reuse, &j->scene, opt->max_memory, &j->timings, err))) return rc;
   j->vol = &j->reuse->volume;
   return BK_OK;
@@ -137,6 +140,21 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   return rc;
 }
 
+/* Once the march has its {∇n, n} field, n is read again only by the
+ * write's ior grid: it waits there as bricks, most of them one value
+ * (brick_grid.h: 0.4 B per voxel for the sphere scene instead of 4). Out of
+ * memory for the bricks, n stays as it is. */
+static void bake_pack_ior(void *ctx) {
+  bake_job_t *j = ctx;
+  volume_t *v = &j->reuse->volume;
+  bk_error_t err;
+  if (!v->ior || bg_build(&v->dims, v->ior, &j->ior_bricks, &err) != BK_OK) return;
+  bk_log(2, "march: n packed into bricks, %.1f MiB", (double)bg_bytes(&j->ior_bricks) / 1048576.0);
+  free(v->ior);
+  v->ior = NULL;
+  j->reuse->has_volume = 0; /* not whole now */
+}
+
 /* Stage 2: the radiance grid, by the reference march or the adaptive
  * pipeline; a scene without lights still gets an (empty) radiance grid. */
 static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *err) {
@@ -164,6 +182,10 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
   bo.error_grid = opt->error_grid;
   bo.fields = j->reuse->keep_fields ? &j->reuse->fields : NULL;
   bo.radiance_out = &j->radiance;
+  if (!j->reuse->keep_fields && !j->vol->ior_rb) { /* no later frame takes the volume */
+    bo.fields_built = bake_pack_ior;
+    bo.fields_built_ctx = j;
+  }
   return bt_bake(opt->host_only ? NULL : j->cl, &j->scene, j->vol, &bo, j->radiance, &j->error,
                  &j->stats, &j->timings, err);
 }
@@ -180,7 +202,7 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   int g = 0;
   const vdbio_type_t medium = a->sca_channels == 3 ? VDBIO_VEC3 : VDBIO_FLOAT;
   const int inv = a->sca_channels == 3;
-  grids[g++] = made_grid("ior", VDBIO_FLOAT, og_dense(a->ior), 0, a->medium_ior);
+  grids[g++] = made_grid("ior", VDBIO_FLOAT, a->ior, 0, a->medium_ior);
   grids[g++] = made_grid("extinction", medium, a->extinction, inv, 0.0f);
   grids[g++] = made_grid("scattering", medium, a->scattering, inv, 0.0f);
   grids[g++] = made_grid("density", VDBIO_FLOAT, a->density, 0, 0.0f);
@@ -226,7 +248,10 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
                        j->scene.medium_g};
   /* sigma_s and sigma_t are the scattering and extinction grids as they
    * stand: Vec3, or floats when the volume is grey (vox_summarise) */
-  bake_arrays_t a = {vol->ior, og_dense(j->radiance), og_dense(vol->sigma_t),
+  /* n packed into bricks after the march's fields were built (bake_pack_ior) */
+  const og_values_t ior = j->ior_bricks.slot ? (og_values_t){NULL, bg_fill, &j->ior_bricks}
+                                             : og_dense(vol->ior);
+  bake_arrays_t a = {ior, og_dense(j->radiance), og_dense(vol->sigma_t),
                      og_dense(vol->sigma_s), og_made(og_density, src), og_dense(NULL),
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
                      j->scene.medium_ior, og_dense(NULL), j->error.flux, j->error.uncollided,
@@ -390,6 +415,7 @@ static int bake_stats(const bake_job_t *j, const bake_options_t *opt, const char
 }
 
 static void bake_job_free(bake_job_t *j) {
+  bg_free(&j->ior_bricks);
   free(j->radiance);
   free(j->photon_count);
   free(j->photon_weight);

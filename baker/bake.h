@@ -74,8 +74,7 @@ void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_
  * scattering has sca_channels floats per voxel (1 when the medium is grey),
  * extinction too; radiance and emission 3. */
 typedef struct bake_arrays {
-  const float *ior;
-  og_values_t radiance, extinction, scattering, density, emission; /* made at the write, or dense */
+  og_values_t ior, radiance, extinction, scattering, density, emission; /* made at the write, or dense */
   const float *photon_count, *photon_weight, *filter_radius;
   int sca_channels;
   float medium_ior;  /* the ior grid's background: n outside the box */

@@ -466,6 +466,7 @@ int bt_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, const 
   memset(stats, 0, sizeof *stats);
   int rc = pm_prepare_kept(scene, vol, o->fields, &s, timings, stats, err);
   if (rc != BK_OK) return rc;
+  if (o->fields_built) o->fields_built(o->fields_built_ctx);
   acc = bk_calloc(pm_acc_count(&s), sizeof(uint64_t), "march: radiance accumulator", err);
   rc = acc ? bt_march(cl, scene, &s, o, acc, res, stats, err) : BK_ERR_RUNTIME;
   if (rc) goto done;

@@ -91,6 +91,11 @@ typedef struct bt_options {
    * the two never take memory together (docs/memory.md), with
    * res.radiance_channels floats per voxel. */
   float **radiance_out;
+  /* Optional: called once the march's fields are built, before its sums
+   * take memory: the volume's n is read no more by the march then
+   * (bake.c packs it into bricks there). */
+  void (*fields_built)(void *ctx);
+  void *fields_built_ctx;
 } bt_options_t;
 
 typedef struct bt_result {

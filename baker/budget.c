@@ -30,6 +30,10 @@ int budget_grey(const scene_t *s) {
   return grey;
 }
 
+double budget_shard_bytes(const scene_t *s) {
+  return budget_grey(s) ? BUDGET_SHARD_GREY_BYTES : BUDGET_SHARD_BYTES;
+}
+
 int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {
   grid_dims_t *d = &b->dims;
   const char *where = s->where_resolution[0] ? s->where_resolution : s->path;

@@ -28,11 +28,16 @@ extern "C" {
 #define BUDGET_FIXED_BYTES (320.0 * 1024 * 1024)
 /* per voxel, reference and adaptive mode, for an RGB medium and a grey one
  * (budget_grey): above the slopes measured with multiple scattering on
- * (docs/memory.md: 53-56, 23.9, 98-103 and 56-60 B; multiple scattering
+ * (docs/memory.md: 51-56, 18-23, 98-103 and 56-60 B; multiple scattering
  * keeps nothing per voxel of its own); tests/memory_per_voxel.sh asserts
  * the reference ones */
 #define BUDGET_REFERENCE_BYTES 64.0
-#define BUDGET_REFERENCE_GREY_BYTES 30.0
+#define BUDGET_REFERENCE_GREY_BYTES 24.0
+/* per voxel more, a photon shard (--shard): its 64-bit sums and their
+ * encoding for the file, held through the write (measured 18 and 45 B
+ * above the reference, docs/memory.md) */
+#define BUDGET_SHARD_BYTES 48.0
+#define BUDGET_SHARD_GREY_BYTES 20.0
 #define BUDGET_ADAPTIVE_BYTES 122.0
 #define BUDGET_ADAPTIVE_GREY_BYTES 74.0
 /* dispersion: two more fields {∇n, n} (46 bytes at most, field.h), the R
@@ -58,6 +63,8 @@ typedef struct budget {
 /* Whether the scene's volume is grey (R = G = B for σs and σa everywhere),
  * known from the scene before voxelization. */
 int budget_grey(const scene_t *s);
+/* Bytes per voxel a photon shard holds beyond the bake's (BUDGET_SHARD_*). */
+double budget_shard_bytes(const scene_t *s);
 
 /* The estimate for the scene's grid at `resolution` voxels along the
  * longest side. BK_ERR_INPUT when the grid itself is invalid. */

@@ -106,7 +106,7 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings
    * kept volume passed it with the same grid) */
   /* dispersion keeps a {∇n, n} field per channel: 32 B more */
   double kept = FR_KEPT_FIELDS_BYTES + (scene_has_dispersion(s) ? 46.0 : 0.0);
-  int rc = budget_check_kept(s, max_memory, r->keep_fields ? kept : 0.0, err);
+  int rc = budget_check_kept(s, max_memory, (r->keep_fields ? kept : 0.0) + r->extra_bytes, err);
   if (!rc) rc = vox_build(s, &r->volume, t, err);
   if (rc) return rc;
   r->volume.key = key;

@@ -377,7 +377,7 @@ static int merge_run(merge_shard_t *sh, int n, const char *out_path, bk_error_t 
     /* emission = scattering ⊙ radiance, made as the writer builds its tree */
     og_source_t src = {.scattering = o.scattering, .sca_channels = o.sca_channels,
                        .radiance = o.radiance, .voxels = sums.voxels};
-    bake_arrays_t a = {o.ior, og_dense(o.radiance), og_dense(o.extinction), og_dense(o.scattering),
+    bake_arrays_t a = {og_dense(o.ior), og_dense(o.radiance), og_dense(o.extinction), og_dense(o.scattering),
                        og_dense(o.density), og_made(og_emission, &src),
                        o.count, o.weight, o.radius, o.sca_channels, o.medium_ior,
                        og_dense(o.ior_rgb), o.flux, o.uncollided, og_dense(o.phase_g),

@@ -26,6 +26,7 @@
 #include "mesh.h"
 #include "mesh_io.h"
 #include "vdbio.h"
+#include "brick_grid.h"
 #include "voxelize.h"
 #include "vox_medium.h"
 #include "test_util.h"
@@ -888,6 +889,42 @@ static void summarise_pair(int channels) {
   vox_free(&v);
 }
 
+/* n packed into bricks (brick_grid.h) comes back bit for bit over any
+ * range, on a grid that is not a multiple of 8 on any axis, with -0.0
+ * against 0.0 in a brick that is otherwise constant. */
+static void case_bricks(void) {
+  grid_dims_t d = {0};
+  d.nx = 21, d.ny = 13, d.nz = 10;
+  d.voxel_size = 0.1f;
+  const size_t n = grid_count(&d);
+  float *dense = malloc(n * sizeof(float)), *back = malloc(n * sizeof(float));
+  REQUIRE(dense && back, "out of memory");
+  for (size_t i = 0; i < n; i++) {
+    const int x = (int)(i % 21), y = (int)(i / 21 % 13), z = (int)(i / (21 * 13));
+    dense[i] = x > 15 && y > 8 ? 1.0f + 0.01f * (float)(i % 7) : 1.0f; /* a corner column varies */
+    if (x < 8 && y < 8 && z >= 8) dense[i] = 0.0f; /* a brick of zeros ... */
+  }
+  dense[grid_index(&d, 3, 2, 9)] = -0.0f; /* ... but one: it differs by its bits */
+  brick_grid_t g;
+  bk_error_t err;
+  REQUIRE(bg_build(&d, dense, &g, &err) == BK_OK, "bg_build: %s", err.msg);
+  const size_t cuts[][2] = {{0, n}, {5, 6}, {7, 300}, {n - 17, n}, {400, 1700}};
+  for (size_t c = 0; c < sizeof cuts / sizeof cuts[0]; c++) {
+    memset(back, 0x7f, n * sizeof(float));
+    bg_fill(&g, cuts[c][0], cuts[c][1], back + cuts[c][0]);
+    const size_t lo = cuts[c][0], hi = cuts[c][1];
+    EXPECT(memcmp(back + lo, dense + lo, (hi - lo) * sizeof(float)) == 0, "voxels %zu..%zu differ",
+           lo, hi);
+  }
+  const size_t bricks = (size_t)g.bx * g.by * g.bz;
+  size_t stored = 0;
+  for (size_t b = 0; b < bricks; b++) stored += g.slot[b] >= 0;
+  printf("bricks: %zu of %zu stored, %zu bytes for %zu voxels\n", stored, bricks, bg_bytes(&g), n);
+  EXPECT(stored == 3, "%zu bricks stored, expected the corner column's 2 and the -0.0 one", stored);
+  bg_free(&g);
+  free(dense), free(back);
+}
+
 static void case_scan(void) {
   scan_pair(0, 0);
   scan_pair(1, 0);
@@ -1028,6 +1065,7 @@ int main(int argc, char **argv) {
   else if (!strcmp(c, "objects")) case_objects();
   else if (!strcmp(c, "medium")) case_medium();
   else if (!strcmp(c, "scan")) case_scan();
+  else if (!strcmp(c, "bricks")) case_bricks();
   else if (!strcmp(c, "ties")) case_ties();
   else if (!strcmp(c, "open")) case_open();
   else if (!strcmp(c, "bad_input")) case_bad_input();
