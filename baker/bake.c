@@ -148,8 +148,10 @@ static void bake_pack_ior(void *ctx) {
   bake_job_t *j = ctx;
   volume_t *v = &j->reuse->volume;
   bk_error_t err;
+  const double t0 = bk_now_ms();
   if (!v->ior || bg_build(&v->dims, v->ior, &j->ior_bricks, &err) != BK_OK) return;
-  bk_log(2, "march: n packed into bricks, %.1f MiB", (double)bg_bytes(&j->ior_bricks) / 1048576.0);
+  bk_log(2, "march: n packed into bricks, %.1f MiB, %.0f ms",
+         (double)bg_bytes(&j->ior_bricks) / 1048576.0, bk_now_ms() - t0);
   free(v->ior);
   v->ior = NULL;
   j->reuse->has_volume = 0; /* not whole now */

@@ -160,19 +160,20 @@ void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t
 
 void vdbio_hash_progress::done(int g) {
   std::lock_guard<std::mutex> hold(lock);
-  hashed = g + 1;
+  if (g < 0) failed = true;
+  else hashed[(size_t)g] = 1;
   changed.notify_all();
 }
 
 void vdbio_hash_progress::wait_for(int g) {
   std::unique_lock<std::mutex> hold(lock);
-  changed.wait(hold, [&] { return hashed > g; });
+  changed.wait(hold, [&] { return failed || hashed[(size_t)g]; });
 }
 
 std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
                                          int count, bool half, vdbio_hash_progress *progress) {
   /* one hash per grid, a z slice at a time (a grid made by its fill is
-   * one slice here), the grids side by side, or in order for `progress` */
+   * one slice here), the grids side by side */
   std::vector<std::string> hex((size_t)count);
   const size_t plane = (size_t)dims->nx * (size_t)dims->ny;
   auto hash = [&](int g) {
@@ -183,17 +184,13 @@ std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_gr
     for (int z = 0; z < dims->nz; z++) hg.add(vdbio_slices(dims, grids[g], z, 1, buf), plane, ch, half);
     hex[(size_t)g] = ck_hex(hg.finish(bg, ch));
   };
-  if (!progress) {
-    tbb::parallel_for(0, count, hash);
-    return hex;
-  }
   try {
-    for (int g = 0; g < count; g++) {
+    tbb::parallel_for(0, count, [&](int g) {
       hash(g);
-      progress->done(g);
-    }
+      if (progress) progress->done(g);
+    });
   } catch (...) {
-    progress->done(count - 1); /* no writer waits for what will not come; get() throws */
+    if (progress) progress->done(-1); /* no writer waits for what will not come; get() throws */
     throw;
   }
   return hex;

@@ -63,14 +63,15 @@ void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t
                                      int grid_count, uint64_t key, openvdb::MetaMap &file_meta);
 std::string vdbio_checksum_placeholder(uint64_t key, int g);
 uint64_t vdbio_checksum_key(void);
-/* `progress` (optional): the grids are then hashed one after the other in
- * file order, and progress->done(g) reached as each is. */
+/* `progress` (optional): progress->done(g) is called as each grid's hash
+ * is taken, in any order. */
 struct vdbio_hash_progress {
   std::mutex lock;
   std::condition_variable changed;
-  int hashed = 0; /* grids 0 .. hashed-1 are done */
+  std::vector<char> hashed; /* per grid; sized before the hashing starts */
+  bool failed = false;      /* the hashing threw: nobody waits for more */
   void done(int g);
-  void wait_for(int g); /* until grid g is hashed */
+  void wait_for(int g); /* until grid g is hashed (or the hashing failed) */
 };
 std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
                                          int grid_count, bool half,

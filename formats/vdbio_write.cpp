@@ -460,6 +460,7 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
        * destructor waits for them on every way out */
       double t_file = bk_now_ms();
       vdbio_hash_progress progress;
+      progress.hashed.assign((size_t)grid_count, 0);
       const bool tell = opts && opts->grid_done;
       std::future<std::vector<std::string>> checksums = std::async(std::launch::async, [&] {
         return vdbio_checksums(dims, grids, grid_count, half, tell ? &progress : nullptr);
