@@ -140,6 +140,10 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
   return rc;
 }
 
+/* No later frame of this run takes the volume (a batch of several frames
+ * keeps it): the bake may then free its arrays as it is done with them. */
+static int bake_volume_ends_here(const bake_job_t *j) { return !j->reuse->keep_fields; }
+
 /* Once the march has its {∇n, n} field, n is read again only by the
  * write's ior grid: it waits there as bricks, most of them one value
  * (brick_grid.h: 0.4 B per voxel for the sphere scene instead of 4). Out of
@@ -184,7 +188,7 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
   bo.error_grid = opt->error_grid;
   bo.fields = j->reuse->keep_fields ? &j->reuse->fields : NULL;
   bo.radiance_out = &j->radiance;
-  if (!j->reuse->keep_fields && !j->vol->ior_rb) { /* no later frame takes the volume */
+  if (bake_volume_ends_here(j) && !j->vol->ior_rb) {
     bo.fields_built = bake_pack_ior;
     bo.fields_built_ctx = j;
   }
@@ -248,9 +252,9 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   *src = (og_source_t){vol->sigma_s, vol->sigma_t, vol->sigma_channels, vol->sigma_s, sca_channels,
                        j->radiance, rad_channels, vol->ior, vol->ior_rb, n, vol->g,
                        j->scene.medium_g};
-  /* sigma_s and sigma_t are the scattering and extinction grids as they
+  /* n packed into bricks after the march's fields were built (bake_pack_ior);
+   * sigma_s and sigma_t are the scattering and extinction grids as they
    * stand: Vec3, or floats when the volume is grey (vox_summarise) */
-  /* n packed into bricks after the march's fields were built (bake_pack_ior) */
   const og_values_t ior = j->ior_bricks.slot ? (og_values_t){NULL, bg_fill, &j->ior_bricks}
                                              : og_dense(vol->ior);
   bake_arrays_t a = {ior, og_dense(j->radiance), og_dense(vol->sigma_t),
@@ -383,7 +387,7 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
   vdbio_write_opts_t wo = opt->write;
   if (j->shard.sums.acc) wo.half_float = 0; /* sums and medium go to the merge exactly */
   bake_release_t release = bake_release_plan(j->reuse, grids, count);
-  if (!j->reuse->keep_fields) { /* one frame: the volume is done with as the write goes */
+  if (bake_volume_ends_here(j)) {
     wo.grid_done = bake_grid_done;
     wo.grid_done_ctx = &release;
   }
