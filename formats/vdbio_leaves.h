@@ -11,7 +11,12 @@
  * in order while the next window is compressed; at most two windows'
  * buffers are in memory. vdbio_parallel_tree is
  * a tree that writes its buffers so, for Archive's writer to call. Checked
- * byte for byte against OpenVDB's own by test_vdbio_tree. */
+ * byte for byte against OpenVDB's own by test_vdbio_tree.
+ *
+ * A leaf may also come without values (made with PartialCreate: its value
+ * mask only, the buffer never allocated): the tree's `values` function then
+ * gives them, into a scratch leaf per run, as the leaf is written, so a
+ * grid's values exist twice only a window at a time (vdbio_write.cpp). */
 #ifndef BAKER_VDBIO_LEAVES_H
 #define BAKER_VDBIO_LEAVES_H
 
@@ -20,6 +25,8 @@
 #include <tbb/task_group.h>
 
 #include <algorithm>
+#include <functional>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -27,8 +34,14 @@
 static const size_t VDBIO_WRITE_WINDOW = 2048; /* leaves: 4-12 MB of values */
 static const size_t VDBIO_WRITE_RUN = 64;      /* leaves per buffer */
 
+/* Writes `leaf` to os, or, when it holds no values, the leaf `scratch`
+ * made from its mask and values(leaf, scratch). */
+template <typename LeafT>
+using vdbio_leaf_values = std::function<void(const LeafT &leaf, LeafT &scratch)>;
+
 template <typename TreeT>
-void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half) {
+void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
+                        const vdbio_leaf_values<typename TreeT::LeafNodeType> &values = nullptr) {
   using LeafT = typename TreeT::LeafNodeType;
   std::vector<const LeafT *> leaves;
   leaves.reserve(tree.leafCount());
@@ -46,7 +59,16 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half) {
       openvdb::io::setDataCompression(run, compression);
       openvdb::io::setGridBackgroundValuePtr(run, background);
       const size_t lo = w + r * VDBIO_WRITE_RUN, hi = std::min(end, lo + VDBIO_WRITE_RUN);
-      for (size_t i = lo; i < hi; i++) leaves[i]->writeBuffers(run, to_half);
+      std::unique_ptr<LeafT> scratch;
+      for (size_t i = lo; i < hi; i++) {
+        if (!values || !leaves[i]->buffer().empty()) {
+          leaves[i]->writeBuffers(run, to_half);
+          continue;
+        }
+        if (!scratch) scratch.reset(new LeafT(leaves[i]->origin()));
+        values(*leaves[i], *scratch);
+        scratch->writeBuffers(run, to_half);
+      }
       out[r] = run.str();
     });
   };
@@ -68,8 +90,10 @@ template <typename TreeT> class vdbio_parallel_tree : public TreeT {
 public:
   explicit vdbio_parallel_tree(const typename TreeT::ValueType &background) : TreeT(background) {}
   void writeBuffers(std::ostream &os, bool to_half) const override {
-    vdbio_write_leaves(static_cast<const TreeT &>(*this), os, to_half);
+    vdbio_write_leaves(static_cast<const TreeT &>(*this), os, to_half, values);
   }
+  /* the values of leaves made without them (set before the tree is written) */
+  vdbio_leaf_values<typename TreeT::LeafNodeType> values;
 };
 
 #endif

@@ -88,10 +88,12 @@ static bool vdbio_block_uniform(const float *first, RowF row) {
   return true;
 }
 
-/* `slab`: the voxels of z slices z0.. (vdbio_slices), the block's among them. */
+/* `slab`: the voxels of z slices z0.. (vdbio_slices), the block's among them.
+ * A `deferred` leaf gets its value mask only (vdbio_leaf_fill gives its
+ * values when it is written). */
 template <typename LeafT>
 static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
-                              const vdb::Coord &lo, vdbio_block_out<LeafT> &out) {
+                              const vdb::Coord &lo, bool deferred, vdbio_block_out<LeafT> &out) {
   using ValueT = typename LeafT::ValueType;
   using B = vdbio_block<ValueT>;
   const int C = B::C, D = (int)LeafT::DIM;
@@ -126,19 +128,49 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
     out.tile = *reinterpret_cast<const ValueT *>(first);
     return;
   }
-  LeafT *leaf = new LeafT(lo, vdb::zeroVal<ValueT>(), false);
-  ValueT *buf = leaf->buffer().data();
+  LeafT *leaf = deferred ? new LeafT(vdb::PartialCreate(), lo, vdb::zeroVal<ValueT>(), false)
+                         : new LeafT(lo, vdb::zeroVal<ValueT>(), false);
+  ValueT *buf = deferred ? nullptr : leaf->buffer().data();
   for (int z = 0; z < ez; z++)
     for (int y = 0; y < ey; y++) {
       const float *r = row(y, z);
       for (int x = 0; x < ex; x++) {
         if (B::is_background(r + C * x)) continue;
         const vdb::Index n = (vdb::Index)((x << (2 * LeafT::LOG2DIM)) + (y << LeafT::LOG2DIM) + z);
-        buf[n] = *reinterpret_cast<const ValueT *>(r + C * x);
+        if (buf) buf[n] = *reinterpret_cast<const ValueT *>(r + C * x);
         leaf->getValueMask().setOn(n);
       }
     }
   out.leaf = leaf;
+}
+
+/* A deferred leaf's values into `scratch`: its mask, the grid's values
+ * where the mask is on and zero elsewhere, as vdbio_build_block fills a
+ * leaf; read from the dense array, or made a row of the leaf at a time. */
+template <typename LeafT>
+static void vdbio_leaf_fill(const grid_dims_t &d, const vdbio_grid_t &g, const LeafT &leaf,
+                            LeafT &scratch) {
+  using ValueT = typename LeafT::ValueType;
+  const int C = sizeof(ValueT) / sizeof(float), D = (int)LeafT::DIM;
+  const vdb::Coord lo = leaf.origin();
+  const int ex = std::min(D, d.nx - lo[0]), ey = std::min(D, d.ny - lo[1]),
+            ez = std::min(D, d.nz - lo[2]);
+  const typename LeafT::NodeMaskType &mask = leaf.getValueMask();
+  scratch.buffer().fill(vdb::zeroVal<ValueT>());
+  scratch.setValueMask(mask);
+  ValueT *buf = scratch.buffer().data();
+  float made[3 * LeafT::DIM];
+  for (int z = 0; z < ez; z++)
+    for (int y = 0; y < ey; y++) {
+      const size_t at =
+          (size_t)lo[0] + (size_t)d.nx * ((size_t)(lo[1] + y) + (size_t)d.ny * (size_t)(lo[2] + z));
+      const float *r = g.data ? g.data + (size_t)C * at : made;
+      if (!g.data) g.fill(g.fill_ctx, at, at + (size_t)ex, made);
+      for (int x = 0; x < ex; x++) {
+        const vdb::Index n = (vdb::Index)((x << (2 * LeafT::LOG2DIM)) + (y << LeafT::LOG2DIM) + z);
+        if (mask.isOn(n)) buf[n] = *reinterpret_cast<const ValueT *>(r + C * x);
+      }
+    }
 }
 
 const float *vdbio_slices(const grid_dims_t *d, const vdbio_grid_t &g, int z0, int nz,
@@ -155,9 +187,14 @@ const float *vdbio_slices(const grid_dims_t *d, const vdbio_grid_t &g, int z0, i
 }
 
 /* A slab of 8^3 blocks at a time (its voxels made there for a grid made on
- * the fly), inserted in copyFromDense's order: x, then y, then z. */
+ * the fly), inserted in copyFromDense's order: x, then y, then z. With
+ * `deferred` the leaves hold their masks only and their values are read
+ * again as each is written (vdbio_leaves.h): the tree then costs its masks,
+ * not a copy of the grid's values; *deferred_bytes: the values' bytes the
+ * leaves would hold (the file's file_mem_bytes counts them). */
 template <typename GridT>
-static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_grid_t &g) {
+static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_grid_t &g,
+                                            bool deferred, size_t *deferred_bytes) {
   using ValueT = typename GridT::ValueType;
   using TreeT = typename GridT::TreeType;
   using LeafT = typename TreeT::LeafNodeType;
@@ -168,8 +205,12 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
   std::vector<vdbio_block_out<LeafT>> out(blocks);
   std::vector<float> buf;
   /* a tree whose leaves are compressed on every core when written */
-  typename GridT::Ptr grid =
-      GridT::create(typename TreeT::Ptr(new vdbio_parallel_tree<TreeT>(vdb::zeroVal<ValueT>())));
+  vdbio_parallel_tree<TreeT> *tree = new vdbio_parallel_tree<TreeT>(vdb::zeroVal<ValueT>());
+  typename GridT::Ptr grid = GridT::create(typename TreeT::Ptr(tree));
+  if (deferred) {
+    const grid_dims_t dims = *d;
+    tree->values = [dims, g](const LeafT &leaf, LeafT &s) { vdbio_leaf_fill(dims, g, leaf, s); };
+  }
   vdb::tree::ValueAccessor<TreeT> acc(grid->tree());
   for (int bz = 0; bz < lz; bz++) {
     const int z0 = D * bz;
@@ -179,7 +220,7 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
                       [&](const tbb::blocked_range<size_t> &r) {
                         for (size_t b = r.begin(); b != r.end(); b++) {
                           out[b] = vdbio_block_out<LeafT>();
-                          vdbio_build_block(d, slab, z0, origin(b), out[b]);
+                          vdbio_build_block(d, slab, z0, origin(b), deferred, out[b]);
                         }
                       });
     for (size_t b = 0; b < blocks; b++) {
@@ -189,10 +230,13 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
         acc.addTile(1, origin(b), out[b].tile, true);
     }
   }
+  /* pruning looks at leaves' masks, never at their values: the internal
+   * nodes above leaves are never constant */
   vdb::tools::pruneTiles(grid->tree(), vdb::zeroVal<ValueT>());
   const float bg = g.background;
-  if (bg != 0.0f)
+  if (bg != 0.0f) /* it rewrites the leaves' inactive values: not for deferred ones */
     vdb::tools::changeBackground(grid->tree(), ValueT(bg));
+  *deferred_bytes = deferred ? (size_t)grid->tree().leafCount() * LeafT::SIZE * sizeof(ValueT) : 0;
   return grid;
 }
 
@@ -231,13 +275,14 @@ static int vdbio_check_write_args(const char *path, const grid_dims_t *dims,
  * class and vector_type invariant. Throws what OpenVDB throws (the caller
  * catches). */
 static vdb::GridBase::Ptr vdbio_make_grid(const grid_dims_t *dims, const vdbio_grid_t &g,
-                                          bool half) {
+                                          bool half, bool deferred, size_t *deferred_bytes) {
   vdb::GridBase::Ptr base;
+  deferred = deferred && g.background == 0.0f; /* changeBackground needs the values */
   if (g.type == VDBIO_FLOAT) {
-    base = vdbio_from_dense<vdb::FloatGrid>(dims, g);
+    base = vdbio_from_dense<vdb::FloatGrid>(dims, g, deferred, deferred_bytes);
     base->setGridClass(vdb::GRID_FOG_VOLUME);
   } else {
-    vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, g);
+    vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, g, deferred, deferred_bytes);
     /* unset means the OpenVDB default, which is also invariant; set it
      * explicitly so readers (Houdini) see the metadata */
     if (g.vector_invariant)
@@ -314,7 +359,8 @@ private:
    * it (a third of a large grid's write); OpenVDB 11 and later neither write
    * nor read it, and OpenVDB 10 reads files without it. The layout is
    * otherwise the same. */
-  void write_grid(vdb::io::GridDescriptor &gd, const vdb::GridBase::Ptr &grid, std::ostream &os,
+  void write_grid(vdb::io::GridDescriptor &gd, const vdb::GridBase::Ptr &grid,
+                  size_t deferred_bytes, std::ostream &os,
                   vdb::io::StreamMetadata::Ptr &file_sm) const {
     /* the stream metadata varies per grid: a copy of the file's, whose
      * pointer (the stream keeps the address of the Ptr) is put back after */
@@ -330,6 +376,11 @@ private:
     vdb::GridBase::Ptr meta = grid->copyGrid(); /* shallow: the tree is shared */
     if (vdb::io::getWriteGridStatsMetadata(os)) {
       meta->addStatsMetadata();
+      /* the tree's size with its deferred leaves' values, as loaded */
+      const int64_t mem = meta->metaValue<int64_t>(vdb::GridBase::META_FILE_MEM_BYTES);
+      meta->removeMeta(vdb::GridBase::META_FILE_MEM_BYTES);
+      meta->insertMeta(vdb::GridBase::META_FILE_MEM_BYTES,
+                       vdb::Int64Metadata(mem + (int64_t)deferred_bytes));
       const uint32_t compression = vdb::io::getDataCompression(os);
       meta->insertMeta(vdb::GridBase::META_FILE_COMPRESSION,
                        vdb::StringMetadata(vdb::io::compressionToString(compression)));
@@ -371,9 +422,10 @@ private:
     os.write(reinterpret_cast<const char *>(&n), sizeof n);
     for (int g = 0; g < count; g++) {
       double t = bk_now_ms();
-      vdb::GridBase::Ptr grid = vdbio_make_grid(dims, grids[g], half);
+      size_t deferred_bytes;
+      vdb::GridBase::Ptr grid = vdbio_make_grid(dims, grids[g], half, true, &deferred_bytes);
       vdb::io::GridDescriptor gd(grid->getName(), grid->type(), grid->saveFloatAsHalf());
-      write_grid(gd, grid, os, sm);
+      write_grid(gd, grid, deferred_bytes, os, sm);
       /* per-grid compression options (mask compression) reset, as Archive::write does */
       vdb::io::setDataCompression(os, compression());
       bk_log(2, "write: grid %s %.0f ms", grids[g].name, bk_now_ms() - t);
@@ -449,8 +501,9 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
     const bool nano = vdbio_is_nano_path(path), half = opts && opts->half_float;
     if (nano) { /* NanoVDB files carry no file metadata, so no checksums */
       vdb::GridPtrVec out;
+      size_t unused; /* NanoVDB converts whole trees: every leaf holds its values */
       for (int g = 0; g < grid_count; g++) {
-        out.push_back(vdbio_make_grid(dims, grids[g], half));
+        out.push_back(vdbio_make_grid(dims, grids[g], half, false, &unused));
         if (opts && opts->grid_done) opts->grid_done(opts->grid_done_ctx, g); /* in its tree */
       }
       nvdbio_write(tmp, out);
