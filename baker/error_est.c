@@ -18,8 +18,9 @@ int ee_tracker_init(ee_tracker_t *t, const pm_setup_t *s, int all, bk_error_t *e
   t->my = (s->dims.ny + t->shift) >> t->shift;
   t->mz = (s->dims.nz + t->shift) >> t->shift;
   t->count = (size_t)t->mx * t->my * t->mz;
-  t->prev = bk_calloc_touched(t->count, sizeof(float), "error estimate: batch sums", err);
-  t->sumsq = bk_calloc_touched(t->count, sizeof(float), "error estimate: batch squares", err);
+  /* not touched yet: the twins, which come first, keep their own sums */
+  t->prev = bk_calloc(t->count, sizeof(float), "error estimate: batch sums", err);
+  t->sumsq = bk_calloc(t->count, sizeof(float), "error estimate: batch squares", err);
   if (!t->prev || !t->sumsq) {
     ee_tracker_free(t);
     return BK_ERR_RUNTIME;
@@ -132,6 +133,11 @@ static void run_pass(ee_ctx_t *x) {
 
 void ee_after_batch(ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc) {
   ee_ctx_t x = {t, s, acc, NULL, NULL, EE_PASS_BATCH};
+  if (!t->touched) { /* their pages, once, before the threads fill them */
+    bk_touch_pages(t->prev, t->count * sizeof(float));
+    bk_touch_pages(t->sumsq, t->count * sizeof(float));
+    t->touched = 1;
+  }
   run_pass(&x);
 }
 

@@ -63,6 +63,7 @@ typedef struct ee_tracker {
   size_t count;
   float *prev;        /* per tracked voxel: the luminance sum of the batches so far */
   float *sumsq;       /* ... and the sum of the squares of each batch's luminance */
+  int touched;        /* prev and sumsq resident (at the first batch, after the twins) */
   int twins;          /* twin batches recorded */
   float *dsum, *dsumsq; /* twin: sums of d_t and d_t² (NULL until a twin runs) */
   float *twin_tmp;    /* twin: the truth integrator's luminance of the twin in flight */

@@ -123,11 +123,14 @@ const char *bk_format_bytes(double bytes, char *buf, size_t len) {
   return buf;
 }
 
-void *bk_calloc_touched(size_t count, size_t size, const char *what, bk_error_t *err) {
-  char *p = bk_calloc(count, size, what, err);
+void bk_touch_pages(void *p, size_t bytes) {
   /* a write per page, volatile: the compiler drops a memset after calloc */
-  for (size_t at = 0, total = count * size; p && at < total; at += 4096)
-    ((volatile char *)p)[at] = 0; /* size checked by bk_calloc */
+  for (size_t at = 0; p && at < bytes; at += 4096) ((volatile char *)p)[at] = 0;
+}
+
+void *bk_calloc_touched(size_t count, size_t size, const char *what, bk_error_t *err) {
+  void *p = bk_calloc(count, size, what, err);
+  if (p) bk_touch_pages(p, count * size); /* size checked by bk_calloc */
   return p;
 }
 
