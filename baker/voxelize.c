@@ -413,13 +413,17 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
     return bk_fail(err, BK_ERR_INPUT, "%s: grid.ior_smoothing: expected a positive number of voxels, got %g",
                    grid_where, scene->ior_smoothing);
   const grid_dims_t *d = &out->dims;
+  /* a scene whose medium and objects are all grey gives a grey volume: its
+   * coefficients once per voxel from the start; others RGB until
+   * vox_summarise finds the volume grey after all */
+  const size_t C = (size_t)(out->sigma_channels = scene_is_grey(scene) ? 1 : 3);
   /* everything this stage holds at once: the volume, an object's scratch
    * (at most the whole grid), and the density field while it is applied */
   /* a g grid only when an object's phase differs from the medium's */
   int g_grid = 0;
   for (int i = 0; i < scene->object_count; i++)
     if (scene->objects[i].g != scene->medium_g) g_grid = 1;
-  size_t per_voxel = VOX_BYTES_PER_VOXEL + (g_grid ? sizeof(float) : 0) +
+  size_t per_voxel = VOX_BYTES_PER_VOXEL(C) + (g_grid ? sizeof(float) : 0) +
                      (scene->object_count > 0 ? VOX_SCRATCH_BYTES : 0) +
                      (scene->density_vdb.present ? sizeof(float) : 0) +
                      (scene_has_dispersion(scene) ? 2 * sizeof(float) : 0);
@@ -427,10 +431,6 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *o
   if (rc) return rc;
 
   const size_t count = grid_count(d);
-  /* a scene whose medium and objects are all grey gives a grey volume: its
-   * coefficients once per voxel from the start; others RGB until
-   * vox_summarise finds the volume grey after all */
-  const size_t C = (size_t)(out->sigma_channels = scene_is_grey(scene) ? 1 : 3);
   out->ior = bk_calloc(count, sizeof(float), "voxelize: ior grid", err);
   out->sigma_s = bk_calloc(count, C * sizeof(float), "voxelize: sigma_s grid", err);
   out->sigma_t = bk_calloc(count, C * sizeof(float), "voxelize: sigma_t grid", err);

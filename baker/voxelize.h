@@ -100,8 +100,9 @@ static inline float vol_sigma_t(const volume_t *v, size_t i, int c) {
   return v->sigma_t[vox_sigma_index(v, i, c)];
 }
 
-/* Bytes per voxel the volume needs (for grid_check_memory). */
-#define VOX_BYTES_PER_VOXEL (7 * sizeof(float))
+/* Bytes per voxel the volume needs (for grid_check_memory): n, and σs and
+ * σa (then σt) with C = 1 (grey) or 3 values each. */
+#define VOX_BYTES_PER_VOXEL(C) ((1 + 2 * (size_t)(C)) * sizeof(float))
 
 int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_error_t *err);
 void vox_free(volume_t *v);
