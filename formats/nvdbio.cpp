@@ -16,13 +16,15 @@
 
 #include <cstdio>
 #include <cstring>
+#include <fstream>
+#include <stdexcept>
 #include <strings.h>
 #include <string>
 #include <vector>
 
 namespace vdb = openvdb;
 
-bool vdbio_is_nano_path(const char *path) {
+int vdbio_is_nano_path(const char *path) {
   const size_t n = path ? strlen(path) : 0;
   return n >= 5 && strcasecmp(path + n - 5, ".nvdb") == 0;
 }
@@ -38,11 +40,34 @@ bool vdbio_is_nano_file(const char *path) {
   return ok;
 }
 
-void nvdbio_write(const std::string &file, const vdb::GridPtrVec &grids) {
-  std::vector<nanovdb::GridHandle<nanovdb::HostBuffer>> handles;
-  for (const vdb::GridBase::Ptr &g : grids)
-    handles.push_back(nanovdb::openToNanoVDB(g));
-  nanovdb::io::writeGrids(file, handles, nanovdb::io::Codec::NONE);
+/* The bytes of nanovdb::io::writeGrids (one segment: its header, then each
+ * grid), but a grid at a time: the header's size follows from the names
+ * alone, so the grids go after room left for it and the header, which
+ * needs every grid's statistics, goes in last. */
+void nvdbio_write(const std::string &file, const std::vector<std::string> &names,
+                  const std::function<vdb::GridBase::Ptr(int)> &make,
+                  const std::function<void(int)> &done) {
+  const nanovdb::io::Codec codec = nanovdb::io::Codec::NONE;
+  uint64_t header = sizeof(nanovdb::io::Header);
+  for (const std::string &n : names) header += sizeof(nanovdb::io::MetaData) + n.size() + 1;
+  std::ofstream os(file, std::ios::out | std::ios::binary | std::ios::trunc);
+  if (!os.is_open())
+    throw std::runtime_error("cannot open " + file + " for writing");
+  nanovdb::io::Segment seg(codec);
+  os.seekp((std::streamoff)header);
+  for (int i = 0; i < (int)names.size(); i++) {
+    nanovdb::GridHandle<nanovdb::HostBuffer> h = nanovdb::openToNanoVDB(make(i));
+    seg.add(h);
+    seg.meta.back().fileSize = nanovdb::io::Internal::write(os, h, codec);
+    done(i);
+  }
+  if (seg.memUsage() != header) /* a name NanoVDB stored otherwise */
+    throw std::runtime_error("NanoVDB segment header size differs from its grid names'");
+  os.seekp(0);
+  seg.write(os);
+  os.close();
+  if (os.fail())
+    throw std::runtime_error("writing " + file + " failed");
 }
 
 /* OpenVDB's names for the value types vdbio reads; others by number. */

@@ -29,6 +29,9 @@
 extern "C" {
 #endif
 
+/* Whether a path asks for NanoVDB: it ends in ".nvdb", in any case. */
+int vdbio_is_nano_path(const char *path);
+
 typedef enum { VDBIO_FLOAT = 1, VDBIO_VEC3 = 3 } vdbio_type_t;
 
 /* A grid made on the fly instead of read from a dense array: writes voxels

@@ -8,6 +8,7 @@
 #include <openvdb/openvdb.h>
 
 #include <condition_variable>
+#include <functional>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -15,13 +16,16 @@
 /* openvdb::initialize, once per process, before any grid is made or read. */
 void vdbio_init(void);
 
-/* NanoVDB (nvdbio.cpp): a path that asks for it (".nvdb"), a file that is
- * one (by its magic number); writing the grids vdbio_write made (throws what
+/* NanoVDB (nvdbio.cpp; vdbio_is_nano_path in vdbio.h): a file that is
+ * one (by its magic number); writing the grids vdbio_write makes (throws what
  * NanoVDB throws); listing and loading one grid as OpenVDB, with the same
- * conventions as vdbio.cpp's readers (found == NULL: absent is an error). */
-bool vdbio_is_nano_path(const char *path);
+ * conventions as vdbio.cpp's readers (found == NULL: absent is an error).
+ * nvdbio_write asks make(i) for grid i, named names[i], only when it writes
+ * it, and drops it and its NanoVDB copy before the next; done(i) then. */
 bool vdbio_is_nano_file(const char *path);
-void nvdbio_write(const std::string &file, const openvdb::GridPtrVec &grids);
+void nvdbio_write(const std::string &file, const std::vector<std::string> &names,
+                  const std::function<openvdb::GridBase::Ptr(int)> &make,
+                  const std::function<void(int)> &done);
 int nvdbio_list(const char *path, std::vector<std::string> &names,
                 std::vector<std::string> &types, bk_error_t *err);
 int nvdbio_load_grid(const char *path, const char *where, const char *grid_name,

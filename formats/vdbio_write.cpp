@@ -500,13 +500,15 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
       return rc;
     const bool nano = vdbio_is_nano_path(path), half = opts && opts->half_float;
     if (nano) { /* NanoVDB files carry no file metadata, so no checksums */
-      vdb::GridPtrVec out;
+      std::vector<std::string> names;
+      for (int g = 0; g < grid_count; g++) names.push_back(grids[g].name);
       size_t unused; /* NanoVDB converts whole trees: every leaf holds its values */
-      for (int g = 0; g < grid_count; g++) {
-        out.push_back(vdbio_make_grid(dims, grids[g], half, false, &unused));
-        if (opts && opts->grid_done) opts->grid_done(opts->grid_done_ctx, g); /* in its tree */
-      }
-      nvdbio_write(tmp, out);
+      nvdbio_write(
+          tmp, names,
+          [&](int g) { return vdbio_make_grid(dims, grids[g], half, false, &unused); },
+          [&](int g) { /* in the file */
+            if (opts && opts->grid_done) opts->grid_done(opts->grid_done_ctx, g);
+          });
     } else {
       /* the checksums (a serial hash per grid) are taken beside the
        * grids' writing and put in place after them; the future's
