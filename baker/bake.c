@@ -97,8 +97,8 @@ void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_
 /* Stage 1: the scene (with the command's overrides, the frame's keyframed
  * values and paths) and its voxels, kept from the frame before when they
  * were made from the same inputs. */
-static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene_path, int frame,
-                     bk_error_t *err) {
+static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene_path,
+                     const char *out_path, int frame, bk_error_t *err) {
   double t0 = bk_now_ms();
   int rc = bake_load_scene(opt, scene_path, frame, &j->scene, err);
   if (rc) return rc;
@@ -106,7 +106,8 @@ static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene
   if ((rc = expand_scene_paths(&j->scene, frame, err))) return rc;
   bk_timings_add(&j->timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
                  j->scene.object_count, j->scene.light_count);
-  j->reuse->extra_bytes = opt->shard_count ? budget_shard_bytes(&j->scene) : 0.0;
+  j->reuse->extra_bytes = (opt->shard_count ? budget_shard_bytes(&j->scene) : 0.0) +
+                          budget_output_bytes(&j->scene, out_path);
   if ((rc = fr_volume(j->reuse, &j->scene, opt->max_memory, &j->timings, err))) return rc;
   j->vol = &j->reuse->volume;
   return BK_OK;
@@ -445,7 +446,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   int count = 0;
   int rc = bk_check_output_dir(out_path, err);
   if (!rc && opt->stats_path) rc = bk_check_output_dir(opt->stats_path, err);
-  if (!rc) rc = bake_load(j, opt, scene_path, frame, err);
+  if (!rc) rc = bake_load(j, opt, scene_path, out_path, frame, err);
   if (!rc) rc = bake_photons(j, opt, err);
   double t0 = bk_now_ms();
   if (!rc) rc = bake_output_grids(j, grids, &count, err);

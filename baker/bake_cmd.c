@@ -11,6 +11,7 @@
 #include "budget.h"
 #include "cmdline.h"
 #include "shard.h"
+#include "vdbio.h"
 #include "base/common.h"
 
 static void bake_usage(FILE *out) {
@@ -246,8 +247,7 @@ static int bake_command(int argc, char **argv, const char **sets) {
     bake_usage(stderr);
     return BK_ERR_INPUT;
   }
-  size_t len = strlen(opt.out_path);
-  if (opt.shard_count && len >= 5 && !strcmp(opt.out_path + len - 5, ".nvdb")) {
+  if (opt.shard_count && vdbio_is_nano_path(opt.out_path)) {
     bk_report("bake", "--shard: a shard is written as .vdb (its metadata goes to the merge; "
                       "NanoVDB files carry none)");
     return BK_ERR_INPUT;

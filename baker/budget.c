@@ -7,6 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "vdbio.h"
+
 /* Some medium has g != 0: the march keeps the flux too. */
 static int budget_anisotropic(const scene_t *s) {
   int any = s->medium_g != 0.0f;
@@ -32,6 +34,10 @@ int budget_grey(const scene_t *s) {
 
 double budget_shard_bytes(const scene_t *s) {
   return budget_grey(s) ? BUDGET_SHARD_GREY_BYTES : BUDGET_SHARD_BYTES;
+}
+
+double budget_output_bytes(const scene_t *s, const char *out_path) {
+  return vdbio_is_nano_path(out_path) && budget_grey(s) ? BUDGET_NANOVDB_GREY_BYTES : 0.0;
 }
 
 int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {

@@ -52,6 +52,12 @@ extern "C" {
  * 7 counters, radiance_flux, radiance_uncollided, radiance_flux_uncollided
  * and phase_g (baker/march.h) */
 #define BUDGET_FLUX_BYTES 88.0
+/* per voxel more for a grey medium written as NanoVDB (.nvdb): each grid is
+ * converted whole, its OpenVDB tree beside its NanoVDB copy (12 B each for
+ * a Vec3 grid), where .vdb leaves hold masks only. Measured 32 B grey and
+ * 58 B RGB per voxel (192³ → 256³, docs/memory.md): the RGB figure covers
+ * the latter */
+#define BUDGET_NANOVDB_GREY_BYTES 13.0
 
 typedef struct budget {
   grid_dims_t dims;
@@ -65,6 +71,8 @@ typedef struct budget {
 int budget_grey(const scene_t *s);
 /* Bytes per voxel a photon shard holds beyond the bake's (BUDGET_SHARD_*). */
 double budget_shard_bytes(const scene_t *s);
+/* Bytes per voxel writing to out_path holds beyond the bake's (NanoVDB). */
+double budget_output_bytes(const scene_t *s, const char *out_path);
 
 /* The estimate for the scene's grid at `resolution` voxels along the
  * longest side. BK_ERR_INPUT when the grid itself is invalid. */

@@ -37,7 +37,7 @@
 
 typedef struct bake_reuse {
   int keep_fields;              /* a batch of several frames: keep the march's fields */
-  double extra_bytes;           /* per voxel beyond the budget's mode figure (a shard's sums) */
+  double extra_bytes;           /* per voxel beyond the budget's mode figure (a shard's sums, a NanoVDB output) */
   int has_volume, volume_frame; /* the kept volume, its key volume.key */
   volume_t volume;
   pm_field_cache_t fields;      /* the octree stage's (march.h) */
