@@ -28,11 +28,11 @@ extern "C" {
 #define BUDGET_FIXED_BYTES (320.0 * 1024 * 1024)
 /* per voxel, reference and adaptive mode, for an RGB medium and a grey one
  * (budget_grey): above the slopes measured with multiple scattering on
- * (docs/memory.md: 51-56, 18-23, 98-103 and 56-60 B; multiple scattering
+ * (docs/memory.md: 50-52, 18.7-20.9, 98-103 and 56-60 B; multiple scattering
  * keeps nothing per voxel of its own); tests/memory_per_voxel.sh asserts
  * the reference ones */
 #define BUDGET_REFERENCE_BYTES 64.0
-#define BUDGET_REFERENCE_GREY_BYTES 24.0
+#define BUDGET_REFERENCE_GREY_BYTES 21.0
 /* per voxel more, a photon shard (--shard): its 64-bit sums and their
  * encoding for the file, held through the write (measured 18 and 45 B
  * above the reference, docs/memory.md) */
