@@ -88,6 +88,13 @@ void shard_encode(const uint64_t *acc, size_t voxels, int stride, int slot, floa
   }
 }
 
+/* A vdbio fill: voxels [lo, hi) of one slot, encoded as the write needs
+ * them (made where each part of the file is made, never whole). */
+static void shard_fill(const void *ctx, size_t lo, size_t hi, float *out) {
+  const shard_slot_t *s = ctx;
+  shard_encode(s->acc + (size_t)s->stride * lo, hi - lo, s->stride, s->slot, out);
+}
+
 int shard_decode_add(const float *in, size_t voxels, int stride, int slot, uint64_t *acc) {
   const float lim[3] = {0x1p22f, 0x1p22f, 0x1p20f}; /* 22, 22 and 20 bits */
   for (size_t v = 0; v < voxels; v++) {
@@ -112,13 +119,12 @@ int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids,
   size_t n = grid_count(dims);
   for (int s = 0; s < slots; s++) {
     const int f = s - k->stride; /* >= 0: a flux counter, after the voxels' */
-    sh->encoded[s] = bk_calloc(n, 3 * sizeof(float), "shard sum grid", err);
-    if (!sh->encoded[s]) return err->code;
-    if (f < 0) shard_encode(k->acc, n, k->stride, s, sh->encoded[s]);
-    else shard_encode(k->acc + n * (size_t)k->stride, n, PM_FLUX_SLOTS, f, sh->encoded[s]);
+    sh->slots[s] = f < 0 ? (shard_slot_t){k->acc, k->stride, s}
+                         : (shard_slot_t){k->acc + n * (size_t)k->stride, PM_FLUX_SLOTS, f};
     snprintf(sh->names[s], sizeof sh->names[s], f < 0 ? "shard_sum_%d" : "shard_flux_%d",
              f < 0 ? s : f);
-    grids[(*count)++] = (vdbio_grid_t){sh->names[s], VDBIO_VEC3, sh->encoded[s], 0, 0.0f, NULL, NULL};
+    grids[(*count)++] =
+        (vdbio_grid_t){sh->names[s], VDBIO_VEC3, NULL, 0, 0.0f, shard_fill, &sh->slots[s]};
   }
   return BK_OK;
 }
@@ -156,8 +162,4 @@ int shard_meta(shard_state_t *sh, const bake_options_t *opt, const scene_t *s,
 
 void shard_free(shard_state_t *sh) {
   pm_sums_free(&sh->sums);
-  for (int s = 0; s < SHARD_MAX_SLOTS; s++) {
-    free(sh->encoded[s]);
-    sh->encoded[s] = NULL;
-  }
 }

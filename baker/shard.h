@@ -38,11 +38,17 @@
 #define SHARD_MAX_SLOTS (SHARD_MAX_STRIDE + PM_FLUX_SLOTS) /* and the flux's (shard_flux_A) */
 #define SHARD_MAX_COUNT 100000
 
+/* One counter per voxel of the sums, as the write's fill reads it. */
+typedef struct shard_slot {
+  const uint64_t *acc; /* voxel v's counter at acc[stride * v + slot] */
+  int stride, slot;
+} shard_slot_t;
+
 /* One shard's state between the march and the write. */
 typedef struct shard_state {
   pm_sums_t sums;
   uint64_t first, last, photons; /* the range of photons.count traced */
-  float *encoded[SHARD_MAX_SLOTS]; /* shard_sum_S, then shard_flux_A; 3 floats per voxel */
+  shard_slot_t slots[SHARD_MAX_SLOTS]; /* shard_sum_S, then shard_flux_A */
   char key[24], scales[160], names[SHARD_MAX_SLOTS][16], filter[160], ior_bg[40], grid[160];
   float alpha;                   /* adaptive.alpha, for the merge's filter */
 } shard_state_t;
@@ -60,7 +66,8 @@ void shard_key(const bake_options_t *opt, const scene_t *s, char out[24]);
 int shard_march(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
                 const bake_options_t *opt, shard_state_t *sh, pm_stats_t *stats,
                 ad_stats_t *astats, bk_timings_t *timings, bk_error_t *err);
-/* Appends the shard_sum_S grids to grids (*count of max in use). */
+/* Appends the shard_sum_S grids to grids (*count of max in use), made from
+ * the sums by a fill as the write needs them. */
 int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids, int *count,
                 int max, bk_error_t *err);
 /* Writes the shard's metadata entries at meta (room for SHARD_META_MAX);
