@@ -56,7 +56,8 @@ void *bk_calloc(size_t count, size_t size, const char *what, bk_error_t *err);
  * bk_parallel fills next. Pages first touched by several threads at once
  * fault under one lock: 5 ms for two 1 MB arrays, against 0.9 ms here. */
 void *bk_calloc_touched(size_t count, size_t size, const char *what, bk_error_t *err);
-/* Writes every page of p[0, bytes) once, on this thread (as bk_calloc_touched). */
+/* Makes every page of p[0, bytes) resident on this thread (as
+ * bk_calloc_touched), keeping what it holds. */
 void bk_touch_pages(void *p, size_t bytes);
 /* Physical memory of this machine, in bytes (0 when unknown). */
 uint64_t bk_physical_memory(void);
