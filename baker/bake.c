@@ -250,12 +250,14 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   const int sca_channels = vol->sigma_channels == 1 ? 1 : 3;
   /* grey light: one radiance value per voxel, the RGB grid made at the write */
   const int rad_channels = j->error.radiance_channels == 1 ? 1 : 3;
-  *src = (og_source_t){vol->sigma_s, vol->sigma_t, vol->sigma_channels, vol->sigma_s, sca_channels,
-                       j->radiance, rad_channels, vol->ior, vol->ior_rb, n, vol->g,
+  *src = (og_source_t){vol->sigma_s,    vol->sigma_t, vol->sigma_channels, vol->sigma_s,
+                       sca_channels,     vol->homogeneous, j->radiance,    rad_channels,
+                       vol->ior,         vol->ior_rb,  n,                  vol->g,
                        j->scene.medium_g};
   /* n packed into bricks after the march's fields were built (bake_pack_ior);
    * sigma_s and sigma_t are the scattering and extinction grids as they
-   * stand: Vec3, or floats when the volume is grey (vox_summarise) */
+   * stand: Vec3, or floats when the volume is grey (vox_summarise); a
+   * homogeneous volume's one voxel of each is repeated at the write */
   const og_values_t ior = j->ior_bricks.slot ? (og_values_t){NULL, bg_fill, &j->ior_bricks}
                                              : og_dense(vol->ior);
   bake_arrays_t a = {ior, og_dense(j->radiance), og_dense(vol->sigma_t),
@@ -270,6 +272,10 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   if (j->error.flux || j->shard.sums.flux) /* a shard's flux is in its sums */
     a.phase_g = og_made(og_phase_g, src);
   if (vol->grey) a.sca_channels = 1; /* sigma_s and sigma_t hold one value per voxel */
+  if (vol->homogeneous) {
+    a.extinction = og_made(og_extinction, src);
+    a.scattering = og_made(og_scattering, src);
+  }
   *count = bake_grid_list(&a, grids);
   if (j->error.error_grid)
     grids[(*count)++] =

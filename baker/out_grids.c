@@ -3,9 +3,27 @@
 
 #include "voxelize.h"
 
-/* Where channel c of voxel i lies in sigma_s and sigma_t. */
+/* Where channel c of voxel i lies in sigma_s and sigma_t (and scattering). */
 static inline size_t at(const og_source_t *s, size_t i, int c) {
-  return vox_channel_at(s->sigma_channels, i, c);
+  return vox_channel_at(s->sigma_channels, s->uniform ? 0 : i, c);
+}
+
+/* a's values (sigma_channels per voxel; voxel 0's for all when uniform)
+ * for voxels [lo, hi). */
+static void og_repeat(const og_source_t *s, const float *a, size_t lo, size_t hi, float *out) {
+  const int C = s->sigma_channels == 1 ? 1 : 3;
+  for (size_t i = lo; i < hi; i++)
+    for (int c = 0; c < C; c++) *out++ = a[at(s, i, c)];
+}
+
+void og_extinction(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  og_repeat(s, s->sigma_t, lo, hi, out);
+}
+
+void og_scattering(const void *src, size_t lo, size_t hi, float *out) {
+  const og_source_t *s = src;
+  og_repeat(s, s->sigma_s, lo, hi, out);
 }
 
 /* The grey density: the mean of the channels' sigma_t, summed in order. */
@@ -25,7 +43,7 @@ void og_emission(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
   for (size_t i = lo; i < hi; i++)
     for (int c = 0; c < 3; c++)
-      *out++ = s->scattering[vox_channel_at(s->sca_channels, i, c)] *
+      *out++ = s->scattering[vox_channel_at(s->sca_channels, s->uniform ? 0 : i, c)] *
                s->radiance[vox_channel_at(s->radiance_channels, i, c)];
 }
 

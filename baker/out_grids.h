@@ -16,6 +16,8 @@ typedef struct og_source {
   int sigma_channels;             /* 3, or 1: grey (voxelize.h) */
   const float *scattering;        /* emission: sca_channels per voxel */
   int sca_channels;
+  int uniform;                    /* sigma_s, sigma_t, scattering: voxel 0's for all
+                                     (a homogeneous volume, voxelize.h) */
   const float *radiance;          /* emission: radiance_channels per voxel */
   int radiance_channels;          /* 3, or 1: grey light (march.h pm_radiance_channels) */
   const float *ior, *ior_rb;      /* ior_rgb: n; n of R then B (2 * voxels) */
@@ -42,6 +44,9 @@ static inline og_values_t og_made(vdbio_fill_fn fill, const og_source_t *src) {
 static inline int og_present(og_values_t v) { return v.data || v.fill; }
 
 void og_density(const void *src, size_t lo, size_t hi, float *out);  /* mean of σt */
+/* a uniform source's σt and σs, sigma_channels floats per voxel */
+void og_extinction(const void *src, size_t lo, size_t hi, float *out);
+void og_scattering(const void *src, size_t lo, size_t hi, float *out);
 void og_emission(const void *src, size_t lo, size_t hi, float *out); /* scattering ⊙ radiance */
 void og_radiance(const void *src, size_t lo, size_t hi, float *out); /* radiance as RGB */
 void og_ior_rgb(const void *src, size_t lo, size_t hi, float *out);  /* n per channel */

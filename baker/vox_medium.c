@@ -137,6 +137,16 @@ static void vox_store_grey(volume_t *v) {
   v->sigma_channels = 1;
 }
 
+/* A homogeneous medium's coefficients once (voxel 0's, vox_sigma_index):
+ * no σ grids for it (4-12 bytes per voxel each). */
+static void vox_store_uniform(volume_t *v) {
+  const size_t C = v->sigma_channels == 1 ? 1 : 3;
+  float *s = realloc(v->sigma_s, C * sizeof(float)), *a = realloc(v->sigma_t, C * sizeof(float));
+  if (s) v->sigma_s = s; /* a failed shrink keeps the larger block: still valid */
+  if (a) v->sigma_t = a;
+  v->homogeneous = 1;
+}
+
 /* The scan in VOX_SUMMARY_CHUNKS chunks of the grid, each with its own
  * slot. Combining min, max and OR is exact in any order. With t_out
  * (vox_summarise) the sigma_t array still holds σa and each chunk turns it
@@ -260,7 +270,12 @@ static void scan_volume(const volume_t *v, float *t_out, vox_scan_t *out) {
   }
 }
 
-void vox_scan(const volume_t *v, vox_scan_t *out) { scan_volume(v, NULL, out); }
+/* A homogeneous volume keeps one voxel's coefficients (vox_store_uniform):
+ * its summary scan stands. */
+void vox_scan(const volume_t *v, vox_scan_t *out) {
+  if (v->homogeneous && v->scanned) *out = v->scan;
+  else scan_volume(v, NULL, out);
+}
 
 const vox_scan_t *vox_scan_of(const volume_t *v, vox_scan_t *own) {
   if (v->scanned) return &v->scan;
@@ -274,7 +289,7 @@ void vox_summarise(volume_t *v) {
   v->n_min = v->scan.n_min;
   v->n_max = v->scan.n_max;
   v->has_refraction = (v->n_max - v->n_min) > 1e-6f;
-  v->homogeneous = !v->scan.varies;
   v->grey = !v->scan.coloured;
   if (v->grey && v->sigma_channels == 3) vox_store_grey(v);
+  if (!v->scan.varies) vox_store_uniform(v);
 }

@@ -72,7 +72,10 @@ typedef struct volume {
   float *ior_rb;
   /* What the scene contains, for kernel specialisation (DESIGN §3). */
   int has_refraction;  /* n varies somewhere */
-  int homogeneous;     /* sigma_s and sigma_t the same in every voxel */
+  /* sigma_s and sigma_t the same in every voxel; vox_summarise then keeps
+   * voxel 0's values only (sigma_channels floats each), which
+   * vox_sigma_index reads for every voxel */
+  int homogeneous;
   int grey;            /* R = G = B for both coefficients everywhere */
   float n_min, n_max;
   /* the pass these came from, when `scanned` (vox_summarise; a volume
@@ -90,9 +93,10 @@ static inline size_t vox_channel_at(int channels, size_t i, int c) {
   return channels == 1 ? i : 3 * i + (size_t)c;
 }
 
-/* Where channel c of voxel i lies in sigma_s and sigma_t. */
+/* Where channel c of voxel i lies in sigma_s and sigma_t (voxel 0's for
+ * every voxel of a homogeneous volume). */
 static inline size_t vox_sigma_index(const volume_t *v, size_t i, int c) {
-  return vox_channel_at(v->sigma_channels, i, c);
+  return vox_channel_at(v->sigma_channels, v->homogeneous ? 0 : i, c);
 }
 
 /* σt of channel c at voxel i. */

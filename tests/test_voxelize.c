@@ -25,6 +25,7 @@
 
 #include "mesh.h"
 #include "mesh_io.h"
+#include "out_grids.h"
 #include "vdbio.h"
 #include "brick_grid.h"
 #include "voxelize.h"
@@ -933,6 +934,66 @@ static void case_scan(void) {
   summarise_pair(3);
 }
 
+/* A homogeneous volume keeps one voxel's σs and σt (vox_summarise): every
+ * voxel reads them through vox_sigma_index, and the write's extinction,
+ * scattering and density fills give what the full arrays gave; one voxel
+ * that differs keeps the arrays whole. */
+static void uniform_case(int channels, int odd_voxel) {
+  volume_t v;
+  memset(&v, 0, sizeof v);
+  v.dims.nx = 7, v.dims.ny = 5, v.dims.nz = 6;
+  v.dims.voxel_size = 0.1f;
+  const size_t n = grid_count(&v.dims), m = n * (size_t)channels;
+  const float s0[3] = {0.5f, 0.3f, 0.1f}, a0[3] = {0.02f, 0.22f, 0.42f};
+  v.sigma_channels = channels;
+  v.ior = calloc(n, sizeof(float));
+  v.sigma_s = malloc(m * sizeof(float));
+  v.sigma_t = malloc(m * sizeof(float)); /* σa until vox_summarise */
+  for (size_t i = 0; i < n; i++) {
+    v.ior[i] = 1.0f;
+    for (int c = 0; c < channels; c++) {
+      v.sigma_s[(size_t)channels * i + c] = s0[c];
+      v.sigma_t[(size_t)channels * i + c] = a0[c];
+    }
+  }
+  if (odd_voxel) v.sigma_s[m - 1] = 0.25f;
+  vox_summarise(&v);
+  EXPECT(v.homogeneous == !odd_voxel, "%d channels, odd voxel %d: homogeneous %d", channels,
+         odd_voxel, v.homogeneous);
+  const og_source_t src = {.sigma_s = v.sigma_s, .sigma_t = v.sigma_t,
+                           .sigma_channels = v.sigma_channels, .scattering = v.sigma_s,
+                           .sca_channels = channels, .uniform = v.homogeneous};
+  float *ext = malloc(m * sizeof(float)), *sca = malloc(m * sizeof(float));
+  float *rho = malloc(n * sizeof(float));
+  const og_values_t e = v.homogeneous ? og_made(og_extinction, &src) : og_dense(v.sigma_t);
+  const og_values_t s = v.homogeneous ? og_made(og_scattering, &src) : og_dense(v.sigma_s);
+  if (e.fill) e.fill(e.ctx, 0, n, ext), s.fill(s.ctx, 0, n, sca);
+  else memcpy(ext, e.data, m * sizeof(float)), memcpy(sca, s.data, m * sizeof(float));
+  og_density(&src, 0, n, rho);
+  int bad = 0;
+  for (size_t i = 0; i < n; i++) {
+    float sum = 0.0f;
+    for (int c = 0; c < 3; c++) {
+      const int k = channels == 1 ? 0 : c;
+      const float ss = odd_voxel && i == n - 1 && k == channels - 1 ? 0.25f : s0[k];
+      const float st = ss + a0[k];
+      sum += st;
+      bad += vol_sigma_t(&v, i, c) != st || v.sigma_s[vox_sigma_index(&v, i, c)] != ss;
+      if (c < channels) bad += ext[(size_t)channels * i + c] != st || sca[(size_t)channels * i + c] != ss;
+    }
+    bad += rho[i] != sum / 3.0f;
+  }
+  EXPECT(bad == 0, "%d channels, odd voxel %d: %d values differ", channels, odd_voxel, bad);
+  free(ext), free(sca), free(rho);
+  vox_free(&v);
+}
+
+static void case_uniform(void) {
+  uniform_case(1, 0);
+  uniform_case(3, 0);
+  uniform_case(3, 1);
+}
+
 /* mesh_io_read and vox_build must both refuse with BK_ERR_INPUT, naming the
  * file and the problem (and, through vox_build, the scene key). */
 static void expect_refusal(const char *path, const char *problem) {
@@ -1065,6 +1126,7 @@ int main(int argc, char **argv) {
   else if (!strcmp(c, "objects")) case_objects();
   else if (!strcmp(c, "medium")) case_medium();
   else if (!strcmp(c, "scan")) case_scan();
+  else if (!strcmp(c, "uniform")) case_uniform();
   else if (!strcmp(c, "bricks")) case_bricks();
   else if (!strcmp(c, "ties")) case_ties();
   else if (!strcmp(c, "open")) case_open();

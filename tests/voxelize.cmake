@@ -7,7 +7,7 @@ target_link_libraries(test_mesh PRIVATE bakercore)
 
 set(VOX_TEST_DIR ${CMAKE_BINARY_DIR}/vox_test)
 file(MAKE_DIRECTORY ${VOX_TEST_DIR})
-foreach(case sphere profile smoothing objects medium scan bricks ties open bad_input)
+foreach(case sphere profile smoothing objects medium scan uniform bricks ties open bad_input)
   add_test(NAME vox_${case} COMMAND test_voxelize ${case} ${VOX_TEST_DIR}/${case})
 endforeach()
 add_test(NAME vox_bunny COMMAND test_voxelize bunny ${VOX_TEST_DIR}/bunny
