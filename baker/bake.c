@@ -143,7 +143,7 @@ static int bake_adaptive(bake_job_t *j, const bake_options_t *opt, bk_error_t *e
 
 /* No later frame of this run takes the volume (a batch of several frames
  * keeps it): the bake may then free its arrays as it is done with them. */
-static int bake_volume_ends_here(const bake_job_t *j) { return !j->reuse->keep_fields; }
+static int bake_volume_ends_here(const bake_job_t *j) { return !j->reuse->several_frames; }
 
 /* Once the march has its {∇n, n} field, n is read again only by the
  * write's ior grid: it waits there as bricks, most of them one value

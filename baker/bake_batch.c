@@ -230,7 +230,8 @@ int bake_run(const bake_options_t *opt, bk_error_t *err) {
   if (!rc) rc = check_output(opt, first_out, err);
   bake_reuse_t reuse;
   memset(&reuse, 0, sizeof reuse);
-  reuse.keep_fields = list.count > 1; /* they cost memory: only for a next frame */
+  reuse.several_frames = list.count > 1;
+  reuse.keep_fields = reuse.several_frames; /* they cost memory: only for a next frame */
   if (!rc) rc = run_frames(opt, &list, res, &reuse, err);
   fr_free(&reuse);
   for (int i = 0; res && i < list.count; i++) free(res[i].reason);

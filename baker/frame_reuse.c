@@ -107,6 +107,16 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings
   /* dispersion keeps a {∇n, n} field per channel: 32 B more */
   double kept = FR_KEPT_FIELDS_BYTES + (scene_has_dispersion(s) ? 46.0 : 0.0);
   int rc = budget_check_kept(s, max_memory, (r->keep_fields ? kept : 0.0) + r->extra_bytes, err);
+  bk_error_t without;
+  if (rc == BK_ERR_INPUT && r->keep_fields &&
+      budget_check_kept(s, max_memory, r->extra_bytes, &without) == BK_OK) {
+    /* an optimisation, not worth a refusal: each frame builds its own */
+    bk_warn("%s: the march's fields are not kept from frame to frame: they would add %.0f "
+            "bytes per voxel to a peak that then does not fit (%s)",
+            s->path, kept, err->msg);
+    r->keep_fields = 0;
+    rc = BK_OK;
+  }
   if (!rc) rc = vox_build(s, &r->volume, t, err);
   if (rc) return rc;
   r->volume.key = key;

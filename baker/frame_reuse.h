@@ -36,7 +36,8 @@
 #define FR_KEPT_FIELDS_BYTES 23.125
 
 typedef struct bake_reuse {
-  int keep_fields;              /* a batch of several frames: keep the march's fields */
+  int several_frames;           /* a batch of several frames: the volume is kept */
+  int keep_fields;              /* ... and the march's fields, unless memory is short */
   double extra_bytes;           /* per voxel beyond the budget's mode figure (a shard's sums, a NanoVDB output) */
   int has_volume, volume_frame; /* the kept volume, its key volume.key */
   volume_t volume;
@@ -57,7 +58,8 @@ uint64_t fr_volume_key(const scene_t *s);
 /* The frame's volume in r->volume: the kept one when the key matches (a
  * "voxelize" row saying so), else the kept one freed, the memory budget
  * checked (max_memory: --max-memory; the kept fields counted when
- * keep_fields) and the volume built. */
+ * keep_fields: when only they do not fit, keep_fields is cleared with a
+ * warning and every frame builds its own) and the volume built. */
 int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings_t *t,
               bk_error_t *err);
 /* The OpenCL context in r->cl: the kept one for the same device spec (an

@@ -26,8 +26,9 @@ add_test(NAME cli_bake_version COMMAND $<TARGET_FILE:baker> bake --version)
 add_test(NAME cli_view_version COMMAND $<TARGET_FILE:baker> view --version)
 
 # The memory budget (baker/budget.h): refusal before any work, --max-memory,
-# and an estimate not below the real peak.
-foreach(case refuse max_memory honest)
+# an estimate not below the real peak, and a batch of frames that drops its
+# kept fields rather than be refused.
+foreach(case refuse max_memory honest frames_fallback)
   add_test(NAME cli_budget_${case}
            COMMAND bash ${BAKER_TEST_DIR}/budget.sh $<TARGET_FILE:baker>
                    ${CMAKE_BINARY_DIR}/cli_budget ${CMAKE_SOURCE_DIR}/scenes ${case})
