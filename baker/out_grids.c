@@ -41,6 +41,11 @@ void og_density(const void *src, size_t lo, size_t hi, float *out) {
  * reads it as emission with `extinction` as absorption and no scattering. */
 void og_emission(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
+  if (s->sca_channels == 1 && s->radiance_channels == 1) { /* grey: one product per voxel */
+    for (size_t i = lo; i < hi; i++, out += 3)
+      out[0] = out[1] = out[2] = s->scattering[s->uniform ? 0 : i] * s->radiance[i];
+    return;
+  }
   for (size_t i = lo; i < hi; i++)
     for (int c = 0; c < 3; c++)
       *out++ = s->scattering[vox_channel_at(s->sca_channels, s->uniform ? 0 : i, c)] *
