@@ -250,10 +250,19 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   const int sca_channels = vol->sigma_channels == 1 ? 1 : 3;
   /* grey light: one radiance value per voxel, the RGB grid made at the write */
   const int rad_channels = j->error.radiance_channels == 1 ? 1 : 3;
-  *src = (og_source_t){vol->sigma_s,    vol->sigma_t, vol->sigma_channels, vol->sigma_s,
-                       sca_channels,     vol->homogeneous, j->radiance,    rad_channels,
-                       vol->ior,         vol->ior_rb,  n,                  vol->g,
-                       j->scene.medium_g};
+  *src = (og_source_t){.sigma_s = vol->sigma_s,
+                       .sigma_t = vol->sigma_t,
+                       .sigma_channels = vol->sigma_channels,
+                       .scattering = vol->sigma_s,
+                       .sca_channels = sca_channels,
+                       .uniform = vol->homogeneous,
+                       .radiance = j->radiance,
+                       .radiance_channels = rad_channels,
+                       .ior = vol->ior,
+                       .ior_rb = vol->ior_rb,
+                       .voxels = n,
+                       .g = vol->g,
+                       .medium_g = j->scene.medium_g};
   /* n packed into bricks after the march's fields were built (bake_pack_ior);
    * sigma_s and sigma_t are the scattering and extinction grids as they
    * stand: Vec3, or floats when the volume is grey (vox_summarise); a

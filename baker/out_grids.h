@@ -44,7 +44,8 @@ static inline og_values_t og_made(vdbio_fill_fn fill, const og_source_t *src) {
 static inline int og_present(og_values_t v) { return v.data || v.fill; }
 
 void og_density(const void *src, size_t lo, size_t hi, float *out);  /* mean of σt */
-/* a uniform source's σt and σs, sigma_channels floats per voxel */
+/* σt and σs as the extinction and scattering grids, sigma_channels floats
+ * per voxel: for a uniform source, whose arrays hold one voxel */
 void og_extinction(const void *src, size_t lo, size_t hi, float *out);
 void og_scattering(const void *src, size_t lo, size_t hi, float *out);
 void og_emission(const void *src, size_t lo, size_t hi, float *out); /* scattering ⊙ radiance */
