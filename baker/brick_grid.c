@@ -4,12 +4,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-
-typedef struct bg_job {
-  const float *dense;
-  brick_grid_t *g;
-} bg_job_t;
-
 /* Brick b's voxel range clipped to the grid, and its first voxel. */
 static void brick_box(const brick_grid_t *g, size_t b, int lo[3], int hi[3]) {
   const size_t bx = (size_t)g->bx, by = (size_t)g->by;
@@ -24,17 +18,15 @@ static void brick_box(const brick_grid_t *g, size_t b, int lo[3], int hi[3]) {
 
 /* Pass 1: slot 1 where a brick's voxels are not all bit-equal to its first
  * (so -0.0 and 0.0, or NaNs, keep their bits), else its value. */
-static void classify(void *ctx, size_t lo, size_t hi) {
-  bg_job_t *x = ctx;
-  brick_grid_t *g = x->g;
+static void classify(const float *dense, brick_grid_t *g, size_t bricks) {
   const grid_dims_t *d = &g->dims;
-  for (size_t b = lo; b < hi; b++) {
+  for (size_t b = 0; b < bricks; b++) {
     int l[3], h[3], varies = 0;
     brick_box(g, b, l, h);
-    const float *first = x->dense + grid_index(d, l[0], l[1], l[2]);
+    const float *first = dense + grid_index(d, l[0], l[1], l[2]);
     for (int k = l[2]; k < h[2] && !varies; k++)
       for (int j = l[1]; j < h[1] && !varies; j++) {
-        const float *row = x->dense + grid_index(d, l[0], j, k);
+        const float *row = dense + grid_index(d, l[0], j, k);
         for (int i = 0; i < h[0] - l[0]; i++) varies |= memcmp(row + i, first, sizeof *first) != 0;
       }
     g->slot[b] = varies;
@@ -43,10 +35,8 @@ static void classify(void *ctx, size_t lo, size_t hi) {
 }
 
 /* Pass 2: the stored bricks' voxels. */
-static void copy_bricks(void *ctx, size_t lo, size_t hi) {
-  bg_job_t *x = ctx;
-  brick_grid_t *g = x->g;
-  for (size_t b = lo; b < hi; b++) {
+static void copy_bricks(const float *dense, brick_grid_t *g, size_t bricks) {
+  for (size_t b = 0; b < bricks; b++) {
     if (g->slot[b] < 0) continue;
     int l[3], h[3];
     brick_box(g, b, l, h);
@@ -54,7 +44,7 @@ static void copy_bricks(void *ctx, size_t lo, size_t hi) {
     for (int k = l[2]; k < h[2]; k++)
       for (int j = l[1]; j < h[1]; j++)
         memcpy(v + BG_SIDE * ((j - l[1]) + BG_SIDE * (k - l[2])),
-               x->dense + grid_index(&g->dims, l[0], j, k), (size_t)(h[0] - l[0]) * sizeof(float));
+               dense + grid_index(&g->dims, l[0], j, k), (size_t)(h[0] - l[0]) * sizeof(float));
   }
 }
 
@@ -68,18 +58,17 @@ int bg_build(const grid_dims_t *dims, const float *dense, brick_grid_t *out, bk_
   out->slot = bk_calloc(bricks, sizeof(int), "brick grid: table", err);
   out->konst = bk_calloc(bricks, sizeof(float), "brick grid: constants", err);
   if (!out->slot || !out->konst) goto fail;
-  bg_job_t x = {dense, out};
   /* one thread: the bake packs n between OpenCL's start and its kernel
    * build, where short-lived worker threads made LeakSanitizer's exit-time
    * tracer crash (mitsuba_small under ASan with a cold kernel cache, three
    * runs of three; in none of two with this). One read of n: 14 ms at 256^3. */
-  classify(&x, 0, bricks);
+  classify(dense, out, bricks);
   int stored = 0;
   for (size_t b = 0; b < bricks; b++) out->slot[b] = out->slot[b] ? stored++ : -1;
   out->values = bk_calloc((size_t)stored * BG_SIDE * BG_SIDE * BG_SIDE, sizeof(float),
                           "brick grid: bricks", err);
   if (!out->values && stored) goto fail;
-  copy_bricks(&x, 0, bricks);
+  copy_bricks(dense, out, bricks);
   return BK_OK;
 fail:
   bg_free(out);

@@ -136,7 +136,7 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
       const float *r = row(y, z);
       for (int x = 0; x < ex; x++) {
         if (B::is_background(r + C * x)) continue;
-        const vdb::Index n = (vdb::Index)((x << (2 * LeafT::LOG2DIM)) + (y << LeafT::LOG2DIM) + z);
+        const vdb::Index n = LeafT::coordToOffset(vdb::Coord(x, y, z));
         if (buf) buf[n] = *reinterpret_cast<const ValueT *>(r + C * x);
         leaf->getValueMask().setOn(n);
       }
@@ -162,12 +162,11 @@ static void vdbio_leaf_fill(const grid_dims_t &d, const vdbio_grid_t &g, const L
   float made[3 * LeafT::DIM];
   for (int z = 0; z < ez; z++)
     for (int y = 0; y < ey; y++) {
-      const size_t at =
-          (size_t)lo[0] + (size_t)d.nx * ((size_t)(lo[1] + y) + (size_t)d.ny * (size_t)(lo[2] + z));
+      const size_t at = grid_index(&d, lo[0], lo[1] + y, lo[2] + z);
       const float *r = g.data ? g.data + (size_t)C * at : made;
       if (!g.data) g.fill(g.fill_ctx, at, at + (size_t)ex, made);
       for (int x = 0; x < ex; x++) {
-        const vdb::Index n = (vdb::Index)((x << (2 * LeafT::LOG2DIM)) + (y << LeafT::LOG2DIM) + z);
+        const vdb::Index n = LeafT::coordToOffset(vdb::Coord(x, y, z));
         if (mask.isOn(n)) buf[n] = *reinterpret_cast<const ValueT *>(r + C * x);
       }
     }
