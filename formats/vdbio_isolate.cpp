@@ -42,6 +42,7 @@
 #include <vector>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -400,40 +401,73 @@ int vdbio_read_dense_verified(const char *path, const char *grid_name, int pad,
   return rc;
 }
 
-/* Jobs [0, count) with at most `width` children at work: each collected in
- * order, the next started as one ends. A child that died (a signal, e.g. the
- * kernel's out-of-memory killer when children beside it held memory too) is
- * read again alone before the file is called corrupt, and the rest then one
- * at a time. The first failure in list order is the answer. */
+/* The job whose child has its answer ready (its pipe readable: a child
+ * writes only once its work is done, or dies), among those running below
+ * `limit`; the lowest such index when several are. */
+static int iso_ready(const std::vector<iso_started> &st, int limit) {
+  std::vector<pollfd> fds;
+  std::vector<int> job;
+  for (int j = 0; j < limit; j++)
+    if (st[(size_t)j].pid > 0)
+      fds.push_back(pollfd{st[(size_t)j].fd, POLLIN, 0}), job.push_back(j);
+  while (poll(fds.data(), fds.size(), -1) < 0 && errno == EINTR) {
+  }
+  for (size_t k = 0; k < fds.size(); k++)
+    if (fds[k].revents)
+      return job[k];
+  return job[0]; /* poll failed otherwise: wait on the first, as a blocking read does */
+}
+
+/* Jobs [0, count) with at most `width` children at work, each answer taken
+ * as soon as it is ready and the next job started in its place, so small
+ * grids are read beside a large one. The answer is the first failure in list
+ * order: once job i has failed, jobs after it are ended and only those
+ * before it still waited for. A child that died (a signal, e.g. the
+ * kernel's out-of-memory killer when children beside it held memory too)
+ * is read again alone before the file is called corrupt, and the rest then
+ * one at a time. */
 static int iso_run_all(iso_job *const *jobs, int count, int width, const char *path,
                        void (*meanwhile)(void *), void *ctx, bk_error_t *err) {
   const iso_limits l = iso_limits_for(path);
   std::vector<iso_started> st((size_t)count);
-  int next = 0, rc = BK_OK;
-  for (int i = 0; i < count && !rc; i++) {
-    while (!rc && next < count && next < i + width)
-      rc = iso_start(*jobs[next], path, l, &st[(size_t)next], err), next++;
-    if (rc)
+  std::vector<char> done((size_t)count, 0);
+  int limit = count, running = 0, rc = BK_OK;
+  for (;;) {
+    for (int j = 0; j < limit && running < width && !rc; j++)
+      if (!done[(size_t)j] && st[(size_t)j].pid <= 0)
+        rc = iso_start(*jobs[j], path, l, &st[(size_t)j], err), running += !rc;
+    if (rc || !running)
       break;
-    if (i == 0 && meanwhile)
-      meanwhile(ctx);
+    if (meanwhile) /* once, while the first readers work; no fork during it */
+      meanwhile(ctx), meanwhile = NULL;
+    const int i = iso_ready(st, limit);
+    bk_error_t e;
+    e.code = BK_OK;
+    e.msg[0] = 0;
     bool died = false;
-    rc = iso_parent(*jobs[i], st[(size_t)i].fd, st[(size_t)i].pid, path, l, err, &died);
+    const int r = iso_parent(*jobs[i], st[(size_t)i].fd, st[(size_t)i].pid, path, l, &e, &died);
     close(st[(size_t)i].fd);
     st[(size_t)i] = iso_started();
-    if (rc && died && width > 1) {
-      for (int j = i + 1; j < next; j++)
-        iso_abandon(&st[(size_t)j]);
-      next = i + 1;
+    running--;
+    if (r && died && width > 1) { /* again alone, and the rest one at a time */
+      for (int j = 0; j < count; j++)
+        if (st[(size_t)j].pid > 0)
+          iso_abandon(&st[(size_t)j]), running--;
       width = 1;
-      err->code = BK_OK;
-      err->msg[0] = 0;
-      rc = iso_run(*jobs[i], path, err);
+      continue;
+    }
+    done[(size_t)i] = 1;
+    if (r) { /* the first failure so far in list order: the later jobs no longer matter */
+      *err = e;
+      limit = i;
+      for (int j = i + 1; j < count; j++)
+        if (st[(size_t)j].pid > 0)
+          iso_abandon(&st[(size_t)j]), running--;
     }
   }
-  for (int j = 0; j < next; j++)
+  for (int j = 0; j < count; j++)
     iso_abandon(&st[(size_t)j]);
-  return rc;
+  return rc ? rc : limit < count ? err->code : BK_OK;
 }
 
 int vdbio_read_dense_verified_all(const char *path, int count, const char *const *names,

@@ -294,6 +294,20 @@ static void check_read_all(const char *path) {
          err.msg);
   for (int i = 0; i < 3; i++)
     EXPECT(all[i].data == NULL, "grid %d kept after the failure", i);
+  /* answers are taken as they come (a missing grid's before the radiance),
+   * yet the first failure in list order is the one reported */
+  const char *two[4] = {"radiance", "no_such_a", "density", "no_such_b"};
+  vdbio_dense_t four[4];
+  int checked4[4];
+  rc = vdbio_read_dense_verified_all(path, 4, two, four, checked4, NULL, NULL, &err);
+  EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "no_such_a") && !strstr(err.msg, "no_such_b"),
+         "two missing grids: rc %d %s", rc, err.msg);
+  for (int i = 0; i < 4; i++)
+    EXPECT(four[i].data == NULL, "grid %d kept after the failure", i);
+  const char *late[3] = {"no_such_c", "radiance", "no_such_d"};
+  rc = vdbio_read_dense_verified_all(path, 3, late, all, checked, NULL, NULL, &err);
+  EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "no_such_c"), "first grid missing: rc %d %s", rc,
+         err.msg);
 }
 
 static int roundtrip(const char *dir) {
