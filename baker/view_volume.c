@@ -34,7 +34,7 @@ void view_volume_free(view_volume_t *v) {
   free(v->sigma_t4);
   free(v->aniso);
   free(v->aniso_s);
-  free(v->ior);
+  vdbio_array_free(v->ior); /* may be the `ior` grid as read */
   free(v->ior_rb);
   free(v->ng);
   oct_free(&v->npyr);
@@ -185,7 +185,7 @@ static int expand_to_rgb(float **a, size_t n, bk_error_t *err) {
   float *o = bk_calloc(n, 3 * sizeof(float), "view: coefficients", err);
   if (!o) return BK_ERR_RUNTIME;
   for (size_t i = 0; i < n; i++) o[3 * i] = o[3 * i + 1] = o[3 * i + 2] = (*a)[i];
-  free(*a);
+  vdbio_array_free(*a);
   *a = o;
   return BK_OK;
 }
@@ -620,7 +620,7 @@ int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void 
       (rc = load_medium(&L, v, nvox, err)))
     goto error;
   /* the grids as read are packed now: free them before padding (peak memory) */
-  for (int g = 0; g < G_COUNT; g++) free(L.arr[g]), L.arr[g] = NULL;
+  for (int g = 0; g < G_COUNT; g++) vdbio_array_free(L.arr[g]), L.arr[g] = NULL;
   double t3 = bk_now_ms();
   if ((rc = view_fields_build(v, err))) goto error;
   /* where the read stage goes (bench_view's profile) */
@@ -632,7 +632,7 @@ done:
 error:
   for (int g = 0; g < G_COUNT; g++) {
     vdbio_dense_free(&L.own[g]);
-    free(L.arr[g]);
+    vdbio_array_free(L.arr[g]);
   }
   vdbio_free_names(L.names, L.types, L.count);
   if (rc) view_volume_free(v);

@@ -373,9 +373,14 @@ static int vdbio_alloc_dense(vdbio_dense_t *d, const char *path, const char *nam
   int rc = grid_check_memory(&gd, sizeof(float) * (size_t)d->channels, where.c_str(), err);
   if (rc)
     return rc;
-  d->data =
-      (float *)bk_calloc(grid_count(&gd) * (size_t)d->channels, sizeof(float), where.c_str(), err);
-  return d->data ? BK_OK : BK_ERR_RUNTIME;
+  const size_t count = grid_count(&gd) * (size_t)d->channels;
+  if (!vdbio_dense_room) {
+    d->data = (float *)bk_calloc(count, sizeof(float), where.c_str(), err);
+    return d->data ? BK_OK : BK_ERR_RUNTIME;
+  }
+  d->data = vdbio_dense_room(count * sizeof(float));
+  return d->data ? BK_OK
+                 : bk_fail(err, BK_ERR_RUNTIME, "%s: no room for %zu values", where.c_str(), count);
 }
 
 /* out's index <-> world maps for the dense box `box` of a grid with the
@@ -535,7 +540,7 @@ int vdbio_read_dense_like_direct(const char *path, const char *grid_name, const 
 void vdbio_dense_free(vdbio_dense_t *d) {
   if (!d)
     return;
-  free(d->data);
+  vdbio_array_free(d->data);
   d->data = NULL;
 }
 

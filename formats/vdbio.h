@@ -126,6 +126,10 @@ int vdbio_read_dense_verified_all(const char *path, int count, const char *const
 int vdbio_read_dense_like(const char *path, const char *grid_name, const vdbio_dense_t *like,
                           vdbio_dense_t *out, int *found, bk_error_t *err);
 void vdbio_dense_free(vdbio_dense_t *d);
+/* Frees an array a reader returned in vdbio_dense_t.data, also once the
+ * caller has taken it over: it may be shared memory mapped from the reader's
+ * child (vdbio_isolate.cpp), not malloc's. Anything else is free()d. */
+void vdbio_array_free(float *p);
 
 /* Checksums (written by vdbio_write, checked by vdbio_verify). The file
  * metadata holds checksum_box = "NX NY NZ" and, per grid, checksum_v2_<name>

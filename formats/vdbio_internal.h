@@ -38,6 +38,12 @@ int nvdbio_load_grid(const char *path, const char *where, const char *grid_name,
  * there fails at once instead of filling all the memory there is. */
 void vdbio_trees_next(void);
 
+/* Where vdbio.cpp's dense readers put a grid's values: NULL for bk_calloc,
+ * or a function giving zeroed room for `bytes` (NULL when there is none).
+ * The isolated reader's child sets it so that the values land in memory its
+ * parent then maps (vdbio_isolate.cpp). */
+extern float *(*vdbio_dense_room)(size_t bytes);
+
 /* Opens `path` fully (no delayed loading) after checking its layout;
  * BK_ERR_INPUT when it is missing, not a VDB file or truncated. */
 int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_error_t *err);

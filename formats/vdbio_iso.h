@@ -13,6 +13,7 @@
 /* One job: work in the child, send, receive in the parent. */
 struct iso_job {
   virtual ~iso_job() {}
+  virtual void prepare() {}                     /* parent, before the fork */
   virtual int work(bk_error_t *err) = 0;        /* child: read the file */
   virtual bool send(int fd) = 0;                /* child: the result */
   virtual int recv(int fd, bk_error_t *err) = 0; /* parent: the result, checked; -1 short */

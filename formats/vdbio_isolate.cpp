@@ -38,11 +38,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <fcntl.h>
 #include <poll.h>
+#include <sys/mman.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -277,6 +280,7 @@ static int iso_start(iso_job &job, const char *path, const iso_limits &l, iso_st
    * default stays when the system refuses */
   fcntl(fds[1], F_SETPIPE_SZ, ISO_PIPE_BYTES);
 #endif
+  job.prepare();
   fflush(NULL); /* the child must not write the parent's buffered output again */
   const pid_t pid = fork();
   if (pid < 0) {
@@ -318,6 +322,61 @@ int iso_run(iso_job &job, const char *path, bk_error_t *err) {
   return rc;
 }
 
+/* --- dense results in shared memory ---------------------------------------------- */
+
+/* A dense grid's values travel in a memfd made before the fork: the child's
+ * reader writes them straight into it (vdbio_dense_room) and the parent maps
+ * the same pages. Through the pipe a grid was copied twice and faulted into
+ * fresh pages of the parent, which took the parent 35 ms for a 24 MB grid.
+ * Where memfd_create is refused, the pipe carries them as before. */
+static int iso_room_fd = -1; /* in the child: its job's memfd */
+static float *iso_room_at = nullptr;
+
+static float *iso_room(size_t bytes) {
+  if (iso_room_at || ftruncate(iso_room_fd, (off_t)bytes) != 0)
+    return nullptr; /* one array per job */
+  void *p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, iso_room_fd, 0);
+  return iso_room_at = p == MAP_FAILED ? nullptr : static_cast<float *>(p);
+}
+
+float *(*vdbio_dense_room)(size_t bytes) = nullptr;
+
+/* The parent's mappings, for vdbio_array_free. */
+static std::mutex iso_maps_lock;
+static std::unordered_map<void *, size_t> iso_maps;
+
+/* The child's `bytes` of values in `fd`, mapped; NULL when the file is not
+ * exactly that long. Sealed first, so that no process can shrink it under
+ * the mapping (a read past its end would be SIGBUS). */
+static float *iso_room_map(int fd, size_t bytes) {
+  struct stat s;
+  if (fcntl(fd, F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW) != 0 || fstat(fd, &s) != 0 ||
+      (uint64_t)s.st_size != (uint64_t)bytes)
+    return nullptr;
+  void *p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, fd, 0);
+  if (p == MAP_FAILED)
+    return nullptr;
+  std::lock_guard<std::mutex> g(iso_maps_lock);
+  iso_maps[p] = bytes;
+  return static_cast<float *>(p);
+}
+
+void vdbio_array_free(float *p) {
+  if (!p)
+    return;
+  size_t bytes = 0;
+  {
+    std::lock_guard<std::mutex> g(iso_maps_lock);
+    auto it = iso_maps.find(p);
+    if (it != iso_maps.end())
+      bytes = it->second, iso_maps.erase(it);
+  }
+  if (bytes)
+    munmap(p, bytes);
+  else
+    free(p);
+}
+
 /* --- the readers of vdbio.h ----------------------------------------------------- */
 
 /* A dense grid: its description, then its values. */
@@ -327,22 +386,35 @@ struct iso_dense_job : iso_job {
   const vdbio_dense_t *like; /* NULL: read over its own box */
   vdbio_dense_t *out;
   int want_check, checked = 0, found = 0;
+  int room = -1; /* the memfd the values travel in, or -1: the pipe */
 
+  ~iso_dense_job() override {
+    if (room >= 0)
+      close(room);
+  }
+  void prepare() override { /* a new one per child: one that died may have left values */
+    if (room >= 0)
+      close(room);
+    room = memfd_create("baker-vdb-grid", MFD_CLOEXEC | MFD_ALLOW_SEALING);
+  }
   int work(bk_error_t *err) override {
+    if (room >= 0)
+      iso_room_fd = room, vdbio_dense_room = iso_room;
     if (like)
       return vdbio_read_dense_like_direct(path, name, like, out, &found, err);
     found = 1;
     return vdbio_read_dense_direct(path, name, pad, out, want_check ? &checked : NULL, err);
   }
   bool send(int fd) override {
-    int32_t flags[2] = {found, checked};
+    const int32_t in_room = found && out->data && out->data == iso_room_at;
+    int32_t flags[3] = {found, checked, in_room};
     if (!iso_write(fd, flags, sizeof flags) || !iso_write(fd, out, sizeof *out))
       return false;
     const size_t n = (size_t)out->nx * out->ny * out->nz * out->channels;
-    return !found || iso_write(fd, out->data, n * sizeof(float));
+    return !found || in_room || iso_write(fd, out->data, n * sizeof(float));
   }
   int recv(int fd, bk_error_t *err) override {
-    int32_t flags[2];
+    int32_t flags[3];
     if (!iso_read(fd, flags, sizeof flags) || !iso_read(fd, out, sizeof *out))
       return -1;
     out->data = NULL;
@@ -366,6 +438,11 @@ struct iso_dense_job : iso_job {
     if (rc)
       return rc;
     const size_t n = grid_count(&gd) * (size_t)out->channels;
+    if (flags[2]) { /* in the memfd: mapped, or the child broke the protocol */
+      if (room < 0 || !(out->data = iso_room_map(room, n * sizeof(float))))
+        return -1;
+      return BK_OK;
+    }
     out->data = (float *)bk_calloc(n, sizeof(float), where.c_str(), err);
     if (!out->data)
       return BK_ERR_RUNTIME;
