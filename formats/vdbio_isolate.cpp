@@ -1,5 +1,6 @@
 /* vdbio_isolate.cpp: every VDB read runs in a child process (fork) with
- * memory and time limits, and hands its result back through a pipe.
+ * memory and time limits, and hands its result back through a pipe (a dense
+ * grid's values through shared memory).
  *
  * Why a child rather than checking declared sizes before OpenVDB allocates:
  * the sizes are not the only danger. Corrupt blosc data makes OpenVDB's
@@ -10,11 +11,13 @@
  * the same way. A child confines whatever happens: a crash is a signal, an
  * absurd allocation fails at the child's RLIMIT_AS, a loop ends at its
  * alarm, and this process only ever sees a status, a message and arrays it
- * checks before allocating. The cost is one fork and one copy of the
- * result through a pipe per read (1-2 ms for a 32^3 grid). Several grids of
- * one file may be read side by side (iso_run_all, one child per core); a
- * child that dies then is read again alone before the file is called
- * corrupt, since the children together may have held more than the machine.
+ * checks before allocating. The cost is one fork per read and the hand-over
+ * of the result: a dense grid's values in shared memory (a memfd the parent
+ * maps, below), anything else through a pipe. Several grids of one file may
+ * be read side by side (iso_run_all, one child per core, each answer taken
+ * as it comes); a child that dies then is read again alone before the file
+ * is called corrupt, since the children together may have held more than
+ * the machine.
  *
  * Limits. Memory: what this process can still hold (MemAvailable, at least
  * ISO_MIN_MEMORY) plus ISO_AS_SLACK for address space that is reserved but
