@@ -374,13 +374,10 @@ static int vdbio_alloc_dense(vdbio_dense_t *d, const char *path, const char *nam
   if (rc)
     return rc;
   const size_t count = grid_count(&gd) * (size_t)d->channels;
-  if (!vdbio_dense_room) {
+  d->data = vdbio_dense_room ? vdbio_dense_room(count * sizeof(float)) : NULL;
+  if (!d->data) /* no room given, or refused (e.g. a file size limit): the heap */
     d->data = (float *)bk_calloc(count, sizeof(float), where.c_str(), err);
-    return d->data ? BK_OK : BK_ERR_RUNTIME;
-  }
-  d->data = vdbio_dense_room(count * sizeof(float));
-  return d->data ? BK_OK
-                 : bk_fail(err, BK_ERR_RUNTIME, "%s: no room for %zu values", where.c_str(), count);
+  return d->data ? BK_OK : BK_ERR_RUNTIME;
 }
 
 /* out's index <-> world maps for the dense box `box` of a grid with the

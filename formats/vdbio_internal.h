@@ -39,7 +39,8 @@ int nvdbio_load_grid(const char *path, const char *where, const char *grid_name,
 void vdbio_trees_next(void);
 
 /* Where vdbio.cpp's dense readers put a grid's values: NULL for bk_calloc,
- * or a function giving zeroed room for `bytes` (NULL when there is none).
+ * or a function giving zeroed room for `bytes` (NULL when there is none:
+ * then bk_calloc too).
  * The isolated reader's child sets it so that the values land in memory its
  * parent then maps (vdbio_isolate.cpp). */
 extern float *(*vdbio_dense_room)(size_t bytes);

@@ -197,6 +197,7 @@ static void iso_apply(const iso_limits &l) {
   }
   signal(SIGPIPE, SIG_DFL);
   signal(SIGALRM, SIG_DFL);
+  signal(SIGXFSZ, SIG_IGN); /* a file size limit refuses iso_room's memfd: the heap then */
   alarm(l.seconds);
 }
 
