@@ -6,6 +6,8 @@
  *                                 with ENOSPC once N bytes have gone to them
  *   BK_SHIM_FSYNC_ERRNO=28        fsync/fdatasync of them fail with that errno
  *                                 (a full disk seen only at write-back)
+ *   BK_SHIM_NO_MEMFD=1            memfd_create fails with ENOSYS (a kernel or
+ *                                 sandbox without it), BK_SHIM_MATCH aside
  *
  * OpenVDB and OpenEXR write through std::ofstream / our fd streams, which
  * reach write(2) through the PLT, so interposing write catches them; glibc's
@@ -16,6 +18,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <sys/uio.h>
 #include <unistd.h>
@@ -117,4 +120,12 @@ int fdatasync(int fd) {
     return -1;
   }
   return REAL(fdatasync)(fd);
+}
+
+int memfd_create(const char *name, unsigned int flags) {
+  if (getenv("BK_SHIM_NO_MEMFD")) {
+    errno = ENOSYS;
+    return -1;
+  }
+  return REAL(memfd_create)(name, flags);
 }

@@ -174,5 +174,18 @@ PY
     "$BAKER" view old.vdb -o old.exr --resolution 64x48 -q 2> e.txt || fail "view without checksums: $(cat e.txt)"
     [ "$(grep -c 'no checksums' e.txt)" = 1 ] || fail "not one warning: $(cat e.txt)"
     echo "ok: $refused corrupt grids refused by view, one warning without checksums";;
+  view_handover)
+    # the grids come back from the readers in shared memory (a memfd); where
+    # it is refused, through the pipe: the same image either way
+    bake -o out.vdb || fail "bake"
+    view() { "$BAKER" view out.vdb --resolution 32x24 -q "$@"; }
+    view -o shared.exr || fail "view"
+    BK_SHIM_NO_MEMFD=1 LD_PRELOAD=$SHIM "$BAKER" view out.vdb --resolution 32x24 -q -o nomemfd.exr \
+      || fail "view without memfd_create"
+    # a file size limit below a grid's 16 KiB: the memfd refuses it (SIGXFSZ ignored)
+    (ulimit -f 8 && view -o limited.exr) || fail "view under ulimit -f 8"
+    cmp -s shared.exr nomemfd.exr || fail "the image without memfd_create differs"
+    cmp -s shared.exr limited.exr || fail "the image under a file size limit differs"
+    echo "ok: the same image through shared memory, without memfd_create and under ulimit -f";;
   *) echo "unknown case $CASE"; exit 1;;
 esac
