@@ -3,6 +3,7 @@
 #include "vox_medium.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -32,6 +33,38 @@ static void fill_sigma_range(void *ctx, size_t lo, size_t hi) {
       s[(size_t)C * v + ch] = ms[ch];
       a[(size_t)C * v + ch] = ma[ch];
     }
+}
+
+/* density_vdb's values into σs and σa (sigma_t holds σa, as above) in
+ * chunks side by side: a negative density counts and becomes 0; each chunk
+ * notes its first non-finite one (SIZE_MAX: none), the earliest is reported. */
+#define DENSITY_CHUNKS 64
+typedef struct density_fill {
+  const scene_t *scene;
+  volume_t *out;
+  const float *density;
+  size_t clamped[DENSITY_CHUNKS], bad[DENSITY_CHUNKS];
+} density_fill_t;
+
+static void fill_density_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
+  density_fill_t *f = ctx;
+  const float *ms = f->scene->medium_sigma_s, *ma = f->scene->medium_sigma_a;
+  volume_t *out = f->out;
+  size_t clamped = 0;
+  f->bad[k] = SIZE_MAX;
+  for (size_t v = lo; v < hi; v++) {
+    float rho = f->density[v];
+    if (!isfinite(rho)) {
+      f->bad[k] = v;
+      break;
+    }
+    if (rho < 0.0f) rho = 0.0f, clamped++;
+    for (int ch = 0; ch < out->sigma_channels; ch++) {
+      out->sigma_s[vox_sigma_index(out, v, ch)] = ms[ch] * rho;
+      out->sigma_t[vox_sigma_index(out, v, ch)] = ma[ch] * rho;
+    }
+  }
+  f->clamped[k] = clamped;
 }
 
 int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
@@ -75,22 +108,17 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
     }
     rc = vdbio_resample_float(ref->file, ref->grid, d, density, ref->where, err);
     if (rc) goto error;
-    size_t clamped = 0;
-    for (size_t v = 0; v < count; v++) {
-      float rho = density[v];
-      if (!isfinite(rho)) {
-        rc = bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite density at voxel %zu",
-                     ref->where, ref->file, ref->grid, v);
-        goto error;
-      }
-      if (rho < 0.0f) {
-        rho = 0.0f;
-        clamped++;
-      }
-      for (int ch = 0; ch < out->sigma_channels; ch++) {
-        out->sigma_s[vox_sigma_index(out, v, ch)] = scene->medium_sigma_s[ch] * rho;
-        out->sigma_t[vox_sigma_index(out, v, ch)] = scene->medium_sigma_a[ch] * rho;
-      }
+    density_fill_t f = {scene, out, density, {0}, {0}};
+    bk_parallel_chunks(count, DENSITY_CHUNKS, fill_density_chunk, &f);
+    size_t clamped = 0, bad = SIZE_MAX;
+    for (int k = 0; k < DENSITY_CHUNKS; k++) {
+      clamped += f.clamped[k];
+      bad = f.bad[k] < bad ? f.bad[k] : bad;
+    }
+    if (bad != SIZE_MAX) {
+      rc = bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite density at voxel %zu",
+                   ref->where, ref->file, ref->grid, bad);
+      goto error;
     }
     if (clamped)
       bk_warn("%s: %s: grid \"%s\": %zu voxels had a negative density, set to 0", ref->where,

@@ -706,6 +706,44 @@ static void case_open(void) {
   mesh_io_free(&m);
 }
 
+/* density_vdb's values are taken in chunks side by side (vox_medium.c):
+ * negative densities become 0 wherever they are, and of two non-finite ones
+ * far apart the earlier is reported (trilinear sampling at the voxel
+ * centres spreads an infinity, as NaN, to the voxels below it on each axis,
+ * so the one named lies at most one voxel below it on each axis). */
+static void check_density_values(scene_t *s, const grid_dims_t *d, const float *rho,
+                                 const char *path) {
+  const size_t count = grid_count(d), plane = (size_t)d->nx * d->ny;
+  float *bad = malloc(count * sizeof *bad);
+  memcpy(bad, rho, count * sizeof *bad);
+  for (size_t idx = 0; idx < count; idx += 97) bad[idx] = -1.0f; /* across every chunk */
+  bk_error_t err;
+  vdbio_grid_t g = {"density", VDBIO_FLOAT, bad, 0, 0.0f, NULL, NULL};
+  vdbio_write_opts_t opts = {VDBIO_COMPRESS_NONE, 0, NULL, NULL};
+  EXPECT(vdbio_write(path, d, &g, 1, NULL, 0, &opts, &err) == BK_OK);
+  volume_t v;
+  if (build(s, &v)) {
+    size_t wrong = 0;
+    for (size_t idx = 0; idx < count; idx += 97)
+      wrong += v.sigma_s[3 * idx] != 0.0f || v.sigma_t[3 * idx + 2] != 0.0f;
+    EXPECT(wrong == 0, "%zu voxels of negative density kept a non-zero sigma", wrong);
+    vox_free(&v);
+  }
+  const size_t early = grid_index(d, 5, 6, 3), late = grid_index(d, 20, 18, 21);
+  bad[early] = INFINITY; /* vdbio_write keeps no NaN: it reads back as inactive */
+  bad[late] = -INFINITY;
+  EXPECT(vdbio_write(path, d, &g, 1, NULL, 0, &opts, &err) == BK_OK);
+  int rc = vox_build(s, &v, NULL, &err);
+  const char *at = strstr(err.msg, "at voxel ");
+  size_t named = at ? strtoull(at + 9, NULL, 10) : 0;
+  printf("non-finite density: %s\n", err.msg);
+  EXPECT(rc == BK_ERR_INPUT && at && strstr(err.msg, "medium.density_vdb") &&
+             named <= early && named + 1 + d->nx + plane >= early,
+         "non-finite density: rc %d, voxel %zu named, infinity written at %zu: %s", rc, named, early,
+         err.msg);
+  free(bad);
+}
+
 static void case_medium(void) {
   scene_t s;
   volume_t v;
@@ -796,6 +834,8 @@ static void case_medium(void) {
   int rc = vox_build(&s, &v, NULL, &err);
   printf("missing density grid: %s\n", err.msg);
   EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "medium.density_vdb") && strstr(err.msg, "smoke"));
+  snprintf(s.density_vdb.grid, sizeof s.density_vdb.grid, "density");
+  check_density_values(&s, &d, rho, p_rho);
   free(ior);
   free(rho);
 }
