@@ -3,9 +3,12 @@
 
 #include "voxelize.h"
 
-/* Where channel c of voxel i lies in sigma_s and sigma_t (and scattering). */
+/* The voxel whose σ stands for voxel i: voxel 0 of a uniform source. */
+static inline size_t sigma_voxel(const og_source_t *s, size_t i) { return s->uniform ? 0 : i; }
+
+/* Where channel c of voxel i lies in sigma_s and sigma_t. */
 static inline size_t at(const og_source_t *s, size_t i, int c) {
-  return vox_channel_at(s->sigma_channels, s->uniform ? 0 : i, c);
+  return vox_channel_at(s->sigma_channels, sigma_voxel(s, i), c);
 }
 
 /* a's values (sigma_channels per voxel; voxel 0's for all when uniform)
@@ -43,12 +46,12 @@ void og_emission(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
   if (s->sca_channels == 1 && s->radiance_channels == 1) { /* grey: one product per voxel */
     for (size_t i = lo; i < hi; i++, out += 3)
-      out[0] = out[1] = out[2] = s->scattering[s->uniform ? 0 : i] * s->radiance[i];
+      out[0] = out[1] = out[2] = s->scattering[sigma_voxel(s, i)] * s->radiance[i];
     return;
   }
   for (size_t i = lo; i < hi; i++)
     for (int c = 0; c < 3; c++)
-      *out++ = s->scattering[vox_channel_at(s->sca_channels, s->uniform ? 0 : i, c)] *
+      *out++ = s->scattering[vox_channel_at(s->sca_channels, sigma_voxel(s, i), c)] *
                s->radiance[vox_channel_at(s->radiance_channels, i, c)];
 }
 
