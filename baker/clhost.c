@@ -251,6 +251,9 @@ int clh_init(clh_context_t *cl, const char *device_spec, bk_error_t *err) {
   snprintf(cl->platform_name, sizeof cl->platform_name, "%s", e->pname);
   snprintf(cl->device_name, sizeof cl->device_name, "%s", e->dname);
   cl->is_cpu = (e->type & CL_DEVICE_TYPE_CPU) != 0;
+  cl_device_fp_config fp = 0;
+  if (clGetDeviceInfo(cl->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS)
+    cl->exact_div_sqrt = (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) != 0;
 
   char ext[8192] = {0};
   CLH_CHECK(clGetDeviceInfo(cl->device, CL_DRIVER_VERSION, sizeof cl->driver_version - 1,
@@ -541,13 +544,17 @@ int clh_build_source(clh_context_t *cl, const char *name, const char *text, cons
 
   src = clh_expand_with(clh_embedded_sources, name, text, err);
   if (!src) goto error;
-  size_t olen = strlen(options) + 32;
+  size_t olen = strlen(options) + 80;
   opts = malloc(olen);
   if (!opts) {
     bk_fail(err, BK_ERR_RUNTIME, "%s: out of memory", name);
     goto error;
   }
-  snprintf(opts, olen, "-cl-std=CL1.2 %s", options);
+  /* IEEE division and square root where the device offers them (a GPU's
+   * default is within 2.5-3 ulp): grids then differ between devices only by
+   * their exp, sin and cos (docs/gpu.md). */
+  snprintf(opts, olen, "-cl-std=CL1.2%s %s",
+           cl->exact_div_sqrt ? " -cl-fp32-correctly-rounded-divide-sqrt" : "", options);
 
   uint64_t key = clh_cache_key(cl, src, opts);
   cl->stats.last_key = key;

@@ -50,6 +50,7 @@ typedef struct clh_context {
   cl_ulong max_alloc;
   int has_int64_atomics;   /* cl_khr_int64_base_atomics */
   int is_cpu;
+  int exact_div_sqrt;      /* CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT: builds ask for it */
   clh_build_stats_t stats;
   int keep_programs;         /* set after clh_init: keep built programs (below) */
   struct { uint64_t key; cl_program program; } kept[CLH_KEPT_PROGRAMS];
