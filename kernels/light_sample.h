@@ -183,7 +183,8 @@ BK_INLINE void ph_map_cone(BK_CONSTANT const ph_light *L, float a, float b, bk_v
   float ct = 1.0f - a * (1.0f - L->cos_max);
   float st = sqrt(fmax(0.0f, 1.0f - ct * ct));
   float phi = 6.283185307179586f * b;
-  float cp = cos(phi), sp = sin(phi);
+  float cp, sp;
+  bk_sincos(phi, &sp, &cp);
   *origin = v3(L->px, L->py, L->pz);
   *dir = v3_normalize(v3_madd(v3_madd(v3_scale(d, ct), u, st * cp), w, st * sp));
 }

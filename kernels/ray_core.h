@@ -27,15 +27,14 @@
 #include "kernels/shared.h"
 
 #if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
-#define RC_EXP(x) exp(x)
 #define RC_SQRT(x) sqrt(x)
 #else
 #include <math.h>
 #include <string.h>
-#define RC_EXP(x) expf(x)
 #define RC_SQRT(x) sqrtf(x)
 #endif
 
+#define RC_EXP(x) bk_exp(x) /* the same bits on every device (kernels/shared.h) */
 #define RC_FAR 3.0e38f
 
 /* Integrators of the ray equation (scene photons.integrator). */

@@ -33,11 +33,7 @@
 
 #include "kernels/ray_core.h"
 
-#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
-#define MS_LOG(x) log(x)
-#else
-#define MS_LOG(x) logf(x)
-#endif
+#define MS_LOG(x) bk_ln(x) /* the same bits on every device (kernels/shared.h) */
 
 /* Parameters of multiple scattering, shared by every photon. */
 typedef struct ms_params {
@@ -134,8 +130,10 @@ BK_INLINE bk_v3 ms_rotate(bk_v3 d, float cos_t, float u) {
   bk_v3 t1 = v3(1.0f + sgn * d.x * d.x * a, sgn * b, -sgn * d.x);
   bk_v3 t2 = v3(b, sgn + d.y * d.y * a, -d.y);
   bk_v3 r = v3_scale(d, cos_t);
-  r = v3_madd(r, t1, sin_t * cos(phi));
-  r = v3_madd(r, t2, sin_t * sin(phi));
+  float sp, cp;
+  bk_sincos(phi, &sp, &cp);
+  r = v3_madd(r, t1, sin_t * cp);
+  r = v3_madd(r, t2, sin_t * sp);
   return rc_normalize(r);
 }
 
