@@ -1,7 +1,9 @@
-/* bench_tool: image measurements for scripts/bench that Python cannot make
- * here (no OpenEXR module for /usr/bin/python3).
+/* bench_tool: image and grid measurements for scripts/bench and
+ * scripts/gpu-check that Python cannot make here (no OpenEXR module for
+ * /usr/bin/python3; no pyopenvdb on a GPU node).
  *
  *   bench_tool exrdiff TEST.exr REF.exr
+ *   bench_tool vdbdiff TEST.vdb REF.vdb GRID
  *
  * In: two RGBA OpenEXR images of the same size (formats/exr.h reads them).
  * Out: one JSON line on stdout,
@@ -17,6 +19,12 @@
  * reference's RMS red for black pixels).
  * Alpha is left out: it is coverage, not radiance. A reference that is black
  * everywhere gives e = null (the ratio is undefined).
+ *
+ * vdbdiff reads GRID (float or Vec3f) of both files densely over their
+ * active boxes and prints one JSON line,
+ *   {"max_rel": m, "rel_l2": e, "voxels": n, "max_abs": a}
+ * m = max |test - ref| / max |ref| over voxels and channels, e the relative
+ * L2 sqrt(sum (test - ref)^2 / sum ref^2); the boxes must be equal.
  * Exit status: 0 success, 2 bad input (unreadable files, sizes differ). */
 #include <math.h>
 #include <stdio.h>
@@ -25,13 +33,17 @@
 
 #include "base/common.h"
 #include "formats/exr.h"
+#include "formats/vdbio.h"
 
 static void usage(FILE *out) {
   fprintf(out,
           "usage: bench_tool exrdiff TEST.exr REF.exr\n"
           "  prints {\"rel_rms\": ..., \"rms\": ..., \"ref_rms\": ..., \"width\": ..., "
           "\"height\": ..., \"nonfinite\": ..., \"max_abs\": ..., \"differ\": ...}\n"
-          "  rel_rms = sqrt(sum (TEST-REF)^2 / sum REF^2) over R, G, B of all pixels\n");
+          "  rel_rms = sqrt(sum (TEST-REF)^2 / sum REF^2) over R, G, B of all pixels\n"
+          "usage: bench_tool vdbdiff TEST.vdb REF.vdb GRID\n"
+          "  prints {\"max_rel\": ..., \"rel_l2\": ..., \"voxels\": ..., \"max_abs\": ...}\n"
+          "  max_rel = max |TEST-REF| / max |REF| over the voxels and channels of GRID\n");
 }
 
 static int exrdiff(const char *test_path, const char *ref_path) {
@@ -86,8 +98,44 @@ error:
   return rc;
 }
 
+static int same_box(const vdbio_dense_t *a, const vdbio_dense_t *b) {
+  return a->nx == b->nx && a->ny == b->ny && a->nz == b->nz && a->channels == b->channels &&
+         !memcmp(a->index_to_world, b->index_to_world, sizeof a->index_to_world);
+}
+
+static int vdbdiff(const char *test_path, const char *ref_path, const char *grid) {
+  bk_error_t err = {0, ""};
+  vdbio_dense_t test = {0}, ref = {0};
+  int rc = vdbio_read_dense(test_path, grid, 0, &test, &err);
+  if (!rc) rc = vdbio_read_dense(ref_path, grid, 0, &ref, &err);
+  if (!rc && !same_box(&test, &ref))
+    rc = bk_fail(&err, BK_ERR_INPUT, "%s: grid %s covers %dx%dx%d (%d channels), %s %dx%dx%d "
+                 "(%d): the active boxes or transforms differ", test_path, grid, test.nx, test.ny,
+                 test.nz, test.channels, ref_path, ref.nx, ref.ny, ref.nz, ref.channels);
+  if (!rc) {
+    size_t n = (size_t)ref.nx * ref.ny * ref.nz * ref.channels;
+    double sum_d2 = 0.0, sum_r2 = 0.0, max_d = 0.0, max_r = 0.0;
+    for (size_t i = 0; i < n; i++) {
+      double t = test.data[i], r = ref.data[i], d = fabs(t - r);
+      sum_d2 += d * d;
+      sum_r2 += r * r;
+      if (!(d <= max_d)) max_d = d; /* NaN counts as the largest difference */
+      if (fabs(r) > max_r) max_r = fabs(r);
+    }
+    printf("{\"max_rel\": %.9g, \"rel_l2\": %.9g, \"voxels\": %zu, \"max_abs\": %.9g}\n",
+           max_r > 0.0 ? max_d / max_r : (max_d > 0.0), sum_r2 > 0.0 ? sqrt(sum_d2 / sum_r2) : 0.0,
+           n / (size_t)ref.channels, max_d);
+  } else {
+    fprintf(stderr, "bench_tool vdbdiff: %s\n", err.msg);
+  }
+  vdbio_dense_free(&test);
+  vdbio_dense_free(&ref);
+  return rc;
+}
+
 int main(int argc, char **argv) {
   if (argc == 4 && !strcmp(argv[1], "exrdiff")) return exrdiff(argv[2], argv[3]);
+  if (argc == 5 && !strcmp(argv[1], "vdbdiff")) return vdbdiff(argv[2], argv[3], argv[4]);
   if (argc == 2 && (!strcmp(argv[1], "-h") || !strcmp(argv[1], "--help"))) {
     usage(stdout);
     return BK_OK;

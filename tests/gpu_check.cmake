@@ -2,6 +2,6 @@
 # without a GPU, and the whole path with PoCL standing in for the GPU.
 add_test(NAME gpu_check
          COMMAND bash ${BAKER_TEST_DIR}/gpu_check.sh ${CMAKE_SOURCE_DIR} $<TARGET_FILE:baker>
-                 ${CMAKE_BINARY_DIR}/gpu_check)
+                 ${CMAKE_BINARY_DIR}/gpu_check $<TARGET_FILE:bench_tool>)
 set_tests_properties(gpu_check PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 120
   ENVIRONMENT "BAKER_CACHE_DIR=${CMAKE_BINARY_DIR}/kernel-cache")
