@@ -2,7 +2,8 @@
 # scripts/gpu-check: without a GPU it says so and exits 3; with PoCL standing
 # in for the GPU (--device) the whole path runs: bake, view, PoCL bake,
 # comparison (bench_tool vdbdiff) within 1e-5, report; --set reaches both
-# bakes; grids of another seed are told apart.
+# bakes; grids of another seed are told apart; notes outside the report's
+# markers survive a rewrite.
 # Usage: gpu_check.sh SOURCE_DIR BAKER WORKDIR BENCH_TOOL
 set -u
 SRC=$1 BAKER=$2 WORK=$3 TOOL=$4
@@ -16,11 +17,14 @@ if ! "$BAKER" devices | grep -E '^ +[0-9]+:[0-9]+ ' | grep -vq 'Portable Computi
 fi
 pocl=$("$BAKER" devices | grep 'Portable Computing Language' | head -1 | awk '{print $1}')
 [ -n "$pocl" ] || { echo "SKIP: no PoCL device"; exit 77; }
+printf '<!-- gpu-check report: begin -->\nstale\n<!-- gpu-check report: end -->\nNOTE-KEPT\n' > "$WORK/gpu.md"
 "$G" --baker "$BAKER" --tool "$TOOL" --device "$pocl" --resolution 16 --photons 2000 \
   --set photons.bounces=0 --out "$WORK/run" --doc "$WORK/gpu.md" > "$WORK/run.txt" 2>&1 ||
   { cat "$WORK/run.txt"; fail "gpu-check with PoCL standing in exited $?"; }
 grep -q "agree" "$WORK/gpu.md" || fail "the report does not say the grids agree"
 grep -q "photons.bounces=0" "$WORK/gpu.md" || fail "the report does not name the --set"
+grep -q "^NOTE-KEPT$" "$WORK/gpu.md" || fail "the notes outside the report's markers were lost"
+! grep -q "^stale$" "$WORK/gpu.md" || fail "the old report between the markers was kept"
 grep -q "single scattering" "$WORK/run/bake-gpu.log" || fail "--set photons.bounces=0 did not reach the bake"
 "$BAKER" bake "$SRC/scenes/sphere.json" -o "$WORK/other.vdb" --resolution 16 --photons 2000 \
   --set photons.bounces=0 --seed 7 --force -q || fail "bake with another seed"
