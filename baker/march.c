@@ -332,16 +332,19 @@ int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_
   if (stats) stats->bounces = (int)s->ms.params.max_bounces;
   bk_progress_begin(&prog, "photon marching", s->last - s->first);
   for (uint64_t i = s->first; i < s->last; i++) {
+    /* slot i traces the photon the devices' slot i traces, so a shard holds
+     * the same photons whichever path bakes it */
+    const bk_uint photon = ph_photon_of_slot(s->lights.lights, s->params.light_count, (bk_uint)i);
     pm_result r;
     if (s->ms.params.max_bounces) {
       ms_tally t;
       const ms_medium med = {s->sigma_s, s->g};
       pm_march_scattered(&s->params, &s->ms.params, s->lights.lights, s->ng, s->pyramid.level,
-                         s->sigma_t, med, acc, s->masks, s->tables, (bk_uint)i, &r, &t, NULL);
+                         s->sigma_t, med, acc, s->masks, s->tables, photon, &r, &t, NULL);
       if (stats) pm_stats_add_tally(stats, &t);
     } else {
       pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma_t, acc,
-                      s->masks, s->tables, (bk_uint)i, &r, NULL);
+                      s->masks, s->tables, photon, &r, NULL);
     }
     if (stats) pm_stats_add(stats, &r);
     if (((i - s->first) & 4095) == 4095) bk_progress_update(&prog, i - s->first + 1);

@@ -84,11 +84,13 @@ typedef struct pm_setup {
   double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
   int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
   unsigned seed;         /* photons.seed, for pm_derive */
-  /* The photon indices this march traces, [first, last) of lights.photons:
+  /* The launch slots this march traces, [first, last) of lights.photons:
    * all of them after pm_prepare and pm_derive; a photon shard
-   * (baker/shard.h) narrows it with pm_set_range. Index i keeps its place
-   * among all lights.photons (Hammersley point i of N, its light), so the
-   * sums of disjoint ranges add up to the whole march exactly. */
+   * (baker/shard.h) narrows it with pm_set_range. Slot i traces photon
+   * ph_photon_of_slot(i) (kernels/light_sample.h: a permutation of all
+   * lights.photons, Hammersley point j of N keeping its place) on the host
+   * and on every device, so the sums of disjoint ranges add up to the whole
+   * march exactly, whichever path baked each. */
   uint64_t first, last;
   ms_setup_t ms;         /* multiple scattering: params.max_bounces 0 when off */
   /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */

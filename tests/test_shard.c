@@ -16,7 +16,9 @@
  *  range      shard_range: contiguous, disjoint, complete, balanced
  *  anisotropic medium.g 0.6: 2 shards merged against the single bake,
  *             radiance_flux, radiance_uncollided, radiance_flux_uncollided
- *             and phase_g too, bit for bit */
+ *             and phase_g too, bit for bit
+ *  mixed      shards on the host C path and on OpenCL merged against the
+ *             single OpenCL bake, bit for bit */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
 #include <stdlib.h>
@@ -164,6 +166,30 @@ static int test_anisotropic(void) {
   return tu_failures ? 1 : 0;
 }
 
+/* Shards 1 and 3 of 3 on the host C path, 2 on OpenCL, against the single
+ * OpenCL bake: a farm may mix CPU and GPU nodes (the paths round alike,
+ * docs/gpu.md, and slot i traces the same photon on each). */
+static int test_mixed(void) {
+  const char *single = path_of("mixed_single.vdb"), *merged = path_of("mixed_merged.vdb");
+  REQUIRE(bake(single, PHOTONS, NULL, 0) == 0, "single bake failed");
+  char *shards[3];
+  for (int i = 1; i <= 3; i++) {
+    char spec[8], name[64];
+    snprintf(spec, sizeof spec, "%d/3", i);
+    snprintf(name, sizeof name, "mixed_%d_of_3.vdb", i);
+    shards[i - 1] = strdup(path_of(name));
+    const char *opts[] = {"--shard", spec, "--host"};
+    REQUIRE(bake(shards[i - 1], PHOTONS, opts, i == 2 ? 2 : 3) == 0, "bake --shard %s failed",
+            spec);
+  }
+  REQUIRE(merge(merged, shards, 3) == 0, "merge of host and OpenCL shards failed");
+  printf("shards 1, 3 on the host and 2 on OpenCL, merged vs the single OpenCL bake:\n");
+  compare(merged, single, "radiance", 3, 0.0);
+  compare(merged, single, "emission", 3, 0.0);
+  for (int i = 0; i < 3; i++) free(shards[i]);
+  return tu_failures ? 1 : 0;
+}
+
 static int test_adaptive(void) {
   const char *nf[] = {"--mode", "adaptive", "--no-filter"}, *f[] = {"--mode", "adaptive"};
   const char *single_nf = path_of("ad_single_nofilter.vdb"), *single = path_of("ad_single.vdb");
@@ -245,7 +271,8 @@ static int test_range(void) {
 
 int main(int argc, char **argv) {
   if (argc != 4) {
-    fprintf(stderr, "usage: test_shard SCENE_DIR OUT_DIR reference|adaptive|refuse|range\n");
+    fprintf(stderr, "usage: test_shard SCENE_DIR OUT_DIR "
+                    "reference|adaptive|refuse|range|anisotropic|mixed\n");
     return 2;
   }
   scene_dir = argv[1];
@@ -257,6 +284,7 @@ int main(int argc, char **argv) {
   if (!strcmp(t, "refuse")) return test_refuse();
   if (!strcmp(t, "range")) return test_range();
   if (!strcmp(t, "anisotropic")) return test_anisotropic();
+  if (!strcmp(t, "mixed")) return test_mixed();
   fprintf(stderr, "unknown test '%s'\n", t);
   return 2;
 }
