@@ -5,7 +5,8 @@
 # unset, `bin/baker --version`, `devices` and a tiny bake work, and every
 # library the loader maps, the dlopen'ed PoCL and its drivers included, lies
 # inside the bundle (or is a kernel PoCL compiled into its cache) or is one
-# of the allowed system libraries.
+# of the allowed system libraries. Then the --no-pocl flavour finds a driver
+# that has no ICD file by its soname.
 # Usage: bundle_check.sh SOURCE_DIR BUILD_DIR WORKDIR   (exit 77: skipped)
 set -u
 SRC=$1 BUILD=$2 WORK=$3
@@ -46,5 +47,18 @@ for f in "$B/libexec/baker" "$B"/lib/x86_64-linux-gnu/*.so* "$B"/lib/x86_64-linu
   bad=$(ldd "$f" | awk '$2 == "=>" {print $1, $3}' | grep -v " $B/" | grep -Ev "^[^ ]* /.*$ALLOWED" | grep -Ev "^(libc|libm|libstdc\+\+|libgcc_s|libpthread|libdl|librt|libOpenCL)\.so[.0-9]* ")
   [ -z "$bad" ] || fail "ldd $f resolves outside the bundle: $bad"
 done
+
+# --no-pocl on a node whose GPU driver has no ICD file (docs/gpu.md): the
+# wrapper finds the driver by its soname in the loader's cache. The system's
+# PoCL stands in for libnvidia-opencl.so.1 (BAKER_ICD_DRIVERS).
+"$SRC/scripts/bundle" --no-pocl --fast --build "$BUILD" -o "$WORK/nopocl.tar.gz" > /dev/null ||
+  fail "scripts/bundle --no-pocl exited $?"
+mkdir -p "$WORK/node2" && tar -C "$WORK/node2" -xzf "$WORK/nopocl.tar.gz" || fail "cannot unpack --no-pocl"
+N=$WORK/node2/baker/bin/baker
+BAKER_ICD_DRIVERS= "$N" devices 2>&1 | grep -q "Portable Computing Language" &&
+  fail "--no-pocl with no ICD files and no drivers looked for still lists PoCL"
+BAKER_ICD_DRIVERS=libpocl.so.2 "$N" devices > devices2.txt 2>&1
+grep -q "Portable Computing Language" devices2.txt ||
+  fail "a driver without an ICD file was not found by its soname: $(cat devices2.txt)"
 echo "bundle: ok ($(du -sm "$B" | cut -f1) MiB unpacked)"
-rm -rf "$WORK/node" "$WORK/pocl-cache" # 400 MiB; a failure leaves them to look at
+rm -rf "$WORK/node" "$WORK/node2" "$WORK/pocl-cache" "$WORK/nopocl.tar.gz" # 500 MiB; a failure leaves them to look at
