@@ -86,8 +86,7 @@ BK_INLINE bk_uint bk_as_uint(float f) { union { bk_uint u; float f; } v; v.f = f
 #define BK_EXP_LINKAGE BK_INLINE
 #endif
 
-/* 2^k for -126 <= k <= 127, from its bits (ldexp is a library call in
- * PoCL that stops the work-group loop from being vectorised) */
+/* 2^k for -126 <= k <= 127, exactly, from its bits (no ldexp call) */
 BK_INLINE float bk_pow2i(int k) { return BK_AS_FLOAT((bk_uint)(k + 127) << 23); }
 
 BK_EXP_LINKAGE float bk_exp(float x) {
