@@ -551,8 +551,8 @@ int clh_build_source(clh_context_t *cl, const char *name, const char *text, cons
     goto error;
   }
   /* IEEE division and square root where the device offers them (a GPU's
-   * default is within 2.5-3 ulp): grids then differ between devices only by
-   * their exp, sin and cos (docs/gpu.md). */
+   * default is within 2.5-3 ulp): with the kernels' own exp, log, sin and
+   * cos (kernels/shared.h) every device then bakes the same bits (docs/gpu.md). */
   snprintf(opts, olen, "-cl-std=CL1.2%s %s",
            cl->exact_div_sqrt ? " -cl-fp32-correctly-rounded-divide-sqrt" : "", options);
 

@@ -22,9 +22,11 @@
  *
  * vdbdiff reads GRID (float or Vec3f) of both files densely over their
  * active boxes and prints one JSON line,
- *   {"max_rel": m, "rel_l2": e, "voxels": n, "max_abs": a}
- * m = max |test - ref| / max |ref| over voxels and channels, e the relative
- * L2 sqrt(sum (test - ref)^2 / sum ref^2); the boxes must be equal.
+ *   {"max_rel": m, "rel_l2": e, "voxels": n, "max_abs": a, "nonfinite": k}
+ * m = max |test - ref| / max |ref| over voxels and channels (1e30 when k
+ * values of either file are NaN or infinite), e the relative L2
+ * sqrt(sum (test - ref)^2 / sum ref^2) over the finite ones; the boxes and
+ * transforms must be equal.
  * Exit status: 0 success, 2 bad input (unreadable files, sizes differ). */
 #include <math.h>
 #include <stdio.h>
@@ -115,16 +117,22 @@ static int vdbdiff(const char *test_path, const char *ref_path, const char *grid
   if (!rc) {
     size_t n = (size_t)ref.nx * ref.ny * ref.nz * ref.channels;
     double sum_d2 = 0.0, sum_r2 = 0.0, max_d = 0.0, max_r = 0.0;
+    size_t nonfinite = 0;
     for (size_t i = 0; i < n; i++) {
       double t = test.data[i], r = ref.data[i], d = fabs(t - r);
+      if (!isfinite(d)) { /* NaN or inf in either: never within a tolerance */
+        nonfinite++;
+        continue;
+      }
       sum_d2 += d * d;
       sum_r2 += r * r;
-      if (!(d <= max_d)) max_d = d; /* NaN counts as the largest difference */
+      if (d > max_d) max_d = d;
       if (fabs(r) > max_r) max_r = fabs(r);
     }
-    printf("{\"max_rel\": %.9g, \"rel_l2\": %.9g, \"voxels\": %zu, \"max_abs\": %.9g}\n",
-           max_r > 0.0 ? max_d / max_r : (max_d > 0.0), sum_r2 > 0.0 ? sqrt(sum_d2 / sum_r2) : 0.0,
-           n / (size_t)ref.channels, max_d);
+    double max_rel = nonfinite ? 1e30 : max_r > 0.0 ? max_d / max_r : (max_d > 0.0);
+    printf("{\"max_rel\": %.9g, \"rel_l2\": %.9g, \"voxels\": %zu, \"max_abs\": %.9g, "
+           "\"nonfinite\": %zu}\n", max_rel, sum_r2 > 0.0 ? sqrt(sum_d2 / sum_r2) : 0.0,
+           n / (size_t)ref.channels, max_d, nonfinite);
   } else {
     fprintf(stderr, "bench_tool vdbdiff: %s\n", err.msg);
   }
