@@ -67,11 +67,10 @@ static void coarse_scattering_range(void *arg, size_t lo, size_t hi) {
       size_t row = grid_index(d, 0, jy, k);
       float *crow = j->scat + grid_index(&c, 0, jy >> shift, k >> shift);
       const volume_t *v = j->vol;
-      const float *s = v->sigma_s;
       for (int i = 0; i < d->nx; i++) {
         const size_t at = row + (size_t)i;
-        float g = (s[vox_sigma_index(v, at, 0)] + s[vox_sigma_index(v, at, 1)] +
-                   s[vox_sigma_index(v, at, 2)]) * (1.0f / 3.0f);
+        float g = (vol_sigma_s(v, at, 0) + vol_sigma_s(v, at, 1) + vol_sigma_s(v, at, 2)) *
+                  (1.0f / 3.0f);
         float *o = &crow[i >> shift];
         if (g > *o) *o = g;
       }

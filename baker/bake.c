@@ -247,15 +247,9 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   const volume_t *vol = j->vol;
   size_t n = grid_count(&vol->dims);
   og_source_t *src = &j->derived;
-  const int sca_channels = vol->sigma_channels == 1 ? 1 : 3;
   /* grey light: one radiance value per voxel, the RGB grid made at the write */
   const int rad_channels = j->error.radiance_channels == 1 ? 1 : 3;
-  *src = (og_source_t){.sigma_s = vol->sigma_s,
-                       .sigma_t = vol->sigma_t,
-                       .sigma_channels = vol->sigma_channels,
-                       .scattering = vol->sigma_s,
-                       .sca_channels = sca_channels,
-                       .uniform = vol->homogeneous,
+  *src = (og_source_t){.vol = vol,
                        .radiance = j->radiance,
                        .radiance_channels = rad_channels,
                        .ior = vol->ior,
@@ -264,13 +258,17 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
                        .g = vol->g,
                        .medium_g = j->scene.medium_g};
   /* n packed into bricks after the march's fields were built (bake_pack_ior);
-   * sigma_s and sigma_t are the scattering and extinction grids as they
-   * stand: Vec3, or floats when the volume is grey (vox_summarise); a
-   * homogeneous volume's one voxel of each is repeated at the write */
+   * the scattering and extinction grids are the volume's σs and σt: plain
+   * arrays as they stand, else decoded (a coded volume, voxelize.h) or
+   * repeated (a homogeneous one's one voxel) at the write; Vec3, or floats
+   * when the volume is grey (vox_summarise) */
   const og_values_t ior = j->ior_bricks.slot ? (og_values_t){NULL, bg_fill, &j->ior_bricks}
                                              : og_dense(vol->ior);
-  bake_arrays_t a = {ior, og_dense(j->radiance), og_dense(vol->sigma_t),
-                     og_dense(vol->sigma_s), og_made(og_density, src), og_dense(NULL),
+  const int plain = vol->sigma_s && !vol->homogeneous;
+  bake_arrays_t a = {ior, og_dense(j->radiance),
+                     plain ? og_dense(vol->sigma_t) : og_made(og_extinction, src),
+                     plain ? og_dense(vol->sigma_s) : og_made(og_scattering, src),
+                     og_made(og_density, src), og_dense(NULL),
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
                      j->scene.medium_ior, og_dense(NULL), j->error.flux, j->error.uncollided,
                      og_dense(NULL), NULL};
@@ -280,11 +278,7 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   if (vol->ior_rb) a.ior_rgb = og_made(og_ior_rgb, src);
   if (j->error.flux || j->shard.sums.flux) /* a shard's flux is in its sums */
     a.phase_g = og_made(og_phase_g, src);
-  if (vol->grey) a.sca_channels = 1; /* sigma_s and sigma_t hold one value per voxel */
-  if (vol->homogeneous) {
-    a.extinction = og_made(og_extinction, src);
-    a.scattering = og_made(og_scattering, src);
-  }
+  if (vol->grey) a.sca_channels = 1; /* σs and σt hold one value per voxel */
   *count = bake_grid_list(&a, grids);
   if (j->error.error_grid)
     grids[(*count)++] =
@@ -307,8 +301,8 @@ static const char *error_note(const scene_t *s, const bake_options_t *opt, const
 }
 
 /* What the write may free as it goes when no later frame takes this
- * volume: n and σt once the last grid that reads each is in the file
- * (docs/memory.md). */
+ * volume: n and σt (plain arrays) or the coded σ once the last grid that
+ * reads each is in the file (docs/memory.md). */
 typedef struct bake_release {
   bake_reuse_t *reuse;
   int last_ior, last_sigma_t; /* grid indices; -1: none reads it */
@@ -318,18 +312,23 @@ static void bake_grid_done(void *ctx, int g) {
   bake_release_t *r = ctx;
   volume_t *v = &r->reuse->volume;
   if (g == r->last_ior) free(v->ior), v->ior = NULL;
-  if (g == r->last_sigma_t) free(v->sigma_t), v->sigma_t = NULL;
+  if (g == r->last_sigma_t && v->sigma_code) free(v->sigma_code), v->sigma_code = NULL;
+  else if (g == r->last_sigma_t) free(v->sigma_t), v->sigma_t = NULL;
   if (g == r->last_ior || g == r->last_sigma_t) r->reuse->has_volume = 0; /* not whole now */
 }
 
-/* The release plan for `grids`: which grid reads n and σt last. */
+/* The release plan for `grids`: which grid reads n and σt last (with coded
+ * σ, σs too: the same buffer). */
 static bake_release_t bake_release_plan(bake_reuse_t *reuse, const vdbio_grid_t *grids,
                                         int count) {
   bake_release_t r = {reuse, -1, -1};
+  const int coded = reuse->volume.sigma_code != NULL;
   for (int g = 0; g < count; g++) {
     const char *n = grids[g].name;
     if (!strcmp(n, "ior") || !strcmp(n, "ior_rgb")) r.last_ior = g;
-    if (!strcmp(n, "extinction") || !strcmp(n, "density")) r.last_sigma_t = g;
+    if (!strcmp(n, "extinction") || !strcmp(n, "density") ||
+        (coded && (!strcmp(n, "scattering") || !strcmp(n, "emission") || !strcmp(n, "phase_g"))))
+      r.last_sigma_t = g;
   }
   return r;
 }

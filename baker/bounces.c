@@ -55,7 +55,7 @@ void ms_build(const scene_t *scene, const volume_t *vol, ms_setup_t *ms) {
   M->grid = (bk_uint)ms->sigma_grid;
   M->g_grid = (bk_uint)ms->g_grid;
   /* one channel carries the sum of RGB, and σs is grey: any channel's */
-  for (int c = 0; c < 3; c++) M->sigma_s[c] = (float)(vol->sigma_s[vox_sigma_index(vol, 0, c)] * h);
+  for (int c = 0; c < 3; c++) M->sigma_s[c] = (float)(vol_sigma_s(vol, 0, c) * h);
 }
 
 void ms_kernel_defines(const ms_setup_t *ms, char *buf, size_t len) {

@@ -76,11 +76,16 @@ typedef struct pm_setup {
   int has_refraction, homogeneous, grey;
   float *ng;             /* has_refraction: the padded {∇n, n} field (baker/field.h) */
   oct_pyramid_t pyramid; /* has_refraction */
-  /* The volume's σ per metre (params.sigma_stride floats per voxel; the
-   * kernels scale it by h), not owned: σt, read unless homogeneous; σs and
-   * g, read by scattering events where they vary (ms.sigma_grid, ms.g_grid;
-   * g NULL: uniform). */
-  const float *sigma_t, *sigma_s, *g;
+  /* The volume's σs and σt per metre, coded (kernels/medium_code.h;
+   * params.sigma_stride channels; the kernels scale them by h; sigma_floats
+   * floats): σt read unless homogeneous, σs by scattering events where it
+   * varies (ms.sigma_grid); NULL for a homogeneous volume. The volume's own
+   * code, or for a volume with plain arrays a copy coded here and owned in
+   * sigma_own (a derived setup owns nothing). g per voxel where it varies
+   * (ms.g_grid; NULL: uniform). */
+  const float *sigma, *g;
+  size_t sigma_floats;
+  float *sigma_own;
   double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
   int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
   unsigned seed;         /* photons.seed, for pm_derive */
@@ -148,7 +153,7 @@ int pm_prepare(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_timi
 int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t *kept,
                     pm_setup_t *s, bk_timings_t *timings, pm_stats_t *stats, bk_error_t *err);
 void pm_setup_free(pm_setup_t *s);
-/* Frees only the fields ({grad n, n}, sigma_t, the pyramid) unless they are
+/* Frees only the fields ({grad n, n}, the pyramid) unless they are
  * kept for the next frame: after the march, before the output grids. */
 void pm_setup_free_fields(pm_setup_t *s);
 /* Treat every block as varying (after pm_prepare): the march then steps

@@ -13,8 +13,8 @@ typedef struct pm_cl_run {
   cl_program prog;
   cl_kernel kern;
   size_t local;
-  cl_mem params, lights, ng, pyr, sigma_t, acc, out, dummy, masks, tables;
-  cl_mem ms_params, sigma_s, g, tally; /* multiple scattering (march_ms.cl) */
+  cl_mem params, lights, ng, pyr, sigma, acc, out, dummy, masks, tables;
+  cl_mem ms_params, g, tally; /* multiple scattering (march_ms.cl) */
   size_t acc_bytes, mask_bytes;
   pm_result *res;
   ms_tally *tallies;
@@ -99,21 +99,21 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
   ph_light all[SCENE_MAX_LIGHTS];
   memset(all, 0, sizeof all);
   memcpy(all, L->lights, sizeof(ph_light) * (size_t)L->count);
-  /* the volume's σ, read in place on a CPU device */
-  const size_t sigma_bytes = s->voxels * s->params.sigma_stride * sizeof(float);
+  /* the volume's coded σ (σt and σs in one buffer), read in place on a CPU
+   * device */
+  const size_t sigma_bytes = s->sigma_floats * sizeof(float);
   if (!(r->params = make_buffer(cl, copy, sizeof(pm_params), &s->params, err)) ||
       !(r->lights = make_buffer(cl, copy, sizeof(ph_light) * nlights, all, err)) ||
       !(r->dummy = make_buffer(cl, CL_MEM_READ_WRITE, 64, NULL, err)) ||
       (s->ng && !(r->ng = make_buffer(cl, in, field_bytes(s), s->ng, err))) ||
       (s->ng && !(r->pyr = make_buffer(cl, in, (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz,
                                         s->pyramid.level, err))) ||
-      (!s->homogeneous && !(r->sigma_t = make_buffer(cl, in, sigma_bytes, s->sigma_t, err))) ||
+      (s->sigma && !(r->sigma = make_buffer(cl, in, sigma_bytes, s->sigma, err))) ||
       !(r->acc = make_buffer(cl, CL_MEM_READ_WRITE | host, r->acc_bytes, acc, err)) ||
       !(r->out = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, err)))
     return BK_ERR_RUNTIME;
   if (s->ms.params.max_bounces &&
       (!(r->ms_params = make_buffer(cl, copy, sizeof(ms_params), &s->ms.params, err)) ||
-       (s->ms.sigma_grid && !(r->sigma_s = make_buffer(cl, in, sigma_bytes, s->sigma_s, err))) ||
        (s->ms.g_grid && !(r->g = make_buffer(cl, in, s->voxels * sizeof(float), s->g, err))) ||
        !(r->tally = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(ms_tally), NULL, err))))
     return BK_ERR_RUNTIME;
@@ -134,12 +134,12 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
 /* Arguments of pm_march (kernels/march.cl) but the photon range (6, 7). */
 static int set_args(pm_cl_run_t *r, bk_error_t *err) {
   cl_mem a[11] = {r->params, r->lights, r->ng ? r->ng : r->dummy, r->pyr ? r->pyr : r->dummy,
-                  r->sigma_t ? r->sigma_t : r->dummy, r->acc, NULL, NULL, r->out,
+                  r->sigma ? r->sigma : r->dummy, r->acc, NULL, NULL, r->out,
                   r->masks ? r->masks : r->dummy, r->tables ? r->tables : r->dummy};
   for (cl_uint i = 0; i < 11; i++)
     if (a[i]) CLH_CHECK(clSetKernelArg(r->kern, i, sizeof(cl_mem), &a[i]), err, error);
   if (!r->tally) return BK_OK;
-  cl_mem m[4] = {r->ms_params, r->sigma_s ? r->sigma_s : r->dummy, r->g ? r->g : r->dummy,
+  cl_mem m[4] = {r->ms_params, r->sigma ? r->sigma : r->dummy, r->g ? r->g : r->dummy,
                   r->tally}; /* march_ms.cl */
   for (cl_uint i = 0; i < 4; i++)
     CLH_CHECK(clSetKernelArg(r->kern, 11 + i, sizeof(cl_mem), &m[i]), err, error);
@@ -218,9 +218,8 @@ static void release(pm_cl_run_t *r) {
   free(r->tallies);
   if (r->kern) clReleaseKernel(r->kern);
   if (r->prog) clReleaseProgram(r->prog);
-  cl_mem all[] = {r->params, r->lights, r->ng,     r->pyr,       r->sigma_t, r->acc,
-                  r->out,    r->dummy,  r->masks,  r->tables,    r->ms_params, r->sigma_s,
-                  r->g,      r->tally};
+  cl_mem all[] = {r->params, r->lights, r->ng,     r->pyr,    r->sigma,     r->acc, r->out,
+                  r->dummy,  r->masks,  r->tables, r->ms_params, r->g,     r->tally};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
     if (all[i]) clReleaseMemObject(all[i]);
 }

@@ -11,13 +11,13 @@
 #include "vdbio.h"
 
 /* What the fills read; each uses only its own fields. */
+struct volume;
 typedef struct og_source {
-  const float *sigma_s, *sigma_t; /* sigma_channels per voxel */
-  int sigma_channels;             /* 3, or 1: grey (voxelize.h) */
-  const float *scattering;        /* emission: sca_channels per voxel */
+  /* extinction, scattering, density, phase_g and emission's σs: the
+   * volume's σ however stored (voxelize.h vol_sigma_s, vol_sigma_t) */
+  const struct volume *vol;
+  const float *scattering;        /* emission without vol: sca_channels per voxel */
   int sca_channels;
-  int uniform;                    /* sigma_s, sigma_t, scattering: voxel 0's for all
-                                     (a homogeneous volume, voxelize.h) */
   const float *radiance;          /* emission: radiance_channels per voxel */
   int radiance_channels;          /* 3, or 1: grey light (march.h pm_radiance_channels) */
   const float *ior, *ior_rb;      /* ior_rgb: n; n of R then B (2 * voxels) */
@@ -44,8 +44,9 @@ static inline og_values_t og_made(vdbio_fill_fn fill, const og_source_t *src) {
 static inline int og_present(og_values_t v) { return v.data || v.fill; }
 
 void og_density(const void *src, size_t lo, size_t hi, float *out);  /* mean of σt */
-/* σt and σs as the extinction and scattering grids, sigma_channels floats
- * per voxel: for a uniform source, whose arrays hold one voxel */
+/* σt and σs as the extinction and scattering grids, the volume's
+ * sigma_channels floats per voxel (decoded, or repeated for a homogeneous
+ * volume that holds one voxel) */
 void og_extinction(const void *src, size_t lo, size_t hi, float *out);
 void og_scattering(const void *src, size_t lo, size_t hi, float *out);
 void og_emission(const void *src, size_t lo, size_t hi, float *out); /* scattering ⊙ radiance */

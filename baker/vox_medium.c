@@ -9,6 +9,7 @@
 
 #include "base/parallel.h"
 #include "vdbio.h"
+#include "vox_code.h"
 
 /* The uniform medium over voxels [lo, hi): the grid's first touch, hundreds
  * of MiB at 256^3, so spread over the cores. */
@@ -123,9 +124,15 @@ int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
     if (clamped)
       bk_warn("%s: %s: grid \"%s\": %zu voxels had a negative density, set to 0", ref->where,
               ref->file, ref->grid, clamped);
+    out->density = density; /* kept until vox_summarise codes σ by it */
+    density = NULL;
   } else {
     medium_fill_t f = {scene, out};
     bk_parallel(count, BK_GRAIN, fill_sigma_range, &f);
+  }
+  for (int c = 0; c < 3; c++) {
+    out->medium_s[c] = scene->medium_sigma_s[c];
+    out->medium_a[c] = scene->medium_sigma_a[c];
   }
 
   if (rc == BK_OK && scene_has_dispersion(scene)) { /* the medium's n in every channel */
@@ -320,4 +327,7 @@ void vox_summarise(volume_t *v) {
   v->grey = !v->scan.coloured;
   if (v->grey && v->sigma_channels == 3) vox_store_grey(v);
   if (!v->scan.varies) vox_store_uniform(v);
+  if (!v->homogeneous) vox_code(v);
+  free(v->density);
+  v->density = NULL;
 }

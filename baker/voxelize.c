@@ -633,7 +633,9 @@ void vox_free(volume_t *v) {
   free(v->ior);
   free(v->sigma_s);
   free(v->sigma_t);
+  free(v->sigma_code);
+  free(v->density);
   free(v->g);
   free(v->ior_rb);
-  v->ior = v->sigma_s = v->sigma_t = v->g = v->ior_rb = NULL;
+  v->ior = v->sigma_s = v->sigma_t = v->sigma_code = v->density = v->g = v->ior_rb = NULL;
 }

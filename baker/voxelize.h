@@ -30,6 +30,7 @@
 #define BAKER_VOXELIZE_H
 
 #include "base/grid.h"
+#include "kernels/medium_code.h"
 #include "scene.h"
 
 #ifdef __cplusplus
@@ -65,6 +66,18 @@ typedef struct volume {
    * bytes per voxel less through every phase of the bake. 0 reads as 3 (a
    * volume filled by hand). Read through vox_sigma_index. */
   int sigma_channels;
+  /* σs and σt coded in one word per voxel plus a table (kernels/medium_code.h,
+   * baker/vox_code.h): vox_summarise codes them and frees sigma_s and
+   * sigma_t (NULL then), unless the volume is homogeneous. NULL: the plain
+   * arrays above hold them (a volume filled by hand). Read either through
+   * vol_sigma_s and vol_sigma_t. */
+  float *sigma_code;
+  size_t sigma_code_floats; /* the whole buffer: voxels, then the table */
+  /* the medium's σs and σa (channel order as sigma_channels) and, while
+   * voxelize runs, the density that scales them (density_vdb resampled;
+   * NULL: 1 everywhere): what the code expresses a voxel by */
+  float medium_s[3], medium_a[3];
+  float *density;
   float *g;        /* Henyey–Greenstein g per voxel; NULL: the medium's everywhere */
   /* dispersion (scene_has_dispersion): n of the R channel, then of B, one
    * plane of grid_count floats each, composited like ior (which is G's);
@@ -99,8 +112,17 @@ static inline size_t vox_sigma_index(const volume_t *v, size_t i, int c) {
   return vox_channel_at(v->sigma_channels, v->homogeneous ? 0 : i, c);
 }
 
-/* σt of channel c at voxel i. */
+/* σs and σt of channel c at voxel i (per metre), however they are stored. */
+static inline float vol_sigma_s(const volume_t *v, size_t i, int c) {
+  if (v->sigma_code)
+    return mc_sigma(v->sigma_code, (bk_long)grid_count(&v->dims), v->sigma_channels == 1 ? 1 : 3,
+                    (bk_long)i, v->sigma_channels == 1 ? 0 : c, 0);
+  return v->sigma_s[vox_sigma_index(v, i, c)];
+}
 static inline float vol_sigma_t(const volume_t *v, size_t i, int c) {
+  if (v->sigma_code)
+    return mc_sigma(v->sigma_code, (bk_long)grid_count(&v->dims), v->sigma_channels == 1 ? 1 : 3,
+                    (bk_long)i, v->sigma_channels == 1 ? 0 : c, 1);
   return v->sigma_t[vox_sigma_index(v, i, c)];
 }
 

@@ -73,6 +73,7 @@
 
 #include "kernels/light_domain.h"
 #include "kernels/light_sample.h"
+#include "kernels/medium_code.h"
 #include "kernels/ray_core.h"
 
 /* Multiple scattering (kernels/scatter.h, scatter_march.h): on the host
@@ -278,13 +279,15 @@ BK_INLINE int pm_acc_stride(int mode, int channels) {
   return mode == PM_MODE_TABLES ? channels + 1 : channels;
 }
 
-/* σ per voxel length of channel ch at voxel idx from the volume's σ per
- * metre (one value per voxel for a grey medium, three interleaved
- * otherwise). The float product is the host's (float)(σ · (double)h) bit
- * for bit: two floats multiply exactly in double, so both round once. */
+/* σs (t = 0) or σt (t = 1) per voxel length, channel ch, at voxel idx of
+ * the volume's coded σ per metre (kernels/medium_code.h; one channel for a
+ * grey medium, three otherwise). The float product is the host's
+ * (float)(σ · (double)h) bit for bit: two floats multiply exactly in
+ * double, so both round once. */
 BK_INLINE float pm_sigma_at(const pm_params *P, BK_GLOBAL const float *sigma, bk_long idx,
-                            int ch) {
-  return sigma[PM_SIGMA_STRIDE_OF(P) == 1 ? idx : 3 * idx + ch] * P->h;
+                            int ch, int t) {
+  const bk_long voxels = (bk_long)P->grid.nx * P->grid.ny * P->grid.nz;
+  return mc_sigma(sigma, voxels, PM_SIGMA_STRIDE_OF(P), idx, ch, t) * P->h;
 }
 
 /* The photon crosses length seg (voxels) of voxel idx (at c): deposits the
@@ -318,7 +321,7 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
   if (ph->fl.state == MS_FLYING) {
     float st[3], sbar = 0.0f;
     for (int ch = 0; ch < nch; ch++) {
-      st[ch] = PM_HOMOGENEOUS(P) ? P->sigma_t[ch] : pm_sigma_at(P, sigma, idx, ch);
+      st[ch] = PM_HOMOGENEOUS(P) ? P->sigma_t[ch] : pm_sigma_at(P, sigma, idx, ch, 1);
       sbar += st[ch];
     }
     ms_flight_cross(&ph->fl, ph->power, ph->path, st, nch, sbar / (float)nch, seg, idx, c);
@@ -334,7 +337,7 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
 #endif
     float sg, trans;
     if (PM_HOMOGENEOUS(P)) sg = P->sigma_t[ch];
-    else sg = pm_sigma_at(P, sigma, idx, ch);
+    else sg = pm_sigma_at(P, sigma, idx, ch, 1);
     float r = rc_atten(sg * seg, &trans);
     pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
 #if PM_FLUX_COMPILED

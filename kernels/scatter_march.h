@@ -48,7 +48,7 @@ typedef struct ms_medium {
 BK_INLINE float ms_medium_at(const pm_params *P, const ms_params *M, ms_medium med, int nch,
                              bk_long idx, float *ss) {
   for (int ch = 0; ch < nch; ch++)
-    ss[ch] = MS_SIGMA_GRID_OF(M) ? pm_sigma_at(P, med.sigma_s, idx, ch) : M->sigma_s[ch];
+    ss[ch] = MS_SIGMA_GRID_OF(M) ? pm_sigma_at(P, med.sigma_s, idx, ch, 0) : M->sigma_s[ch];
   if (!MS_HG_OF(M)) return 0.0f;
   return MS_G_GRID_OF(M) ? med.g[idx] : M->g;
 }

@@ -308,7 +308,7 @@ static void case_profile(void) {
           if (fabs(w - w_expect) > worst) worst = fabs(w - w_expect);
           if (w > 0.0 && w < 1.0) transition++;
           /* sigma follows the same weight (σt = σa: σs is 0) */
-          EXPECT_NEAR(v.sigma_t[3 * idx + 2], 0.75 * w, 1e-5);
+          EXPECT_NEAR(vol_sigma_t(&v, idx, 2), 0.75 * w, 1e-5);
         }
     printf("smoothing %.1f voxels: worst |w - w(d_sphere)| = %.5f (tolerance %.5f from r - r_in = "
            "%.4f voxels), %zu voxels in transition\n",
@@ -559,7 +559,8 @@ static void case_objects(void) {
         double ro = sqrt(pow(c[0] - SPHERE_C[0], 2) + pow(c[1] - SPHERE_C[1], 2) +
                          pow(c[2] - SPHERE_C[2], 2)) / d->voxel_size;
         size_t idx = grid_index(d, i, j, k);
-        const float *st = v.sigma_t + 3 * idx, *ss = v.sigma_s + 3 * idx;
+        float st[3], ss[3];
+        for (int ch = 0; ch < 3; ch++) st[ch] = vol_sigma_t(&v, idx, ch), ss[ch] = vol_sigma_s(&v, idx, ch);
         /* 1.5 voxels clear of each surface (s/2 plus the icospheres' sag) */
         if (ri < 0.3 / d->voxel_size - 1.5) {
           in_inner++;
@@ -725,7 +726,7 @@ static void check_density_values(scene_t *s, const grid_dims_t *d, const float *
   if (build(s, &v)) {
     size_t wrong = 0;
     for (size_t idx = 0; idx < count; idx += 97)
-      wrong += v.sigma_s[3 * idx] != 0.0f || v.sigma_t[3 * idx + 2] != 0.0f;
+      wrong += vol_sigma_s(&v, idx, 0) != 0.0f || vol_sigma_t(&v, idx, 2) != 0.0f;
     EXPECT(wrong == 0, "%zu voxels of negative density kept a non-zero sigma", wrong);
     vox_free(&v);
   }
@@ -762,7 +763,7 @@ static void case_medium(void) {
     EXPECT(v.sigma_channels == 1);
     size_t last = grid_count(&v.dims) - 1;
     for (int ch = 0; ch < 3; ch++) {
-      EXPECT_NEAR(v.sigma_s[vox_sigma_index(&v, last, ch)], 0.5f, 0.0);
+      EXPECT_NEAR(vol_sigma_s(&v, last, ch), 0.5f, 0.0);
       EXPECT_NEAR(vol_sigma_t(&v, last, ch), 0.52f, 1e-6);
     }
     vox_free(&v);
@@ -815,8 +816,8 @@ static void case_medium(void) {
       double n_expect = ior[idx] < 1.0f ? 1.0 : ior[idx];
       worst_n = fmax(worst_n, fabs(v.ior[idx] - n_expect));
       for (int ch = 0; ch < 3; ch++) {
-        worst_s = fmax(worst_s, fabs(v.sigma_s[3 * idx + ch] - s.medium_sigma_s[ch] * rho[idx]));
-        worst_s = fmax(worst_s, fabs(v.sigma_t[3 * idx + ch] -
+        worst_s = fmax(worst_s, fabs(vol_sigma_s(&v, idx, ch) - s.medium_sigma_s[ch] * rho[idx]));
+        worst_s = fmax(worst_s, fabs(vol_sigma_t(&v, idx, ch) -
                                      (s.medium_sigma_s[ch] + 0.1) * rho[idx]));
       }
     }
@@ -890,7 +891,9 @@ static void scan_pair(int with_g, int uniform) {
 
 /* vox_summarise makes sigma_t, which held σa while the objects were
  * composited, the float sum σs + σa in every voxel and channel, and scans
- * it as vox_scan scans a volume that holds σt already (grey and RGB). */
+ * it as vox_scan scans a volume that holds σt already (grey and RGB); the
+ * code it then keeps gives every value back (here nearly all are table
+ * entries: the medium's coefficients are 0). */
 static void summarise_pair(int channels) {
   volume_t v, t;
   memset(&v, 0, sizeof v);
@@ -917,8 +920,16 @@ static void summarise_pair(int channels) {
   vox_scan(&t, &b);
   vox_summarise(&v);
   const vox_scan_t *a = &v.scan;
-  EXPECT(v.sigma_channels == channels && memcmp(v.sigma_t, t.sigma_t, m * sizeof(float)) == 0,
-         "%d channels: sigma_t is not sigma_s + sigma_a", channels);
+  /* read back through the code (vox_code.h), bit for bit */
+  size_t differ = 0;
+  for (size_t i = 0; i < n; i++)
+    for (int c = 0; c < channels; c++) {
+      const float st = vol_sigma_t(&v, i, c), ss = vol_sigma_s(&v, i, c);
+      differ += memcmp(&st, &t.sigma_t[(size_t)channels * i + c], sizeof st) != 0 ||
+                memcmp(&ss, &t.sigma_s[(size_t)channels * i + c], sizeof ss) != 0;
+    }
+  EXPECT(v.sigma_channels == channels && v.sigma_code && differ == 0,
+         "%d channels: %zu values are not sigma_s and sigma_s + sigma_a", channels, differ);
   EXPECT(a->varies == b.varies && a->coloured == b.coloured && a->t_varies == b.t_varies &&
          a->t_coloured == b.t_coloured && a->s_varies == b.s_varies &&
          a->s_coloured == b.s_coloured && a->n_min == b.n_min && a->n_max == b.n_max);
@@ -977,7 +988,8 @@ static void case_scan(void) {
 /* A homogeneous volume keeps one voxel's σs and σt (vox_summarise): every
  * voxel reads them through vox_sigma_index, and the write's extinction,
  * scattering and density fills give what the full arrays gave; one voxel
- * that differs keeps the arrays whole. */
+ * that differs makes the volume coded (vox_code.h), which gives them back
+ * bit for bit. */
 static void uniform_case(int channels, int odd_voxel) {
   volume_t v;
   memset(&v, 0, sizeof v);
@@ -996,19 +1008,21 @@ static void uniform_case(int channels, int odd_voxel) {
       v.sigma_t[(size_t)channels * i + c] = a0[c];
     }
   }
+  for (int c = 0; c < 3; c++) v.medium_s[c] = s0[c], v.medium_a[c] = a0[c];
   if (odd_voxel) v.sigma_s[m - 1] = 0.25f;
   vox_summarise(&v);
   EXPECT(v.homogeneous == !odd_voxel, "%d channels, odd voxel %d: homogeneous %d", channels,
          odd_voxel, v.homogeneous);
-  const og_source_t src = {.sigma_s = v.sigma_s, .sigma_t = v.sigma_t,
-                           .sigma_channels = v.sigma_channels, .scattering = v.sigma_s,
-                           .sca_channels = channels, .uniform = v.homogeneous};
+  /* the others are the medium at density 1: the odd voxel is the one entry
+   * after the medium's coefficients (kernels/medium_code.h) */
+  EXPECT(!odd_voxel || (v.sigma_code && v.sigma_code_floats == n + 2 * 2 * (size_t)channels),
+         "%d channels, odd voxel: coded %d, %zu floats", channels, v.sigma_code != NULL,
+         v.sigma_code_floats);
+  const og_source_t src = {.vol = &v};
   float *ext = malloc(m * sizeof(float)), *sca = malloc(m * sizeof(float));
   float *rho = malloc(n * sizeof(float));
-  const og_values_t e = v.homogeneous ? og_made(og_extinction, &src) : og_dense(v.sigma_t);
-  const og_values_t s = v.homogeneous ? og_made(og_scattering, &src) : og_dense(v.sigma_s);
-  if (e.fill) e.fill(e.ctx, 0, n, ext), s.fill(s.ctx, 0, n, sca);
-  else memcpy(ext, e.data, m * sizeof(float)), memcpy(sca, s.data, m * sizeof(float));
+  og_extinction(&src, 0, n, ext);
+  og_scattering(&src, 0, n, sca);
   og_density(&src, 0, n, rho);
   int bad = 0;
   for (size_t i = 0; i < n; i++) {
@@ -1018,7 +1032,7 @@ static void uniform_case(int channels, int odd_voxel) {
       const float ss = odd_voxel && i == n - 1 && k == channels - 1 ? 0.25f : s0[k];
       const float st = ss + a0[k];
       sum += st;
-      bad += vol_sigma_t(&v, i, c) != st || v.sigma_s[vox_sigma_index(&v, i, c)] != ss;
+      bad += vol_sigma_t(&v, i, c) != st || vol_sigma_s(&v, i, c) != ss;
       if (c < channels) bad += ext[(size_t)channels * i + c] != st || sca[(size_t)channels * i + c] != ss;
     }
     bad += rho[i] != sum / 3.0f;

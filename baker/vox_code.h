@@ -1,0 +1,25 @@
+/* vox_code.h: a volume's σs and σt coded in one word per voxel plus a table
+ * (the layout is kernels/medium_code.h's).
+ *
+ * In: a volume with plain sigma_s and sigma_t arrays (sigma_channels per
+ * voxel; σt = σs + σa), its medium's coefficients (medium_s, medium_a) and
+ * the density that scaled them (density; NULL: 1). Out: a voxel whose
+ * values are the medium's at its density, or at density 0, bit for bit, is
+ * that density; any other (an object, its blended shell) is an entry of
+ * the table, consecutive equal entries shared. The table is the volume's
+ * few object values and the shell around each object, so RGB σ goes from
+ * 24 to about 4 bytes per voxel and grey from 8 to about 4. */
+#ifndef BAKER_VOX_CODE_H
+#define BAKER_VOX_CODE_H
+
+#include "voxelize.h"
+
+/* The coded buffer (kernels/medium_code.h) of v's plain arrays and its
+ * length in floats in *floats; NULL when memory ran out. */
+float *vox_code_build(const volume_t *v, size_t *floats);
+
+/* Codes v in place: sigma_code replaces sigma_s and sigma_t, and the
+ * density goes. Out of memory, the plain arrays stay (still valid). */
+void vox_code(volume_t *v);
+
+#endif
