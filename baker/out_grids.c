@@ -1,32 +1,47 @@
 /* out_grids.c: the derived grids of out_grids.h, voxel run by voxel run. */
 #include "out_grids.h"
 
+#include "vox_code.h"
 #include "voxelize.h"
 
 /* Channels of the volume's σ per voxel: 1 (grey) or 3. */
 static inline int sigma_channels(const volume_t *v) { return v->sigma_channels == 1 ? 1 : 3; }
 
-void og_extinction(const void *src, size_t lo, size_t hi, float *out) {
-  const volume_t *v = ((const og_source_t *)src)->vol;
+/* σs (t = 0) or σt (t = 1) of voxels [lo, hi), sigma_channels per voxel. */
+static void sigma_run(const volume_t *v, int t, size_t lo, size_t hi, float *out) {
+  if (v->sigma_code) {
+    vox_code_run(v, t, lo, hi, out);
+    return;
+  }
   const int C = sigma_channels(v);
   for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < C; c++) *out++ = vol_sigma_t(v, i, c);
+    for (int c = 0; c < C; c++) *out++ = t ? vol_sigma_t(v, i, c) : vol_sigma_s(v, i, c);
+}
+
+/* Voxels per piece of a fill that needs σ beside other values. */
+#define OG_PIECE 512
+
+void og_extinction(const void *src, size_t lo, size_t hi, float *out) {
+  sigma_run(((const og_source_t *)src)->vol, 1, lo, hi, out);
 }
 
 void og_scattering(const void *src, size_t lo, size_t hi, float *out) {
-  const volume_t *v = ((const og_source_t *)src)->vol;
-  const int C = sigma_channels(v);
-  for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < C; c++) *out++ = vol_sigma_s(v, i, c);
+  sigma_run(((const og_source_t *)src)->vol, 0, lo, hi, out);
 }
 
 /* The grey density: the mean of the channels' σt, summed in order. */
 void og_density(const void *src, size_t lo, size_t hi, float *out) {
   const volume_t *v = ((const og_source_t *)src)->vol;
-  for (size_t i = lo; i < hi; i++) {
-    float sum = 0.0f;
-    for (int c = 0; c < 3; c++) sum += vol_sigma_t(v, i, c);
-    *out++ = sum / 3.0f;
+  const int C = sigma_channels(v);
+  float st[3 * OG_PIECE];
+  for (size_t a = lo; a < hi; a += OG_PIECE) {
+    const size_t b = hi - a < OG_PIECE ? hi : a + OG_PIECE;
+    sigma_run(v, 1, a, b, st);
+    for (size_t k = 0; k < b - a; k++) {
+      float sum = 0.0f;
+      for (int c = 0; c < 3; c++) sum += st[(size_t)C * k + (C == 1 ? 0 : c)];
+      *out++ = sum / 3.0f;
+    }
   }
 }
 
@@ -35,15 +50,21 @@ void og_density(const void *src, size_t lo, size_t hi, float *out) {
  * reads it as emission with `extinction` as absorption and no scattering. */
 void og_emission(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
-  if (s->vol && s->vol->sigma_channels == 1 && s->radiance_channels == 1) {
-    for (size_t i = lo; i < hi; i++, out += 3) /* grey: one product per voxel */
-      out[0] = out[1] = out[2] = vol_sigma_s(s->vol, i, 0) * s->radiance[i];
-    return;
-  }
   if (s->vol) {
-    for (size_t i = lo; i < hi; i++)
-      for (int c = 0; c < 3; c++)
-        *out++ = vol_sigma_s(s->vol, i, c) * s->radiance[vox_channel_at(s->radiance_channels, i, c)];
+    const int C = sigma_channels(s->vol), R = s->radiance_channels == 1 ? 1 : 3;
+    float ss[3 * OG_PIECE];
+    for (size_t a = lo; a < hi; a += OG_PIECE) {
+      const size_t b = hi - a < OG_PIECE ? hi : a + OG_PIECE;
+      sigma_run(s->vol, 0, a, b, ss);
+      for (size_t i = a; i < b; i++, out += 3) {
+        const float *sk = ss + (size_t)C * (i - a), *r = s->radiance + (size_t)R * i;
+        if (C == 1 && R == 1) { /* grey: one product per voxel */
+          out[0] = out[1] = out[2] = sk[0] * r[0];
+          continue;
+        }
+        for (int c = 0; c < 3; c++) out[c] = sk[C == 1 ? 0 : c] * r[R == 1 ? 0 : c];
+      }
+    }
     return;
   }
   for (size_t i = lo; i < hi; i++)
@@ -73,10 +94,15 @@ void og_ior_rgb(const void *src, size_t lo, size_t hi, float *out) {
  * or the medium's, where anything scatters (0, the background, elsewhere). */
 void og_phase_g(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
-  for (size_t i = lo; i < hi; i++) {
-    const volume_t *v = s->vol;
-    const int scatters =
-        vol_sigma_s(v, i, 0) > 0.0f || vol_sigma_s(v, i, 1) > 0.0f || vol_sigma_s(v, i, 2) > 0.0f;
-    *out++ = scatters ? (s->g ? s->g[i] : s->medium_g) : 0.0f;
+  const int C = sigma_channels(s->vol);
+  float ss[3 * OG_PIECE];
+  for (size_t a = lo; a < hi; a += OG_PIECE) {
+    const size_t b = hi - a < OG_PIECE ? hi : a + OG_PIECE;
+    sigma_run(s->vol, 0, a, b, ss);
+    for (size_t i = a; i < b; i++) {
+      const float *sk = ss + (size_t)C * (i - a);
+      const int scatters = sk[0] > 0.0f || sk[C == 1 ? 0 : 1] > 0.0f || sk[C == 1 ? 0 : 2] > 0.0f;
+      *out++ = scatters ? (s->g ? s->g[i] : s->medium_g) : 0.0f;
+    }
   }
 }

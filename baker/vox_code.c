@@ -162,3 +162,18 @@ void vox_code(volume_t *v) {
   v->sigma_code = code;
   v->sigma_code_floats = floats;
 }
+
+void vox_code_run(const volume_t *v, int t, size_t lo, size_t hi, float *restrict out) {
+  const int C = v->sigma_channels == 1 ? 1 : 3;
+  const float *restrict code = v->sigma_code, *restrict table = code + grid_count(&v->dims);
+  for (size_t i = lo; i < hi; i++, out += C) {
+    const float w = code[i];
+    const uint32_t bits = bk_as_uint(w);
+    if (bits & MC_ENTRY_BIT) {
+      const float *e = table + (size_t)(bits & ~MC_ENTRY_BIT) * 2 * (size_t)C + (size_t)t * C;
+      for (int c = 0; c < C; c++) out[c] = e[c];
+    } else {
+      for (int c = 0; c < C; c++) out[c] = mc_medium(table[c], table[C + c], w, t);
+    }
+  }
+}

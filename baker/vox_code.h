@@ -22,4 +22,9 @@ float *vox_code_build(const volume_t *v, size_t *floats);
  * density goes. Out of memory, the plain arrays stay (still valid). */
 void vox_code(volume_t *v);
 
+/* σs (t = 0) or σt (t = 1) of voxels [lo, hi) of a coded volume into out,
+ * sigma_channels floats per voxel (what vol_sigma_s and vol_sigma_t give,
+ * a run at a time for the writer). */
+void vox_code_run(const volume_t *v, int t, size_t lo, size_t hi, float *out);
+
 #endif
