@@ -11,7 +11,6 @@
 #include "field.h"
 #include "integrators.h"
 #include "kernels/scatter_march.h"
-#include "vox_code.h"
 
 double pm_fixed_scale(double power_max, double path_bound) {
   if (!(power_max > 0.0) || !(path_bound > 0.0)) return 1.0;
@@ -96,19 +95,17 @@ static int check_inputs(const scene_t *scene, const grid_dims_t *d, size_t voxel
   return BK_OK;
 }
 
-/* The volume's coded σ, coded here when it has plain arrays (a volume
- * filled by hand); none for a homogeneous one. */
-static int set_sigma(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
-  s->sigma = NULL, s->sigma_own = NULL, s->sigma_floats = 0;
-  if (vol->homogeneous) return BK_OK;
+/* The volume's σ as the kernels read it: plain arrays, or the code. */
+static void set_sigma(const volume_t *vol, pm_setup_t *s) {
+  const size_t C = vol->sigma_channels == 1 ? 1 : 3;
   if (vol->sigma_code) {
-    s->sigma = vol->sigma_code, s->sigma_floats = vol->sigma_code_floats;
-    return BK_OK;
+    s->sigma_t = s->sigma_s = vol->sigma_code;
+    s->sigma_floats = vol->sigma_code_floats;
+    s->params.sigma_stride |= PM_SIGMA_CODED_FLAG;
+  } else {
+    s->sigma_t = vol->sigma_t, s->sigma_s = vol->sigma_s;
+    s->sigma_floats = vol->homogeneous ? C : C * grid_count(&vol->dims);
   }
-  if (!(s->sigma_own = vox_code_build(vol, &s->sigma_floats)))
-    return bk_fail(err, BK_ERR_RUNTIME, "march: out of memory coding the volume's sigma");
-  s->sigma = s->sigma_own;
-  return BK_OK;
 }
 
 /* The march's parameters (kernels/photon_march.h) in reference mode. */
@@ -137,9 +134,10 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
   P->flux = (bk_uint)s->ms.hg; /* the view's anisotropic phase needs the flux */
   P->sigma_stride = vol->sigma_channels == 1 ? 1u : 3u;
   P->h = d->voxel_size;
+  set_sigma(vol, s);
   s->g = vol->g;
   set_scale(s, 1.0);
-  return set_sigma(vol, s, err);
+  return BK_OK;
 }
 
 static void report_prepare(const pm_setup_t *s, bk_timings_t *timings, double ms_octree,
@@ -252,9 +250,6 @@ void pm_setup_free_fields(pm_setup_t *s) {
 void pm_setup_free(pm_setup_t *s) {
   if (!s) return;
   pm_setup_free_fields(s);
-  free(s->sigma_own);
-  s->sigma_own = NULL;
-  s->sigma = NULL;
 }
 
 void pm_disable_octree(pm_setup_t *s) {
@@ -266,7 +261,6 @@ void pm_disable_octree(pm_setup_t *s) {
 int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm_setup_t *out,
               bk_error_t *err) {
   *out = *base;
-  out->sigma_own = NULL; /* base's */
   out->masks = NULL;
   out->tables = NULL;
   out->params.mode = PM_MODE_REFERENCE;
@@ -356,12 +350,12 @@ int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_
     pm_result r;
     if (s->ms.params.max_bounces) {
       ms_tally t;
-      const ms_medium med = {s->sigma, s->g};
+      const ms_medium med = {s->sigma_s, s->g};
       pm_march_scattered(&s->params, &s->ms.params, s->lights.lights, s->ng, s->pyramid.level,
-                         s->sigma, med, acc, s->masks, s->tables, photon, &r, &t, NULL);
+                         s->sigma_t, med, acc, s->masks, s->tables, photon, &r, &t, NULL);
       if (stats) pm_stats_add_tally(stats, &t);
     } else {
-      pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma, acc,
+      pm_march_photon(&s->params, s->lights.lights, s->ng, s->pyramid.level, s->sigma_t, acc,
                       s->masks, s->tables, photon, &r, NULL);
     }
     if (stats) pm_stats_add(stats, &r);
@@ -602,7 +596,7 @@ static int trace(const pm_setup_t *s, const pm_params *P, const ph_light *lights
   if (!scratch) return BK_ERR_RUNTIME;
   pm_path_rec rec = {points, max_points, 0};
   pm_result r;
-  pm_march_photon(P, lights, s->ng, s->pyramid.level, s->sigma, scratch, NULL, NULL, index, &r,
+  pm_march_photon(P, lights, s->ng, s->pyramid.level, s->sigma_t, scratch, NULL, NULL, index, &r,
                   &rec);
   free(scratch);
   const grid_dims_t *d = &s->dims;

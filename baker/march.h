@@ -76,16 +76,14 @@ typedef struct pm_setup {
   int has_refraction, homogeneous, grey;
   float *ng;             /* has_refraction: the padded {∇n, n} field (baker/field.h) */
   oct_pyramid_t pyramid; /* has_refraction */
-  /* The volume's σs and σt per metre, coded (kernels/medium_code.h;
-   * params.sigma_stride channels; the kernels scale them by h; sigma_floats
-   * floats): σt read unless homogeneous, σs by scattering events where it
-   * varies (ms.sigma_grid); NULL for a homogeneous volume. The volume's own
-   * code, or for a volume with plain arrays a copy coded here and owned in
-   * sigma_own (a derived setup owns nothing). g per voxel where it varies
-   * (ms.g_grid; NULL: uniform). */
-  const float *sigma, *g;
+  /* The volume's σ per metre (the kernels scale it by h), not owned: σt,
+   * read unless homogeneous; σs and g, read by scattering events where they
+   * vary (ms.sigma_grid, ms.g_grid; g NULL: uniform). Plain arrays of
+   * params.sigma_stride channels per voxel, or for a coded volume
+   * (kernels/medium_code.h, params.sigma_stride | PM_SIGMA_CODED_FLAG) both
+   * the one buffer of sigma_floats floats. */
+  const float *sigma_t, *sigma_s, *g;
   size_t sigma_floats;
-  float *sigma_own;
   double to_radiance[3]; /* accumulator quanta -> W m^-2 sr^-1, per output channel */
   int octree_enabled;    /* 0: step everywhere (tests of the stepping itself) */
   unsigned seed;         /* photons.seed, for pm_derive */

@@ -13,8 +13,8 @@ typedef struct pm_cl_run {
   cl_program prog;
   cl_kernel kern;
   size_t local;
-  cl_mem params, lights, ng, pyr, sigma, acc, out, dummy, masks, tables;
-  cl_mem ms_params, g, tally; /* multiple scattering (march_ms.cl) */
+  cl_mem params, lights, ng, pyr, sigma_t, acc, out, dummy, masks, tables;
+  cl_mem ms_params, sigma_s, g, tally; /* multiple scattering (march_ms.cl) */
   size_t acc_bytes, mask_bytes;
   pm_result *res;
   ms_tally *tallies;
@@ -55,10 +55,11 @@ static int build_kernel(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, 
   ms_kernel_defines(&s->ms, ms, sizeof ms);
   snprintf(opts, sizeof opts,
            "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d "
-           "-DPM_SIGMA_STRIDE=%u %s -DPM_MODE=%d%s%s%s%s",
+           "-DPM_SIGMA_STRIDE=%u %s -DPM_MODE=%d%s%s%s%s%s",
            s->has_refraction, s->homogeneous, s->params.integrator, s->channels,
-           s->params.sigma_stride, lights,
+           s->params.sigma_stride & ~PM_SIGMA_CODED_FLAG, lights,
            (int)s->params.mode, scatter ? " " : "", ms,
+           s->params.sigma_stride & PM_SIGMA_CODED_FLAG ? " -DPM_SIGMA_CODED=1" : "",
            s->params.dispersion ? " -DDISPERSION=1" : "",
            s->params.flux && s->params.mode != PM_MODE_ORIGINS ? " -DPM_FLUX=1" : "");
   if (clh_build(cl, scatter ? "march_ms.cl" : "march.cl", opts, &r->prog, err) != BK_OK)
@@ -99,22 +100,26 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
   ph_light all[SCENE_MAX_LIGHTS];
   memset(all, 0, sizeof all);
   memcpy(all, L->lights, sizeof(ph_light) * (size_t)L->count);
-  /* the volume's coded σ (σt and σs in one buffer), read in place on a CPU
-   * device */
+  /* the volume's σ, read in place on a CPU device: σt and σs, or the one
+   * coded buffer of both */
   const size_t sigma_bytes = s->sigma_floats * sizeof(float);
+  const int coded = (s->params.sigma_stride & PM_SIGMA_CODED_FLAG) != 0;
   if (!(r->params = make_buffer(cl, copy, sizeof(pm_params), &s->params, err)) ||
       !(r->lights = make_buffer(cl, copy, sizeof(ph_light) * nlights, all, err)) ||
       !(r->dummy = make_buffer(cl, CL_MEM_READ_WRITE, 64, NULL, err)) ||
       (s->ng && !(r->ng = make_buffer(cl, in, field_bytes(s), s->ng, err))) ||
       (s->ng && !(r->pyr = make_buffer(cl, in, (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz,
                                         s->pyramid.level, err))) ||
-      (s->sigma && !(r->sigma = make_buffer(cl, in, sigma_bytes, s->sigma, err))) ||
+      ((!s->homogeneous || (coded && s->ms.sigma_grid)) &&
+       !(r->sigma_t = make_buffer(cl, in, sigma_bytes, s->sigma_t, err))) ||
       !(r->acc = make_buffer(cl, CL_MEM_READ_WRITE | host, r->acc_bytes, acc, err)) ||
       !(r->out = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, err)))
     return BK_ERR_RUNTIME;
   if (s->ms.params.max_bounces &&
       (!(r->ms_params = make_buffer(cl, copy, sizeof(ms_params), &s->ms.params, err)) ||
        (s->ms.g_grid && !(r->g = make_buffer(cl, in, s->voxels * sizeof(float), s->g, err))) ||
+       (s->ms.sigma_grid && !coded &&
+        !(r->sigma_s = make_buffer(cl, in, sigma_bytes, s->sigma_s, err))) ||
        !(r->tally = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(ms_tally), NULL, err))))
     return BK_ERR_RUNTIME;
   if (s->params.mode == PM_MODE_ORIGINS) {
@@ -134,12 +139,14 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
 /* Arguments of pm_march (kernels/march.cl) but the photon range (6, 7). */
 static int set_args(pm_cl_run_t *r, bk_error_t *err) {
   cl_mem a[11] = {r->params, r->lights, r->ng ? r->ng : r->dummy, r->pyr ? r->pyr : r->dummy,
-                  r->sigma ? r->sigma : r->dummy, r->acc, NULL, NULL, r->out,
+                  r->sigma_t ? r->sigma_t : r->dummy, r->acc, NULL, NULL, r->out,
                   r->masks ? r->masks : r->dummy, r->tables ? r->tables : r->dummy};
   for (cl_uint i = 0; i < 11; i++)
     if (a[i]) CLH_CHECK(clSetKernelArg(r->kern, i, sizeof(cl_mem), &a[i]), err, error);
   if (!r->tally) return BK_OK;
-  cl_mem m[4] = {r->ms_params, r->sigma ? r->sigma : r->dummy, r->g ? r->g : r->dummy,
+  cl_mem m[4] = {r->ms_params, r->sigma_s   ? r->sigma_s
+                                 : r->sigma_t ? r->sigma_t /* coded: one buffer */
+                                              : r->dummy, r->g ? r->g : r->dummy,
                   r->tally}; /* march_ms.cl */
   for (cl_uint i = 0; i < 4; i++)
     CLH_CHECK(clSetKernelArg(r->kern, 11 + i, sizeof(cl_mem), &m[i]), err, error);
@@ -218,8 +225,9 @@ static void release(pm_cl_run_t *r) {
   free(r->tallies);
   if (r->kern) clReleaseKernel(r->kern);
   if (r->prog) clReleaseProgram(r->prog);
-  cl_mem all[] = {r->params, r->lights, r->ng,     r->pyr,    r->sigma,     r->acc, r->out,
-                  r->dummy,  r->masks,  r->tables, r->ms_params, r->g,     r->tally};
+  cl_mem all[] = {r->params, r->lights, r->ng,     r->pyr,       r->sigma_t, r->acc,
+                  r->out,    r->dummy,  r->masks,  r->tables,    r->ms_params, r->sigma_s,
+                  r->g,      r->tally};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
     if (all[i]) clReleaseMemObject(all[i]);
 }

@@ -8,7 +8,7 @@
  * that density; any other (an object, its blended shell) is an entry of
  * the table, consecutive equal entries shared. The table is the volume's
  * few object values and the shell around each object, so RGB σ goes from
- * 24 to about 4 bytes per voxel and grey from 8 to about 4. */
+ * 24 to about 4 bytes per voxel (vox_summarise codes RGB volumes only). */
 #ifndef BAKER_VOX_CODE_H
 #define BAKER_VOX_CODE_H
 

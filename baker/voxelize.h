@@ -67,10 +67,10 @@ typedef struct volume {
    * volume filled by hand). Read through vox_sigma_index. */
   int sigma_channels;
   /* σs and σt coded in one word per voxel plus a table (kernels/medium_code.h,
-   * baker/vox_code.h): vox_summarise codes them and frees sigma_s and
-   * sigma_t (NULL then), unless the volume is homogeneous. NULL: the plain
-   * arrays above hold them (a volume filled by hand). Read either through
-   * vol_sigma_s and vol_sigma_t. */
+   * baker/vox_code.h): vox_summarise codes an RGB volume that is not
+   * homogeneous and frees sigma_s and sigma_t (NULL then). NULL: the plain
+   * arrays above hold them (grey, homogeneous, or filled by hand). Read
+   * either through vol_sigma_s and vol_sigma_t. */
   float *sigma_code;
   size_t sigma_code_floats; /* the whole buffer: voxels, then the table */
   /* the medium's σs and σa (channel order as sigma_channels) and, while

@@ -131,6 +131,10 @@
 #define PM_SIGMA_STRIDE 3
 #endif
 #define PM_SIGMA_STRIDE_OF(P) (PM_SIGMA_STRIDE)
+#ifndef PM_SIGMA_CODED
+#define PM_SIGMA_CODED 0
+#endif
+#define PM_SIGMA_CODED_OF(P) (PM_SIGMA_CODED)
 #ifndef PM_FLUX
 #define PM_FLUX 0
 #endif
@@ -152,7 +156,8 @@
 #define PM_NCH(P) ((int)(P)->channels)
 #define PM_MODE_OF(P) ((int)(P)->mode)
 #define PM_DISPERSION(P) ((P)->dispersion)
-#define PM_SIGMA_STRIDE_OF(P) ((int)(P)->sigma_stride)
+#define PM_SIGMA_STRIDE_OF(P) ((int)((P)->sigma_stride & ~PM_SIGMA_CODED_FLAG))
+#define PM_SIGMA_CODED_OF(P) (((P)->sigma_stride & PM_SIGMA_CODED_FLAG) != 0u)
 #define PM_FLUX_COMPILED 1
 #define PM_FLUX_OF(P) ((P)->flux && (P)->mode != PM_MODE_ORIGINS)
 /* The host path marches one photon at a time on one thread. */
@@ -176,6 +181,9 @@ static inline void pm_record(pm_path_rec *rec, bk_v3 x) {
 #define PM_RECORD(x) pm_record(rec, (x))
 #endif
 
+/* pm_params.sigma_stride: the volume's σ is coded (kernels/medium_code.h) */
+#define PM_SIGMA_CODED_FLAG 0x100u
+
 /* Parameters of one march, shared by every photon. Pinned at 128 bytes. */
 typedef struct pm_params {
   bk_grid grid;
@@ -192,7 +200,7 @@ typedef struct pm_params {
   bk_uint integrator;
   bk_uint dispersion;     /* host path only: the device uses -D DISPERSION */
   bk_uint flux;           /* host path only: the device uses -D PM_FLUX */
-  bk_uint sigma_stride;   /* floats per voxel of the volume's σ (1 grey, 3): host path only (-D PM_SIGMA_STRIDE) */
+  bk_uint sigma_stride;   /* channels of the volume's σ (1 grey, 3), | PM_SIGMA_CODED_FLAG when coded: host path only (-D PM_SIGMA_STRIDE, PM_SIGMA_CODED) */
   bk_uint mode;               /* PM_MODE_*: host path only (the device uses -D PM_MODE) */
   int coarse_shift;           /* pilot: deposits and marks at voxel >> coarse_shift */
   int cnx, cny, cnz;          /* pilot: the coarse grid */
@@ -279,15 +287,19 @@ BK_INLINE int pm_acc_stride(int mode, int channels) {
   return mode == PM_MODE_TABLES ? channels + 1 : channels;
 }
 
-/* σs (t = 0) or σt (t = 1) per voxel length, channel ch, at voxel idx of
- * the volume's coded σ per metre (kernels/medium_code.h; one channel for a
- * grey medium, three otherwise). The float product is the host's
- * (float)(σ · (double)h) bit for bit: two floats multiply exactly in
- * double, so both round once. */
+/* σs (t = 0) or σt (t = 1) per voxel length, channel ch, at voxel idx, from
+ * the volume's σ per metre (one channel for a grey medium, three
+ * otherwise): plain, the array of that coefficient (the caller passes σt's
+ * or σs's); coded (kernels/medium_code.h), the one buffer of both. The float
+ * product is the host's (float)(σ · (double)h) bit for bit: two floats
+ * multiply exactly in double, so both round once. */
 BK_INLINE float pm_sigma_at(const pm_params *P, BK_GLOBAL const float *sigma, bk_long idx,
                             int ch, int t) {
-  const bk_long voxels = (bk_long)P->grid.nx * P->grid.ny * P->grid.nz;
-  return mc_sigma(sigma, voxels, PM_SIGMA_STRIDE_OF(P), idx, ch, t) * P->h;
+  if (PM_SIGMA_CODED_OF(P)) {
+    const bk_long voxels = (bk_long)P->grid.nx * P->grid.ny * P->grid.nz;
+    return mc_sigma(sigma, voxels, PM_SIGMA_STRIDE_OF(P), idx, ch, t) * P->h;
+  }
+  return sigma[PM_SIGMA_STRIDE_OF(P) == 1 ? idx : 3 * idx + ch] * P->h;
 }
 
 /* The photon crosses length seg (voxels) of voxel idx (at c): deposits the

@@ -116,7 +116,7 @@ static best_t run_omp(const scene_t *s, const volume_t *v, int runs, uint64_t **
 #pragma omp for schedule(dynamic, 1024)
       for (long long i = 0; i < n; i++) {
         pm_result res;
-        pm_march_photon(&su.params, su.lights.lights, su.ng, su.pyramid.level, su.sigma, mine,
+        pm_march_photon(&su.params, su.lights.lights, su.ng, su.pyramid.level, su.sigma_t, mine,
                         su.masks, su.tables, (bk_uint)i, &res, NULL);
         pm_stats_add(&local, &res);
       }

@@ -62,6 +62,7 @@ static inline void tv_free(volume_t *v) {
   free(v->ior_rb);
   free(v->sigma_s);
   free(v->sigma_t);
+  free(v->sigma_code);
 }
 
 /* The voxelizer's smoothing profile (baker/voxelize.c): weight of the object

@@ -140,9 +140,9 @@ static int test_first_leg(void) {
     ms_tally t;
     const ms_medium med = {NULL, NULL};
     pm_march_photon(&setup.params, setup.lights.lights, setup.ng, setup.pyramid.level,
-                    setup.sigma, a, NULL, NULL, i, &r1, NULL);
+                    setup.sigma_t, a, NULL, NULL, i, &r1, NULL);
     pm_march_scattered(&setup.params, &M, setup.lights.lights, setup.ng, setup.pyramid.level,
-                       setup.sigma, med, b, NULL, NULL, i, &r2, &t, NULL);
+                       setup.sigma_t, med, b, NULL, NULL, i, &r2, &t, NULL);
     REQUIRE(memcmp(&r1, &r2, sizeof r1) == 0, "photon %u: outcomes differ", i);
     REQUIRE(t.events == 0 && t.later == 0.0f, "photon %u scattered with bounces 0", i);
   }
