@@ -302,6 +302,24 @@ BK_INLINE float pm_sigma_at(const pm_params *P, BK_GLOBAL const float *sigma, bk
   return sigma[PM_SIGMA_STRIDE_OF(P) == 1 ? idx : 3 * idx + ch] * P->h;
 }
 
+/* σt per voxel length of the nch channels at voxel idx (pm_sigma_at's
+ * values; a homogeneous medium's from the parameters), read once per
+ * voxel crossed. */
+BK_INLINE void pm_sigma_t_all(const pm_params *P, BK_GLOBAL const float *sigma, bk_long idx,
+                              int nch, float *st) {
+  if (PM_HOMOGENEOUS(P)) {
+    for (int ch = 0; ch < nch; ch++) st[ch] = P->sigma_t[ch];
+  } else if (PM_SIGMA_CODED_OF(P)) {
+    const bk_long voxels = (bk_long)P->grid.nx * P->grid.ny * P->grid.nz;
+    const int C = PM_SIGMA_STRIDE_OF(P);
+    float v[3];
+    mc_sigma_all(sigma, voxels, C, idx, 1, v);
+    for (int ch = 0; ch < nch; ch++) st[ch] = v[C == 1 ? 0 : ch] * P->h;
+  } else {
+    for (int ch = 0; ch < nch; ch++) st[ch] = pm_sigma_at(P, sigma, idx, ch, 1);
+  }
+}
+
 /* The photon crosses length seg (voxels) of voxel idx (at c): deposits the
  * exact integral of its attenuated power and attenuates it. Returns 1 when
  * it is absorbed (every channel below its threshold). */
@@ -329,13 +347,12 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
     PM_ATOMIC_ADD(acc + stride * idx + nch, ph->packed);
   }
 #endif
+  float st[3];
+  pm_sigma_t_all(P, sigma, idx, nch, st);
 #if PM_MS_COMPILED
   if (ph->fl.state == MS_FLYING) {
-    float st[3], sbar = 0.0f;
-    for (int ch = 0; ch < nch; ch++) {
-      st[ch] = PM_HOMOGENEOUS(P) ? P->sigma_t[ch] : pm_sigma_at(P, sigma, idx, ch, 1);
-      sbar += st[ch];
-    }
+    float sbar = 0.0f;
+    for (int ch = 0; ch < nch; ch++) sbar += st[ch];
     ms_flight_cross(&ph->fl, ph->power, ph->path, st, nch, sbar / (float)nch, seg, idx, c);
   }
 #endif
@@ -347,10 +364,8 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
 #if !PH_DEVICE || DISPERSION
     if (PM_DISPERSION(P) && ph->power[ch] == 0.0f) continue; /* not this photon's channel */
 #endif
-    float sg, trans;
-    if (PM_HOMOGENEOUS(P)) sg = P->sigma_t[ch];
-    else sg = pm_sigma_at(P, sigma, idx, ch, 1);
-    float r = rc_atten(sg * seg, &trans);
+    float trans;
+    float r = rc_atten(st[ch] * seg, &trans);
     pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
 #if PM_FLUX_COMPILED
     lum += pm_flux_weight(nch, ch) * ph->power[ch] * seg * r;
