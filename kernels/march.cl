@@ -11,8 +11,9 @@
 
 #include "kernels/photon_march.h"
 
-/* sigma: the volume's σt per metre (PM_SIGMA_STRIDE floats per voxel),
- * unread when HOMOGENEOUS. masks and tables serve the adaptive modes
+/* sigma: the volume's σt per metre (PM_SIGMA_STRIDE floats per voxel; with
+ * PM_SIGMA_CODED the coded σs and σt, kernels/medium_code.h), unread when
+ * HOMOGENEOUS. masks and tables serve the adaptive modes
  * (PM_MODE, march.h); the reference march never reads them. */
 __kernel void pm_march(__constant pm_params *P, __constant ph_light *lights,
                        __global const float *ng, __global const uchar *pyr,

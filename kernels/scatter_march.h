@@ -36,8 +36,8 @@
 #define MS_HG_OF(M) 1
 #endif
 
-/* The volume's σs (per metre, the stride of its σ) and g per voxel, as the
- * scattering events read them. */
+/* The volume's σs (per metre, the stride of its σ; or the coded σ, the
+ * march's own buffer) and g per voxel, as the scattering events read them. */
 typedef struct ms_medium {
   BK_GLOBAL const float *sigma_s;
   BK_GLOBAL const float *g;
