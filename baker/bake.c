@@ -23,6 +23,7 @@
 #include "march.h"
 #include "shard.h"
 #include "stats_json.h"
+#include "vox_code.h"
 #include "voxelize.h"
 
 /* One frame's state, from the scene to the grids written. */
@@ -41,6 +42,10 @@ typedef struct bake_job {
   og_source_t derived; /* what the grids made at the write read (out_grids.h) */
   shard_state_t shard;  /* --shard: the raw sums written instead of radiance */
   brick_grid_t ior_bricks; /* the volume's n once the march no longer reads it */
+  /* a coded volume's σt decoded for the write's extinction and density
+   * grids (12 B per voxel beside the code and radiance: less than the
+   * voxelize phase held); NULL: none, or no memory for it */
+  float *sigma_t_dense;
 } bake_job_t;
 
 static int expand_scene_paths(scene_t *s, int frame, bk_error_t *err);
@@ -236,6 +241,28 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   return g;
 }
 
+/* Decoding σt of a coded volume, a run of voxels per call. */
+typedef struct bake_decode {
+  const volume_t *vol;
+  float *out;
+} bake_decode_t;
+
+static void bake_decode_range(void *ctx, size_t lo, size_t hi) {
+  const bake_decode_t *d = ctx;
+  const size_t C = d->vol->sigma_channels == 1 ? 1 : 3;
+  vox_code_run(d->vol, 1, lo, hi, d->out + C * lo);
+}
+
+/* σt of a coded volume as a dense array for the write, which reads it
+ * several times per grid (tree, leaves, checksum): faster than decoding in
+ * each pass. NULL when memory is short: the write then decodes as it goes. */
+static float *bake_decode_sigma_t(const volume_t *vol) {
+  const size_t n = grid_count(&vol->dims), C = vol->sigma_channels == 1 ? 1 : 3;
+  bake_decode_t d = {vol, malloc(n * C * sizeof(float))};
+  if (d.out) bk_parallel(n, BK_GRAIN, bake_decode_range, &d);
+  return d.out;
+}
+
 /* Stage 3: the grids of DESIGN.md §5 in file order (bake_grid_list), for a
  * shard the medium grids and the raw sums (shard.h); *count of them. The
  * derived ones (density, emission, ...) are made by the writer
@@ -265,8 +292,11 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   const og_values_t ior = j->ior_bricks.slot ? (og_values_t){NULL, bg_fill, &j->ior_bricks}
                                              : og_dense(vol->ior);
   const int plain = vol->sigma_s && !vol->homogeneous;
+  if (vol->sigma_code) src->sigma_t = j->sigma_t_dense = bake_decode_sigma_t(vol);
   bake_arrays_t a = {ior, og_dense(j->radiance),
-                     plain ? og_dense(vol->sigma_t) : og_made(og_extinction, src),
+                     plain              ? og_dense(vol->sigma_t)
+                     : src->sigma_t     ? og_dense(src->sigma_t)
+                                        : og_made(og_extinction, src),
                      plain ? og_dense(vol->sigma_s) : og_made(og_scattering, src),
                      og_made(og_density, src), og_dense(NULL),
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
@@ -438,6 +468,7 @@ static int bake_stats(const bake_job_t *j, const bake_options_t *opt, const char
 static void bake_job_free(bake_job_t *j) {
   bg_free(&j->ior_bricks);
   free(j->radiance);
+  free(j->sigma_t_dense);
   free(j->photon_count);
   free(j->photon_weight);
   free(j->filter_radius);

@@ -1,6 +1,8 @@
 /* out_grids.c: the derived grids of out_grids.h, voxel run by voxel run. */
 #include "out_grids.h"
 
+#include <string.h>
+
 #include "vox_code.h"
 #include "voxelize.h"
 
@@ -31,12 +33,14 @@ void og_scattering(const void *src, size_t lo, size_t hi, float *out) {
 
 /* The grey density: the mean of the channels' σt, summed in order. */
 void og_density(const void *src, size_t lo, size_t hi, float *out) {
-  const volume_t *v = ((const og_source_t *)src)->vol;
+  const og_source_t *s = src;
+  const volume_t *v = s->vol;
   const int C = sigma_channels(v);
   float st[3 * OG_PIECE];
   for (size_t a = lo; a < hi; a += OG_PIECE) {
     const size_t b = hi - a < OG_PIECE ? hi : a + OG_PIECE;
-    sigma_run(v, 1, a, b, st);
+    if (s->sigma_t) memcpy(st, s->sigma_t + (size_t)C * a, (b - a) * (size_t)C * sizeof(float));
+    else sigma_run(v, 1, a, b, st);
     for (size_t k = 0; k < b - a; k++) {
       float sum = 0.0f;
       for (int c = 0; c < 3; c++) sum += st[(size_t)C * k + (C == 1 ? 0 : c)];

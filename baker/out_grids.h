@@ -16,6 +16,7 @@ typedef struct og_source {
   /* extinction, scattering, density, phase_g and emission's σs: the
    * volume's σ however stored (voxelize.h vol_sigma_s, vol_sigma_t) */
   const struct volume *vol;
+  const float *sigma_t;           /* density: σt decoded, sigma_channels per voxel; NULL: vol's */
   const float *scattering;        /* emission without vol: sca_channels per voxel */
   int sca_channels;
   const float *radiance;          /* emission: radiance_channels per voxel */
