@@ -241,28 +241,6 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   return g;
 }
 
-/* Decoding σt of a coded volume, a run of voxels per call. */
-typedef struct bake_decode {
-  const volume_t *vol;
-  float *out;
-} bake_decode_t;
-
-static void bake_decode_range(void *ctx, size_t lo, size_t hi) {
-  const bake_decode_t *d = ctx;
-  const size_t C = d->vol->sigma_channels == 1 ? 1 : 3;
-  vox_code_run(d->vol, 1, lo, hi, d->out + C * lo);
-}
-
-/* σt of a coded volume as a dense array for the write, which reads it
- * several times per grid (tree, leaves, checksum): faster than decoding in
- * each pass. NULL when memory is short: the write then decodes as it goes. */
-static float *bake_decode_sigma_t(const volume_t *vol) {
-  const size_t n = grid_count(&vol->dims), C = vol->sigma_channels == 1 ? 1 : 3;
-  bake_decode_t d = {vol, malloc(n * C * sizeof(float))};
-  if (d.out) bk_parallel(n, BK_GRAIN, bake_decode_range, &d);
-  return d.out;
-}
-
 /* Stage 3: the grids of DESIGN.md §5 in file order (bake_grid_list), for a
  * shard the medium grids and the raw sums (shard.h); *count of them. The
  * derived ones (density, emission, ...) are made by the writer
@@ -292,7 +270,9 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
   const og_values_t ior = j->ior_bricks.slot ? (og_values_t){NULL, bg_fill, &j->ior_bricks}
                                              : og_dense(vol->ior);
   const int plain = vol->sigma_s && !vol->homogeneous;
-  if (vol->sigma_code) src->sigma_t = j->sigma_t_dense = bake_decode_sigma_t(vol);
+  /* a coded volume's σt decoded once: the writer reads a grid several times
+   * (tree, leaves, checksum); without memory for it, decoded as it goes */
+  if (vol->sigma_code) src->sigma_t = j->sigma_t_dense = vox_code_decode(vol, 1);
   bake_arrays_t a = {ior, og_dense(j->radiance),
                      plain              ? og_dense(vol->sigma_t)
                      : src->sigma_t     ? og_dense(src->sigma_t)

@@ -17,7 +17,7 @@ static void sigma_run(const volume_t *v, int t, size_t lo, size_t hi, float *out
   }
   const int C = sigma_channels(v);
   for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < C; c++) *out++ = t ? vol_sigma_t(v, i, c) : vol_sigma_s(v, i, c);
+    for (int c = 0; c < C; c++) *out++ = vol_sigma(v, i, c, t);
 }
 
 /* Voxels per piece of a fill that needs σ beside other values. */

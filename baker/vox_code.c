@@ -163,17 +163,27 @@ void vox_code(volume_t *v) {
   v->sigma_code_floats = floats;
 }
 
-void vox_code_run(const volume_t *v, int t, size_t lo, size_t hi, float *restrict out) {
+void vox_code_run(const volume_t *v, int t, size_t lo, size_t hi, float *out) {
   const int C = v->sigma_channels == 1 ? 1 : 3;
-  const float *restrict code = v->sigma_code, *restrict table = code + grid_count(&v->dims);
-  for (size_t i = lo; i < hi; i++, out += C) {
-    const float w = code[i];
-    const uint32_t bits = bk_as_uint(w);
-    if (bits & MC_ENTRY_BIT) {
-      const float *e = table + (size_t)(bits & ~MC_ENTRY_BIT) * 2 * (size_t)C + (size_t)t * C;
-      for (int c = 0; c < C; c++) out[c] = e[c];
-    } else {
-      for (int c = 0; c < C; c++) out[c] = mc_medium(table[c], table[C + c], w, t);
-    }
-  }
+  const bk_long n = (bk_long)grid_count(&v->dims);
+  for (size_t i = lo; i < hi; i++, out += C) mc_sigma_all(v->sigma_code, n, C, (bk_long)i, t, out);
+}
+
+/* vox_code_decode's runs, side by side. */
+typedef struct code_decode {
+  const volume_t *v;
+  int t;
+  float *out;
+} code_decode_t;
+
+static void code_decode_range(void *ctx, size_t lo, size_t hi) {
+  const code_decode_t *d = ctx;
+  vox_code_run(d->v, d->t, lo, hi, d->out + (size_t)(d->v->sigma_channels == 1 ? 1 : 3) * lo);
+}
+
+float *vox_code_decode(const volume_t *v, int t) {
+  const size_t n = grid_count(&v->dims), C = v->sigma_channels == 1 ? 1 : 3;
+  code_decode_t d = {v, t, malloc(n * C * sizeof(float))};
+  if (d.out) bk_parallel(n, BK_GRAIN, code_decode_range, &d);
+  return d.out;
 }

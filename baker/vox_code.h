@@ -27,4 +27,8 @@ void vox_code(volume_t *v);
  * a run at a time for the writer). */
 void vox_code_run(const volume_t *v, int t, size_t lo, size_t hi, float *out);
 
+/* The same for every voxel, in a new array (sigma_channels floats per
+ * voxel; the caller frees it); NULL when memory is short. */
+float *vox_code_decode(const volume_t *v, int t);
+
 #endif

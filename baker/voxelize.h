@@ -112,19 +112,16 @@ static inline size_t vox_sigma_index(const volume_t *v, size_t i, int c) {
   return vox_channel_at(v->sigma_channels, v->homogeneous ? 0 : i, c);
 }
 
-/* σs and σt of channel c at voxel i (per metre), however they are stored. */
-static inline float vol_sigma_s(const volume_t *v, size_t i, int c) {
+/* σs (t = 0) or σt (t = 1) of channel c at voxel i (per metre), however
+ * they are stored. */
+static inline float vol_sigma(const volume_t *v, size_t i, int c, int t) {
   if (v->sigma_code)
     return mc_sigma(v->sigma_code, (bk_long)grid_count(&v->dims), v->sigma_channels == 1 ? 1 : 3,
-                    (bk_long)i, v->sigma_channels == 1 ? 0 : c, 0);
-  return v->sigma_s[vox_sigma_index(v, i, c)];
+                    (bk_long)i, v->sigma_channels == 1 ? 0 : c, t);
+  return (t ? v->sigma_t : v->sigma_s)[vox_sigma_index(v, i, c)];
 }
-static inline float vol_sigma_t(const volume_t *v, size_t i, int c) {
-  if (v->sigma_code)
-    return mc_sigma(v->sigma_code, (bk_long)grid_count(&v->dims), v->sigma_channels == 1 ? 1 : 3,
-                    (bk_long)i, v->sigma_channels == 1 ? 0 : c, 1);
-  return v->sigma_t[vox_sigma_index(v, i, c)];
-}
+static inline float vol_sigma_s(const volume_t *v, size_t i, int c) { return vol_sigma(v, i, c, 0); }
+static inline float vol_sigma_t(const volume_t *v, size_t i, int c) { return vol_sigma(v, i, c, 1); }
 
 /* Bytes per voxel the volume needs (for grid_check_memory): n, and σs and
  * σa (then σt) with C = 1 (grey) or 3 values each. */
