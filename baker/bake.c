@@ -343,6 +343,17 @@ static bake_release_t bake_release_plan(bake_reuse_t *reuse, const vdbio_grid_t 
   return r;
 }
 
+/* A vacuum's crop (vox_crop.h): which voxels of the scene's grid the
+ * file's grids are, for a reader that wants the scene's index space. */
+static vdbio_meta_t bake_crop_meta(const volume_t *v, char *buf, size_t size) {
+  snprintf(buf, size, "voxels [%d, %d, %d] to [%d, %d, %d] of the %dx%dx%d grid (vacuum elsewhere)",
+           v->crop_off[0], v->crop_off[1], v->crop_off[2], v->crop_off[0] + v->dims.nx - 1,
+           v->crop_off[1] + v->dims.ny - 1, v->crop_off[2] + v->dims.nz - 1, v->whole.nx,
+           v->whole.ny, v->whole.nz);
+  vdbio_meta_t m = {"grid_crop", VDBIO_META_STRING, buf, 0, 0};
+  return m;
+}
+
 /* Stage 4: the grids and the metadata that says how they were made. */
 static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scene_path,
                       const char *out_path, int frame, const vdbio_grid_t *grids, int count,
@@ -405,8 +416,10 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
   };
   int meta_count = (int)(sizeof meta / sizeof meta[0]);
   if (s->mode != MODE_ADAPTIVE) meta_count -= 7;
-  vdbio_meta_t all[sizeof meta / sizeof meta[0] + SHARD_META_MAX];
+  vdbio_meta_t all[sizeof meta / sizeof meta[0] + 1 + SHARD_META_MAX];
   memcpy(all, meta, sizeof meta);
+  char crop[160];
+  if (j->vol->cropped) all[meta_count++] = bake_crop_meta(j->vol, crop, sizeof crop);
   if (j->shard.sums.acc)
     meta_count += shard_meta(&j->shard, opt, s, &j->vol->dims, all + meta_count);
   vdbio_write_opts_t wo = opt->write;

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "vdbio.h"
+#include "vox_crop.h"
 
 /* Some medium has g != 0: the march keeps the flux too. */
 static int budget_anisotropic(const scene_t *s) {
@@ -40,11 +41,14 @@ double budget_output_bytes(const scene_t *s, const char *out_path) {
   return vdbio_is_nano_path(out_path) && budget_grey(s) ? BUDGET_NANOVDB_GREY_BYTES : 0.0;
 }
 
-int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {
-  grid_dims_t *d = &b->dims;
-  const char *where = s->where_resolution[0] ? s->where_resolution : s->path;
-  int rc = grid_dims_from_bounds(s->bounds_min, s->bounds_max, resolution, where, d, err);
-  if (rc != BK_OK) return rc;
+/* The estimate for the grid the bake allocates: the scene's, or its crop
+ * around the objects' world box (vox_crop.h). */
+static int estimate_in(const scene_t *s, int resolution, const float box[2][3], budget_t *b,
+                       bk_error_t *err) {
+  grid_dims_t *d = &b->dims, whole;
+  int off[3];
+  int rc = vox_grid_for(s, resolution, box[0], box[1], &whole, d, off, err);
+  if (rc < 0 || rc > 1) return rc;
   b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
   const int grey = budget_grey(s), adaptive = s->mode == MODE_ADAPTIVE;
   b->per_voxel = (grey ? (adaptive ? BUDGET_ADAPTIVE_GREY_BYTES : BUDGET_REFERENCE_GREY_BYTES)
@@ -54,6 +58,19 @@ int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *e
                  (s->mode != MODE_ADAPTIVE && budget_anisotropic(s) ? BUDGET_FLUX_BYTES : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
   return BK_OK;
+}
+
+/* The objects' world box when the bake is cropped to them (their meshes
+ * read once for it); zeros otherwise. */
+static int budget_box(const scene_t *s, float box[2][3], bk_error_t *err) {
+  memset(box, 0, 2 * 3 * sizeof(float));
+  return scene_crops(s) ? vox_objects_box(s, box[0], box[1], NULL, err) : BK_OK;
+}
+
+int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {
+  float box[2][3];
+  int rc = budget_box(s, box, err);
+  return rc ? rc : estimate_in(s, resolution, box, b, err);
 }
 
 uint64_t budget_available(uint64_t max_bytes) {
@@ -71,22 +88,23 @@ uint64_t budget_available(uint64_t max_bytes) {
 }
 
 /* The estimate plus `kept` bytes per voxel held over from frame to frame. */
-static int estimate_kept(const scene_t *s, int resolution, double kept, budget_t *b,
-                         bk_error_t *err) {
-  int rc = budget_estimate(s, resolution, b, err);
+static int estimate_kept(const scene_t *s, int resolution, const float box[2][3], double kept,
+                         budget_t *b, bk_error_t *err) {
+  int rc = estimate_in(s, resolution, box, b, err);
   b->per_voxel += kept;
   b->peak += kept * b->voxels;
   return rc;
 }
 
 /* The largest resolution <= hi whose estimate fits in limit; 0 if none. */
-static int largest_fitting(const scene_t *s, int hi, double kept, double limit) {
+static int largest_fitting(const scene_t *s, int hi, const float box[2][3], double kept,
+                           double limit) {
   int lo = 0;
   while (lo < hi) {
     int mid = lo + (hi - lo + 1) / 2;
     budget_t b;
     bk_error_t e = {0};
-    if (estimate_kept(s, mid, kept, &b, &e) == BK_OK && b.peak <= limit) lo = mid;
+    if (estimate_kept(s, mid, box, kept, &b, &e) == BK_OK && b.peak <= limit) lo = mid;
     else hi = mid - 1;
   }
   return lo;
@@ -98,7 +116,9 @@ int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err) {
 
 int budget_check_kept(const scene_t *s, uint64_t max_bytes, double kept, bk_error_t *err) {
   budget_t b;
-  int rc = estimate_kept(s, s->resolution, kept, &b, err);
+  float box[2][3];
+  int rc = budget_box(s, box, err);
+  if (!rc) rc = estimate_kept(s, s->resolution, box, kept, &b, err);
   if (rc != BK_OK) return rc;
   uint64_t limit = budget_available(max_bytes);
   char need[32], have[32];
@@ -106,7 +126,7 @@ int budget_check_kept(const scene_t *s, uint64_t max_bytes, double kept, bk_erro
          bk_format_bytes(b.peak, need, sizeof need), b.dims.nx, b.dims.ny, b.dims.nz,
          bk_format_bytes((double)limit, have, sizeof have));
   if (!limit || b.peak <= (double)limit) return BK_OK;
-  int fit = largest_fitting(s, s->resolution, kept, (double)limit);
+  int fit = largest_fitting(s, s->resolution, box, kept, (double)limit);
   bk_format_bytes(b.peak, need, sizeof need);
   bk_format_bytes((double)limit, have, sizeof have);
   if (fit < 1)

@@ -46,7 +46,8 @@ static const sc_range_t R_PHOTONS = {1, 9007199254740992.0, 0, 0, 1, 1};
 /* --- sections ------------------------------------------------------------- */
 
 static int sc_grid(const sc_ctx_t *c, const json_value_t *g, scene_t *s) {
-  static const char *const keys[] = {"bounds", "resolution", "ior_smoothing", NULL};
+  static const char *const keys[] = {"bounds", "resolution", "ior_smoothing", "crop_to_objects",
+                                     NULL};
   char p[SC_KEY_MAX];
   const json_value_t *b, *res;
   long long r = 0;
@@ -80,6 +81,7 @@ static int sc_grid(const sc_ctx_t *c, const json_value_t *g, scene_t *s) {
   s->resolution = (int)r;
   snprintf(s->where_resolution, sizeof s->where_resolution, "%s:%d:%d: grid.resolution", c->file,
            res->line, res->col);
+  if ((rc = sc_opt_bool(c, g, "grid", "crop_to_objects", &s->crop_to_objects))) return rc;
   return sc_opt_float(c, g, "grid", "ior_smoothing", &R_SMOOTHING, &s->ior_smoothing);
 }
 
@@ -151,6 +153,12 @@ int scene_is_grey(const scene_t *s) {
   for (int i = 0; i < s->object_count; i++)
     if (!grey3(s->objects[i].sigma_s) || !grey3(s->objects[i].sigma_a)) return 0;
   return 1;
+}
+
+int scene_crops(const scene_t *s) {
+  for (int c = 0; c < 3; c++)
+    if (s->medium_sigma_s[c] != 0.0f || s->medium_sigma_a[c] != 0.0f) return 0;
+  return s->crop_to_objects && s->object_count > 0 && !s->ior_vdb.present;
 }
 
 int scene_batches(const scene_t *s, int per_voxel) {
@@ -473,6 +481,7 @@ static int sc_root(const sc_ctx_t *c, const json_value_t *root, scene_t *s) {
 void scene_defaults(scene_t *s) {
   memset(s, 0, sizeof *s);
   s->ior_smoothing = 2.0f;
+  s->crop_to_objects = 1;
   s->medium_ior = 1.0f;
   s->mode = MODE_REFERENCE;
   s->photon_count = 122000;

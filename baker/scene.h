@@ -80,6 +80,9 @@ typedef struct scene {
   float bounds_min[3], bounds_max[3];
   int resolution;            /* voxels along the longest side */
   float ior_smoothing;       /* voxels, > 0; default 2 */
+  /* In a vacuum medium, bake only the box around the objects (grid_crop);
+   * default on (scene_crops says when it applies) */
+  int crop_to_objects;
   char where_resolution[SCENE_WHERE_MAX];
 
   /* medium */
@@ -134,6 +137,11 @@ int scene_has_dispersion(const scene_t *s);
 /* Whether the medium's and every object's σs and σa are the same in R, G
  * and B (the voxelized volume is then grey: voxelize.h). */
 int scene_is_grey(const scene_t *s);
+/* Whether the bake covers only the box around the objects (grid_crop): the
+ * medium is a vacuum (σs = σa = 0; its n constant, no ior_vdb), so nothing
+ * outside the objects' reach scatters, absorbs or bends light, and
+ * grid.crop_to_objects is on (the default). */
+int scene_crops(const scene_t *s);
 /* The batches a bake traces (baker/batches.h): photons.batches when set;
  * else SCENE_OPEN_BATCHES with a target error or time budget (their unit of
  * work is count / batches photons: finer steps stop nearer the goal);

@@ -270,6 +270,18 @@ int sc_opt_int(const sc_ctx_t *c, const json_value_t *obj, const char *path,
   return rc;
 }
 
+int sc_opt_bool(const sc_ctx_t *c, const json_value_t *obj, const char *path,
+                const char *key, int *out) {
+  char p[SC_KEY_MAX];
+  const json_value_t *v = json_object_get(obj, key);
+  if (!v) return BK_OK;
+  if (v->type != JSON_BOOL)
+    return sc_fail(c, v, sc_key(p, path, key), "expected true or false, found %s",
+                   json_type_phrase(v));
+  *out = v->boolean;
+  return BK_OK;
+}
+
 /* Normalises d in place; a zero vector has no direction. */
 int sc_direction(const sc_ctx_t *c, const json_value_t *v, const char *path, float d[3]) {
   char text[128];

@@ -77,6 +77,8 @@ int sc_opt_floats(const sc_ctx_t *c, const json_value_t *obj, const char *path,
                   float *out);
 int sc_opt_int(const sc_ctx_t *c, const json_value_t *obj, const char *path,
                const char *key, const sc_range_t *r, long long *out);
+int sc_opt_bool(const sc_ctx_t *c, const json_value_t *obj, const char *path,
+                const char *key, int *out);
 int sc_direction(const sc_ctx_t *c, const json_value_t *v, const char *path, float d[3]);
 
 /* scene_keys.c: a value that may be keyframed, {"keys": {"FRAME": VALUE}},

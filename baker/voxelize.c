@@ -23,13 +23,9 @@
 #include "base/parallel.h"
 #include "mesh.h"
 #include "mesh_io.h"
+#include "vox_crop.h"
 #include "vox_medium.h"
 
-/* The band reaches this far beyond the smoothing half-width. Only |d| < s/2
- * uses the distance (beyond it w is 0 or 1 by the inside vote alone), so half
- * a voxel guards the rounding of the band test; each voxel more of margin
- * costs about 2x in the distance pass (armadillo, 128^3: 145 ms at 0.5, 460 at 2). */
-#define VOX_BAND_MARGIN 0.5f
 /* Scratch per voxel of an object's region: squared distance + inside vote. */
 #define VOX_SCRATCH_BYTES (sizeof(float) + sizeof(signed char))
 /* Show progress from this many voxels (or triangles) on. */
@@ -404,11 +400,16 @@ typedef struct vox_scratch {
 /* The grid, the memory it needs and the volume filled with the medium: what
  * the objects are composited over. Refuses a grid that cannot fit before
  * allocating anything. */
-static int vox_prepare(const scene_t *scene, const char *grid_where, volume_t *out,
-                       bk_error_t *err) {
-  int rc = grid_dims_from_bounds(scene->bounds_min, scene->bounds_max, scene->resolution,
-                                 grid_where, &out->dims, err);
-  if (rc) return rc;
+static int vox_prepare(const scene_t *scene, const char *grid_where, const float box[2][3],
+                       volume_t *out, bk_error_t *err) {
+  int rc = vox_grid_for(scene, scene->resolution, box[0], box[1], &out->whole, &out->dims,
+                        out->crop_off, err);
+  if (rc < 0 || rc > 1) return rc;
+  if ((out->cropped = rc))
+    bk_log(1, "voxelize: vacuum medium: baking the %dx%dx%d voxels around the objects, from "
+              "voxel (%d, %d, %d) of the %dx%dx%d grid (grid.crop_to_objects: false bakes it all)",
+           out->dims.nx, out->dims.ny, out->dims.nz, out->crop_off[0], out->crop_off[1],
+           out->crop_off[2], out->whole.nx, out->whole.ny, out->whole.nz);
   if (!(scene->ior_smoothing > 0.0f) || !isfinite(scene->ior_smoothing))
     return bk_fail(err, BK_ERR_INPUT, "%s: grid.ior_smoothing: expected a positive number of voxels, got %g",
                    grid_where, scene->ior_smoothing);
@@ -566,7 +567,9 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
   const char *grid_where = scene->where_resolution[0] ? scene->where_resolution : scene->path;
 
   memset(out, 0, sizeof *out);
-  rc = vox_prepare(scene, grid_where, out, err);
+  float box[2][3] = {{0}};
+  if (scene_crops(scene)) rc = vox_objects_box(scene, box[0], box[1], &load_ms, err);
+  if (!rc) rc = vox_prepare(scene, grid_where, box, out, err);
   if (rc) goto error;
   const grid_dims_t *d = &out->dims;
   const size_t count = grid_count(d);

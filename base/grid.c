@@ -33,6 +33,32 @@ int grid_dims_from_bounds(const float bmin[3], const float bmax[3], int resoluti
   return BK_OK;
 }
 
+int grid_crop(const grid_dims_t *whole, const float lo[3], const float hi[3], grid_dims_t *out,
+              int off[3]) {
+  const int n[3] = {whole->nx, whole->ny, whole->nz};
+  int a0[3], a1[3], smaller = 0;
+  *out = *whole;
+  for (int a = 0; a < 3; a++) {
+    off[a] = 0;
+    /* in double: a box far outside must not wrap the int math */
+    double l = floor((double)lo[a]) - GRID_CROP_PAD, h = ceil((double)hi[a]) + GRID_CROP_PAD;
+    if (!(h >= 0.0) || !(l <= (double)(n[a] - 1))) return 0;
+    a0[a] = l <= 0.0 ? 0 : ((int)l / GRID_CROP_ALIGN) * GRID_CROP_ALIGN;
+    a1[a] = h >= (double)(n[a] - 1) ? n[a]
+                                     : ((int)h / GRID_CROP_ALIGN + 1) * GRID_CROP_ALIGN;
+    if (a1[a] > n[a]) a1[a] = n[a];
+    smaller |= a1[a] - a0[a] < n[a];
+  }
+  if (!smaller) return 0;
+  int *dn[3] = {&out->nx, &out->ny, &out->nz};
+  for (int a = 0; a < 3; a++) {
+    off[a] = a0[a];
+    *dn[a] = a1[a] - a0[a];
+    out->origin[a] = whole->origin[a] + (float)a0[a] * whole->voxel_size;
+  }
+  return 1;
+}
+
 void grid_voxel_center(const grid_dims_t *d, int i, int j, int k, float out[3]) {
   out[0] = d->origin[0] + ((float)i + 0.5f) * d->voxel_size;
   out[1] = d->origin[1] + ((float)j + 0.5f) * d->voxel_size;

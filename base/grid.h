@@ -36,6 +36,21 @@ static inline size_t grid_count(const grid_dims_t *d) {
 static inline size_t grid_index(const grid_dims_t *d, int i, int j, int k) {
   return (size_t)i + (size_t)d->nx * ((size_t)j + (size_t)d->ny * (size_t)k);
 }
+/* Voxels a crop adds around the box it must hold, and the multiple its
+ * corner and size are rounded out to (OpenVDB's leaves, the pyramid's 8^3
+ * bricks). */
+#define GRID_CROP_PAD 2
+#define GRID_CROP_ALIGN 8
+
+/* The part of `whole` that holds the index-space box [lo, hi] (voxel centres
+ * at integers, as the voxelizer's meshes; any floats), padded by
+ * GRID_CROP_PAD, rounded out to GRID_CROP_ALIGN and clipped to `whole`: a
+ * grid of its own, same voxel size, its origin on whole's voxel corners
+ * (*out; off[3], its first voxel's index in whole). Returns 0, *out = whole,
+ * when that is all of it or the box misses it. */
+int grid_crop(const grid_dims_t *whole, const float lo[3], const float hi[3], grid_dims_t *out,
+              int off[3]);
+
 void grid_voxel_center(const grid_dims_t *d, int i, int j, int k, float out[3]);
 
 /* Refuses (BK_ERR_INPUT) a grid whose `bytes_per_voxel` arrays would exceed

@@ -42,6 +42,14 @@ add_test(NAME cli_memory_per_voxel
                  ${CMAKE_BINARY_DIR}/cli_memory ${CMAKE_SOURCE_DIR}/scenes)
 set_tests_properties(cli_memory_per_voxel PROPERTIES SKIP_RETURN_CODE 77 RUN_SERIAL TRUE)
 
+# An object in a vacuum: the bake covers the box around it (baker/vox_crop.h),
+# equal to the whole grid's bake there, and its memory does not grow with
+# grid.bounds.
+add_test(NAME cli_crop_vacuum
+         COMMAND bash ${BAKER_TEST_DIR}/crop_vacuum.sh $<TARGET_FILE:baker>
+                 ${CMAKE_BINARY_DIR}/cli_crop ${CMAKE_SOURCE_DIR}/scenes)
+set_tests_properties(cli_crop_vacuum PROPERTIES RUN_SERIAL TRUE)
+
 # Keyframed lights and frame reuse (docs/animation.md): a light-only batch
 # voxelizes once and writes grids bit-identical to single-frame bakes.
 add_test(NAME cli_bake_reuse

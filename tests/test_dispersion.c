@@ -132,7 +132,9 @@ static int test_prism(clh_context_t *cl, const char *dir) {
   char text[2048];
   write_file(dir, "prism.obj", k_prism_obj);
   snprintf(text, sizeof text,
-           "{\"grid\": {\"bounds\": [[0,0,0],[1,0.8,0.1]], \"resolution\": 200},\n"
+           /* the whole grid: the beams are measured in the vacuum behind the prism */
+           "{\"grid\": {\"bounds\": [[0,0,0],[1,0.8,0.1]], \"resolution\": 200,\n"
+           "           \"crop_to_objects\": false},\n"
            " \"objects\": [{\"mesh\": \"prism.obj\", \"ior\": [%g, %g, %g]}],\n"
            " \"lights\": [{\"type\": \"spot\", \"position\": [%.7f, %.7f, 0.05],\n"
            "   \"direction\": [%.7f, %.7f, 0], \"angle_deg\": 1, \"intensity\": [1, 1, 1]}],\n"

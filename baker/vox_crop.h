@@ -1,0 +1,33 @@
+/* vox_crop.h: the grid a bake allocates. The scene's grid (grid.bounds,
+ * grid.resolution), or, when the medium is a vacuum (scene_crops), only
+ * the box around the objects: outside their reach nothing scatters, absorbs
+ * or bends light, so nothing there is baked, and memory and time follow the
+ * objects instead of the bounds. The crop is a grid of its own (same voxel
+ * size, its corner on the scene grid's voxel corners, at a multiple of
+ * GRID_CROP_ALIGN voxels): every stage works on it unchanged, and the file's
+ * transform puts its voxels where they are in the world. */
+#ifndef BAKER_VOX_CROP_H
+#define BAKER_VOX_CROP_H
+
+#include "base/grid.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The grid a bake of `resolution` allocates (*out) and, cropped, where its
+ * first voxel lies in the scene's grid (off) and that grid (*whole; equal
+ * to *out otherwise). box_lo/box_hi: the objects' world box
+ * (vox_objects_box), read only when scene_crops(s). Returns 1 when cropped. */
+int vox_grid_for(const scene_t *s, int resolution, const float box_lo[3], const float box_hi[3],
+                 grid_dims_t *whole, grid_dims_t *out, int off[3], bk_error_t *err);
+
+/* The world box of every object's transformed mesh; the meshes are read
+ * and freed (their read time added to *load_ms when given). */
+int vox_objects_box(const scene_t *s, float lo[3], float hi[3], double *load_ms, bk_error_t *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
