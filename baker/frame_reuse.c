@@ -66,6 +66,7 @@ uint64_t fr_volume_key(const scene_t *s) {
   mix(&h, s->bounds_max, sizeof s->bounds_max);
   mix(&h, &s->resolution, sizeof s->resolution);
   mix(&h, &s->ior_smoothing, sizeof s->ior_smoothing);
+  mix(&h, &s->crop_to_objects, sizeof s->crop_to_objects);
   mix(&h, s->medium_sigma_s, sizeof s->medium_sigma_s);
   mix(&h, s->medium_sigma_a, sizeof s->medium_sigma_a);
   mix(&h, &s->medium_ior, sizeof s->medium_ior);
