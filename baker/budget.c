@@ -46,9 +46,9 @@ double budget_output_bytes(const scene_t *s, const char *out_path) {
 static int estimate_in(const scene_t *s, int resolution, const float box[2][3], budget_t *b,
                        bk_error_t *err) {
   grid_dims_t *d = &b->dims, whole;
-  int off[3];
-  int rc = vox_grid_for(s, resolution, box[0], box[1], &whole, d, off, err);
-  if (rc < 0 || rc > 1) return rc;
+  int off[3], cropped;
+  int rc = vox_grid_for(s, resolution, box[0], box[1], &whole, d, off, &cropped, err);
+  if (rc) return rc;
   b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
   const int grey = budget_grey(s), adaptive = s->mode == MODE_ADAPTIVE;
   b->per_voxel = (grey ? (adaptive ? BUDGET_ADAPTIVE_GREY_BYTES : BUDGET_REFERENCE_GREY_BYTES)

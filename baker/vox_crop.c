@@ -38,12 +38,14 @@ int vox_objects_box(const scene_t *s, float lo[3], float hi[3], double *load_ms,
 }
 
 int vox_grid_for(const scene_t *s, int resolution, const float box_lo[3], const float box_hi[3],
-                 grid_dims_t *whole, grid_dims_t *out, int off[3], bk_error_t *err) {
+                 grid_dims_t *whole, grid_dims_t *out, int off[3], int *cropped,
+                 bk_error_t *err) {
   const char *where = s->where_resolution[0] ? s->where_resolution : s->path;
   int rc = grid_dims_from_bounds(s->bounds_min, s->bounds_max, resolution, where, whole, err);
   *out = *whole;
   off[0] = off[1] = off[2] = 0;
-  if (rc || !scene_crops(s)) return rc ? rc : 0;
+  *cropped = 0;
+  if (rc || !scene_crops(s)) return rc;
   /* the voxels each object may change (voxelize.c's region): its box in
    * index space, voxel centres at integers, grown by the blend's band */
   const float band = 0.5f * s->ior_smoothing + VOX_BAND_MARGIN;
@@ -53,5 +55,6 @@ int vox_grid_for(const scene_t *s, int resolution, const float box_lo[3], const 
     lo[a] = (float)(((double)box_lo[a] - whole->origin[a]) / vs - 0.5 - band);
     hi[a] = (float)(((double)box_hi[a] - whole->origin[a]) / vs - 0.5 + band);
   }
-  return grid_crop(whole, lo, hi, out, off);
+  *cropped = grid_crop(whole, lo, hi, out, off);
+  return BK_OK;
 }

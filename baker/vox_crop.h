@@ -16,12 +16,14 @@
 extern "C" {
 #endif
 
-/* The grid a bake of `resolution` allocates (*out) and, cropped, where its
- * first voxel lies in the scene's grid (off) and that grid (*whole; equal
- * to *out otherwise). box_lo/box_hi: the objects' world box
- * (vox_objects_box), read only when scene_crops(s). Returns 1 when cropped. */
+/* The grid a bake of `resolution` allocates (*out) and, when *cropped, where
+ * its first voxel lies in the scene's grid (off) and that grid (*whole;
+ * equal to *out otherwise). box_lo/box_hi: the objects' world box
+ * (vox_objects_box), read only when scene_crops(s). BK_ERR_INPUT for bad
+ * grid keys. */
 int vox_grid_for(const scene_t *s, int resolution, const float box_lo[3], const float box_hi[3],
-                 grid_dims_t *whole, grid_dims_t *out, int off[3], bk_error_t *err);
+                 grid_dims_t *whole, grid_dims_t *out, int off[3], int *cropped,
+                 bk_error_t *err);
 
 /* The world box of every object's transformed mesh; the meshes are read
  * and freed (their read time added to *load_ms when given). */

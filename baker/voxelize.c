@@ -403,9 +403,9 @@ typedef struct vox_scratch {
 static int vox_prepare(const scene_t *scene, const char *grid_where, const float box[2][3],
                        volume_t *out, bk_error_t *err) {
   int rc = vox_grid_for(scene, scene->resolution, box[0], box[1], &out->whole, &out->dims,
-                        out->crop_off, err);
-  if (rc < 0 || rc > 1) return rc;
-  if ((out->cropped = rc))
+                        out->crop_off, &out->cropped, err);
+  if (rc) return rc;
+  if (out->cropped)
     bk_log(1, "voxelize: vacuum medium: baking the %dx%dx%d voxels around the objects, from "
               "voxel (%d, %d, %d) of the %dx%dx%d grid (grid.crop_to_objects: false bakes it all)",
            out->dims.nx, out->dims.ny, out->dims.nz, out->crop_off[0], out->crop_off[1],
