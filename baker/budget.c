@@ -64,7 +64,7 @@ static int estimate_in(const scene_t *s, int resolution, const float box[2][3], 
  * read once for it); zeros otherwise. */
 static int budget_box(const scene_t *s, float box[2][3], bk_error_t *err) {
   memset(box, 0, 2 * 3 * sizeof(float));
-  return scene_crops(s) ? vox_objects_box(s, box[0], box[1], NULL, err) : BK_OK;
+  return scene_crops(s) ? vox_objects_box(s, box[0], box[1], err) : BK_OK;
 }
 
 int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {

@@ -8,30 +8,47 @@
 #include "mesh_io.h"
 #include "voxelize.h"
 
-int vox_objects_box(const scene_t *s, float lo[3], float hi[3], double *load_ms, bk_error_t *err) {
+const char *vox_object_where(const scene_t *s, int oi, char buf[VOX_WHERE_MAX]) {
+  if (s->objects[oi].where[0]) return s->objects[oi].where;
+  snprintf(buf, VOX_WHERE_MAX, "objects[%d].mesh", oi);
+  return buf;
+}
+
+int vox_read_mesh(const scene_object_t *obj, const char *where, mesh_tris_t *mesh,
+                  double *load_ms, bk_error_t *err) {
+  double t0 = bk_now_ms();
+  int rc = mesh_io_read(obj->mesh, mesh, err);
+  if (rc) {
+    char inner[sizeof err->msg];
+    snprintf(inner, sizeof inner, "%s", err->msg);
+    return bk_fail(err, rc, "%s: %s", where, inner);
+  }
+  if (load_ms) *load_ms += bk_now_ms() - t0;
+  return BK_OK;
+}
+
+void vox_mesh_bounds(const mesh_tris_t *m, float lo[3], float hi[3]) {
+  for (size_t i = 0; i < 3 * (size_t)m->vertex_count; i++) {
+    const float p = m->positions[i];
+    const int a = (int)(i % 3);
+    if (!isfinite(p)) continue; /* vox_build names the vertex */
+    lo[a] = fminf(lo[a], p);
+    hi[a] = fmaxf(hi[a], p);
+  }
+}
+
+int vox_objects_box(const scene_t *s, float lo[3], float hi[3], bk_error_t *err) {
   for (int a = 0; a < 3; a++) {
     lo[a] = INFINITY;
     hi[a] = -INFINITY;
   }
   for (int oi = 0; oi < s->object_count; oi++) {
-    const scene_object_t *obj = &s->objects[oi];
+    char buf[VOX_WHERE_MAX];
     mesh_tris_t mesh = {0};
-    double t0 = bk_now_ms();
-    int rc = mesh_io_read(obj->mesh, &mesh, err);
-    if (rc) {
-      char inner[sizeof err->msg];
-      snprintf(inner, sizeof inner, "%s", err->msg);
-      return bk_fail(err, rc, "%s: %s", obj->where[0] ? obj->where : s->path, inner);
-    }
-    if (load_ms) *load_ms += bk_now_ms() - t0;
-    mesh_transform(&mesh, obj);
-    for (size_t i = 0; i < 3 * (size_t)mesh.vertex_count; i++) {
-      const float p = mesh.positions[i];
-      const int a = (int)(i % 3);
-      if (!isfinite(p)) continue; /* vox_build names the vertex */
-      lo[a] = fminf(lo[a], p);
-      hi[a] = fmaxf(hi[a], p);
-    }
+    int rc = vox_read_mesh(&s->objects[oi], vox_object_where(s, oi, buf), &mesh, NULL, err);
+    if (rc) return rc;
+    mesh_transform(&mesh, &s->objects[oi]);
+    vox_mesh_bounds(&mesh, lo, hi);
     mesh_io_free(&mesh);
   }
   return BK_OK;

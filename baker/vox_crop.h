@@ -10,6 +10,7 @@
 #define BAKER_VOX_CROP_H
 
 #include "base/grid.h"
+#include "mesh_io.h"
 #include "scene.h"
 
 #ifdef __cplusplus
@@ -25,9 +26,24 @@ int vox_grid_for(const scene_t *s, int resolution, const float box_lo[3], const 
                  grid_dims_t *whole, grid_dims_t *out, int off[3], int *cropped,
                  bk_error_t *err);
 
-/* The world box of every object's transformed mesh; the meshes are read
- * and freed (their read time added to *load_ms when given). */
-int vox_objects_box(const scene_t *s, float lo[3], float hi[3], double *load_ms, bk_error_t *err);
+/* The world box of every object's transformed mesh, for the memory budget
+ * before anything is voxelized (the meshes are read and freed; vox_build
+ * takes the box from the meshes it voxelizes). */
+int vox_objects_box(const scene_t *s, float lo[3], float hi[3], bk_error_t *err);
+
+/* Grows [lo, hi] by the finite vertices of m. */
+void vox_mesh_bounds(const mesh_tris_t *m, float lo[3], float hi[3]);
+
+/* Reads object obj's mesh; a read error gets `where`, the object's place in
+ * the scene, in front, so the user knows which entry names the file.
+ * load_ms (when given) gains the read's time. */
+int vox_read_mesh(const scene_object_t *obj, const char *where, mesh_tris_t *mesh,
+                  double *load_ms, bk_error_t *err);
+
+/* Object oi's place in the scene ("scene.json:L:C: objects[i].mesh"), or
+ * "objects[i].mesh" for a scene made in code. */
+#define VOX_WHERE_MAX 64
+const char *vox_object_where(const scene_t *s, int oi, char buf[VOX_WHERE_MAX]);
 
 #ifdef __cplusplus
 }

@@ -448,35 +448,37 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, const float
   return BK_OK;
 }
 
-/* Reads and checks one object's mesh. A read error gets the object's place
- * in the scene in front, so the user knows which entry names the file. */
-static int vox_load_mesh(const scene_object_t *obj, const char *where, mesh_tris_t *mesh,
-                         double *load_ms, bk_error_t *err) {
-  double t0 = bk_now_ms();
-  int rc = mesh_io_read(obj->mesh, mesh, err);
-  if (rc) {
-    char inner[sizeof err->msg];
-    snprintf(inner, sizeof inner, "%s", err->msg);
-    bk_fail(err, rc, "%s: %s", where, inner);
-    return rc;
+/* Every object's mesh, read, checked and moved into the world (its
+ * transform applied), in scene order; *tris counts their triangles. */
+static int vox_load_meshes(const scene_t *scene, mesh_tris_t *meshes, double *load_ms,
+                           long long *tris, bk_error_t *err) {
+  for (int oi = 0; oi < scene->object_count; oi++) {
+    const scene_object_t *obj = &scene->objects[oi];
+    char buf[VOX_WHERE_MAX];
+    mesh_tris_t *mesh = &meshes[oi];
+    int rc = vox_read_mesh(obj, vox_object_where(scene, oi, buf), mesh, load_ms, err);
+    if (rc) return rc;
+    mesh_report_t report;
+    double t_check = bk_now_ms();
+    if ((rc = mesh_check(mesh, &report, err))) return rc;
+    mesh_check_log(obj->mesh, &report);
+    bk_log(2, "%s: topology check %.0f ms", obj->mesh, bk_now_ms() - t_check);
+    mesh_transform(mesh, obj);
+    *tris += mesh->triangle_count;
   }
-  *load_ms += bk_now_ms() - t0;
-
-  mesh_report_t report;
-  double t_check = bk_now_ms();
-  rc = mesh_check(mesh, &report, err);
-  if (rc) return rc;
-  mesh_check_log(obj->mesh, &report);
-  bk_log(2, "%s: topology check %.0f ms", obj->mesh, bk_now_ms() - t_check);
   return BK_OK;
 }
 
-/* World -> voxel index space (voxel centres at integers); lo and hi get the
- * mesh's bounds there. A vertex the transform sends to infinity is an input
- * error, not a silent hole in the inside test. */
+static void vox_free_meshes(mesh_tris_t *meshes, int count) {
+  for (int oi = 0; meshes && oi < count; oi++) mesh_io_free(&meshes[oi]);
+  free(meshes);
+}
+
+/* World (the transform applied) -> voxel index space (voxel centres at
+ * integers); lo and hi get the mesh's bounds there. A vertex the transform
+ * sent to infinity is an input error, not a silent hole in the inside test. */
 static int vox_to_index_space(mesh_tris_t *mesh, const scene_object_t *obj, const char *where,
                               const grid_dims_t *d, float lo[3], float hi[3], bk_error_t *err) {
-  mesh_transform(mesh, obj);
   for (int a = 0; a < 3; a++) {
     lo[a] = INFINITY;
     hi[a] = -INFINITY;
@@ -557,18 +559,20 @@ static int vox_object_passes(const scene_object_t *obj, const mesh_tris_t *mesh,
 }
 
 int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_error_t *err) {
-  mesh_tris_t mesh = {0};
   vox_scratch_t scratch = {0};
   bk_progress_t prog = {0};
   char label[48];
-  int rc = BK_OK;
   long long total_tris = 0;
   double load_ms = 0.0, t_start = bk_now_ms();
   const char *grid_where = scene->where_resolution[0] ? scene->where_resolution : scene->path;
 
   memset(out, 0, sizeof *out);
-  float box[2][3] = {{0}};
-  if (scene_crops(scene)) rc = vox_objects_box(scene, box[0], box[1], &load_ms, err);
+  mesh_tris_t *meshes = bk_calloc((size_t)scene->object_count + 1, sizeof *meshes,
+                                  "voxelize: meshes", err);
+  int rc = meshes ? vox_load_meshes(scene, meshes, &load_ms, &total_tris, err) : BK_ERR_RUNTIME;
+  /* the objects' world box, for a vacuum's crop (vox_crop.h) */
+  float box[2][3] = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
+  for (int oi = 0; !rc && oi < scene->object_count; oi++) vox_mesh_bounds(&meshes[oi], box[0], box[1]);
   if (!rc) rc = vox_prepare(scene, grid_where, box, out, err);
   if (rc) goto error;
   const grid_dims_t *d = &out->dims;
@@ -580,31 +584,25 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
 
   for (int oi = 0; oi < scene->object_count; oi++) {
     const scene_object_t *obj = &scene->objects[oi];
-    char where_buf[64];
-    const char *where = obj->where;
-    if (!where[0]) {
-      snprintf(where_buf, sizeof where_buf, "objects[%d].mesh", oi);
-      where = where_buf;
-    }
-    rc = vox_load_mesh(obj, where, &mesh, &load_ms, err);
-    if (rc) goto error;
-    total_tris += mesh.triangle_count;
+    char buf[VOX_WHERE_MAX];
+    const char *where = vox_object_where(scene, oi, buf);
+    mesh_tris_t *mesh = &meshes[oi];
     float lo[3], hi[3];
-    rc = vox_to_index_space(&mesh, obj, where, d, lo, hi, err);
+    rc = vox_to_index_space(mesh, obj, where, d, lo, hi, err);
     if (rc) goto error;
     vox_region_t r;
     if (!vox_region_around(lo, hi, band, d, &r)) {
       bk_warn("%s: %s lies entirely outside grid.bounds; ignored", where, obj->mesh);
-      mesh_io_free(&mesh);
+      mesh_io_free(mesh);
       continue;
     }
     rc = vox_scratch_fit(&scratch, r.count, err);
     if (rc) goto error;
     snprintf(label, sizeof label, "voxelize %d/%d", oi + 1, scene->object_count);
     prog.label = scene->object_count > 1 ? label : "voxelize";
-    rc = vox_object_passes(obj, &mesh, &r, band, smoothing, &scratch, &prog, out, err);
+    rc = vox_object_passes(obj, mesh, &r, band, smoothing, &scratch, &prog, out, err);
     if (rc) goto error;
-    mesh_io_free(&mesh);
+    mesh_io_free(mesh); /* each as soon as it is in the volume */
   }
   bk_progress_end(&prog);
   double t_sum = bk_now_ms();
@@ -619,12 +617,13 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
                  "%d object%s, %lld tris, %dx%dx%d, n in [%g, %g], %.0f M voxels/s",
                  scene->object_count, scene->object_count == 1 ? "" : "s", total_tris, d->nx,
                  d->ny, d->nz, out->n_min, out->n_max, (double)count / (vox_ms * 1e3 + 1e-9));
+  vox_free_meshes(meshes, scene->object_count);
   free(scratch.dist2);
   free(scratch.vote);
   return BK_OK;
 
 error:
-  mesh_io_free(&mesh);
+  vox_free_meshes(meshes, scene->object_count);
   free(scratch.dist2);
   free(scratch.vote);
   vox_free(out);
