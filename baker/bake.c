@@ -113,7 +113,11 @@ static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene
                  j->scene.object_count, j->scene.light_count);
   j->reuse->extra_bytes = (opt->shard_count ? budget_shard_bytes(&j->scene) : 0.0) +
                           budget_output_bytes(&j->scene, out_path);
-  if ((rc = fr_volume(j->reuse, &j->scene, opt->max_memory, &j->timings, err))) return rc;
+  /* the march will want OpenCL: its driver loads while the voxels are made */
+  const int wants_cl = j->scene.light_count > 0 && !opt->host_only;
+  const char *cl_device = wants_cl ? (opt->device ? opt->device : "") : NULL;
+  if ((rc = fr_volume(j->reuse, &j->scene, opt->max_memory, cl_device, &j->timings, err)))
+    return rc;
   j->vol = &j->reuse->volume;
   return BK_OK;
 }
@@ -497,6 +501,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
     if (opt->stats_path) rc = bake_stats(j, opt, scene_path, out_path, frame, err);
   }
   bake_job_free(j);
+  fr_opencl_settle(j->reuse); /* a frame that failed before the march left it opening */
   if (rc == BK_ERR_RUNTIME) fr_drop_opencl(j->reuse); /* it may be what failed */
   fr_free(&alone);
   return rc;

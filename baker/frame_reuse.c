@@ -8,6 +8,7 @@
 
 #include "base/common.h"
 #include "budget.h"
+#include "clenv.h"
 
 static void mix(uint64_t *h, const void *data, size_t len) { *h = bk_hash64(data, len, *h); }
 static void mix_string(uint64_t *h, const char *s) { mix(h, s, strlen(s) + 1); }
@@ -89,8 +90,53 @@ uint64_t fr_volume_key(const scene_t *s) {
   return h ? h : 1;
 }
 
-int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings_t *t,
-              bk_error_t *err) {
+static uint64_t cl_key_of(const char *device) {
+  uint64_t key = BK_HASH_SEED;
+  mix_string(&key, device ? device : "");
+  return key;
+}
+
+static void *open_cl_thread(void *arg) {
+  bake_reuse_t *r = arg;
+  const double t0 = bk_now_ms();
+  r->cl_rc = clh_init(&r->cl, r->cl_device, &r->cl_err);
+  r->cl_ms = bk_now_ms() - t0;
+  return NULL;
+}
+
+/* Starts opening the context for `device` unless it is kept already; if no
+ * thread can be made, fr_opencl opens it as before. */
+static void fr_opencl_begin(bake_reuse_t *r, const char *device, int frame) {
+  const uint64_t key = cl_key_of(device);
+  if (r->cl_opening || (r->has_cl && r->cl_key == key)) return;
+  fr_drop_opencl(r);
+  clh_prepare_env(); /* setenv here, not beside this thread's getenv calls */
+  r->cl_device = device;
+  r->cl_key = key;
+  r->cl_frame = frame;
+  r->cl_opening = pthread_create(&r->cl_thread, NULL, open_cl_thread, r) == 0;
+}
+
+/* Joins the opening thread: 1 when it opened the context (now kept), -1
+ * when it failed (r->cl_err says why), 0 when none was opening. */
+static int fr_opencl_join(bake_reuse_t *r) {
+  if (!r->cl_opening) return 0;
+  pthread_join(r->cl_thread, NULL);
+  r->cl_opening = 0;
+  if (r->cl_rc) {
+    clh_release(&r->cl);
+    memset(&r->cl, 0, sizeof r->cl);
+    return -1;
+  }
+  r->cl.keep_programs = 1; /* the next frames build the same kernels */
+  r->has_cl = 1;
+  return 1;
+}
+
+void fr_opencl_settle(bake_reuse_t *r) { (void)fr_opencl_join(r); }
+
+int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char *cl_device,
+              bk_timings_t *t, bk_error_t *err) {
   double t0 = bk_now_ms();
   uint64_t key = fr_volume_key(s);
   if (r->has_volume && r->volume.key == key) {
@@ -118,6 +164,8 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings
     r->keep_fields = 0;
     rc = BK_OK;
   }
+  if (!rc && cl_device && !s->density_vdb.present && !s->ior_vdb.present)
+    fr_opencl_begin(r, cl_device, s->frame);
   if (!rc) rc = vox_build(s, &r->volume, t, err);
   if (rc) return rc;
   r->volume.key = key;
@@ -127,8 +175,18 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings
 }
 
 int fr_opencl(bake_reuse_t *r, const char *device, int frame, bk_timings_t *t, bk_error_t *err) {
-  uint64_t key = BK_HASH_SEED;
-  mix_string(&key, device ? device : "");
+  const uint64_t key = cl_key_of(device);
+  double t0 = bk_now_ms();
+  const int early = fr_opencl_join(r);
+  if (early < 0) {
+    *err = r->cl_err;
+    return err->code;
+  }
+  if (early && r->cl_key == key) {
+    bk_timings_add(t, "OpenCL init", bk_now_ms() - t0, "%s, opened while the voxels were made "
+                   "(%.0f ms on its own thread)", r->cl.device_name, r->cl_ms);
+    return BK_OK;
+  }
   if (r->has_cl && r->cl_key == key) {
     bk_timings_add(t, "OpenCL init", 0.0, "reused from frame %d (device unchanged), %d kernels",
                    r->cl_frame, r->cl.kept_count);
@@ -136,7 +194,7 @@ int fr_opencl(bake_reuse_t *r, const char *device, int frame, bk_timings_t *t, b
     return BK_OK;
   }
   fr_drop_opencl(r);
-  double t0 = bk_now_ms();
+  t0 = bk_now_ms();
   int rc = clh_init(&r->cl, device, err);
   if (rc) {
     clh_release(&r->cl);
@@ -152,6 +210,7 @@ int fr_opencl(bake_reuse_t *r, const char *device, int frame, bk_timings_t *t, b
 }
 
 void fr_drop_opencl(bake_reuse_t *r) {
+  fr_opencl_join(r);
   if (r->has_cl) clh_release(&r->cl);
   memset(&r->cl, 0, sizeof r->cl);
   r->has_cl = 0;

@@ -24,6 +24,8 @@
 #ifndef BAKER_FRAME_REUSE_H
 #define BAKER_FRAME_REUSE_H
 
+#include <pthread.h>
+
 #include "clhost.h"
 #include "march.h"
 #include "scene.h"
@@ -45,6 +47,13 @@ typedef struct bake_reuse {
   int has_cl, cl_frame;
   uint64_t cl_key;
   clh_context_t cl;
+  /* fr_volume's early start: the context opening on a thread of its own */
+  int cl_opening;
+  pthread_t cl_thread;
+  const char *cl_device;
+  int cl_rc;
+  bk_error_t cl_err;
+  double cl_ms;
 } bake_reuse_t;
 
 /* A file's contents, hashed (one that cannot be read hashes its error);
@@ -59,12 +68,22 @@ uint64_t fr_volume_key(const scene_t *s);
  * "voxelize" row saying so), else the kept one freed, the memory budget
  * checked (max_memory: --max-memory; the kept fields counted when
  * keep_fields: when only they do not fit, keep_fields is cleared with a
- * warning and every frame builds its own) and the volume built. */
-int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, bk_timings_t *t,
-              bk_error_t *err);
+ * warning and every frame builds its own) and the volume built.
+ * cl_device (NULL: none; "" the default device): the frame will want the
+ * OpenCL context of that device, so once the budget has passed, a context
+ * not kept already starts opening on a thread of its own while the voxels
+ * are made (loading the driver is ~30-70 ms on one core); fr_opencl takes
+ * it. Not when the voxelizer reads a VDB file: its reader is a forked
+ * child, and a fork while another thread loads libraries is not safe. */
+int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char *cl_device,
+              bk_timings_t *t, bk_error_t *err);
 /* The OpenCL context in r->cl: the kept one for the same device spec (an
- * "OpenCL init" row saying so), else a new one. */
+ * "OpenCL init" row saying so), the one fr_volume started (the row holds
+ * the wait for it), else a new one. */
 int fr_opencl(bake_reuse_t *r, const char *device, int frame, bk_timings_t *t, bk_error_t *err);
+/* Waits for a context still opening (a frame that failed before it took
+ * it), so that nothing forks while it loads; it is kept if it opened. */
+void fr_opencl_settle(bake_reuse_t *r);
 /* After a runtime failure: the context may be broken, so it is not kept. */
 void fr_drop_opencl(bake_reuse_t *r);
 void fr_free(bake_reuse_t *r);
