@@ -2,6 +2,7 @@
 #include "frame_reuse.h"
 
 #include <errno.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -96,10 +97,17 @@ static uint64_t cl_key_of(const char *device) {
   return key;
 }
 
+/* The driver may give the thread a signal stack of its own (PoCL's start-up
+ * does, from malloc); the thread's own is put back before it ends, since the
+ * thread's exit frees the one it set up (AddressSanitizer's aborts on a
+ * stack it did not map). */
 static void *open_cl_thread(void *arg) {
   bake_reuse_t *r = arg;
   const double t0 = bk_now_ms();
+  stack_t own, now;
+  const int saved = sigaltstack(NULL, &own) == 0;
   r->cl_rc = clh_init(&r->cl, r->cl_device, &r->cl_err);
+  if (saved && sigaltstack(NULL, &now) == 0 && now.ss_sp != own.ss_sp) sigaltstack(&own, NULL);
   r->cl_ms = bk_now_ms() - t0;
   return NULL;
 }
