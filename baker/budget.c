@@ -115,9 +115,16 @@ int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err) {
 }
 
 int budget_check_kept(const scene_t *s, uint64_t max_bytes, double kept, bk_error_t *err) {
+  return budget_check_box(s, NULL, max_bytes, kept, err);
+}
+
+int budget_check_box(const scene_t *s, const float (*given)[3], uint64_t max_bytes, double kept,
+                     bk_error_t *err) {
   budget_t b;
   float box[2][3];
-  int rc = budget_box(s, box, err);
+  int rc = BK_OK;
+  if (given) memcpy(box, given, sizeof box);
+  else rc = budget_box(s, box, err);
   if (!rc) rc = estimate_kept(s, s->resolution, box, kept, &b, err);
   if (rc != BK_OK) return rc;
   uint64_t limit = budget_available(max_bytes);

@@ -92,6 +92,11 @@ int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err);
 /* The same for a batch of frames that keeps `kept` more bytes per voxel
  * from one frame to the next (baker/frame_reuse.h: the march's fields). */
 int budget_check_kept(const scene_t *s, uint64_t max_bytes, double kept, bk_error_t *err);
+/* budget_check_kept with the objects' world box given (vox_meshes_t.box,
+ * when the caller has read the meshes already); NULL reads them for it
+ * when the bake is cropped to them (scene_crops). */
+int budget_check_box(const scene_t *s, const float (*box)[3], uint64_t max_bytes, double kept,
+                     bk_error_t *err);
 
 /* Parses a size for --max-memory: a number with an optional K, M, G or T
  * (powers of 1024, an optional "iB" or "B"). Returns 0 when invalid. */

@@ -161,10 +161,17 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
    * kept volume passed it with the same grid) */
   /* dispersion keeps a {∇n, n} field per channel: 32 B more */
   double kept = FR_KEPT_FIELDS_BYTES + (scene_has_dispersion(s) ? 46.0 : 0.0);
-  int rc = budget_check_kept(s, max_memory, (r->keep_fields ? kept : 0.0) + r->extra_bytes, err);
+  /* a vacuum's crop needs the objects' box before the budget: the meshes
+   * are read once, for the box and for the voxels */
+  vox_meshes_t meshes = {0};
+  const int crops = scene_crops(s);
+  int rc = crops ? vox_meshes_load(s, &meshes, err) : BK_OK;
+  const float(*box)[3] = crops ? (const float(*)[3])meshes.box : NULL;
+  if (!rc)
+    rc = budget_check_box(s, box, max_memory, (r->keep_fields ? kept : 0.0) + r->extra_bytes, err);
   bk_error_t without;
   if (rc == BK_ERR_INPUT && r->keep_fields &&
-      budget_check_kept(s, max_memory, r->extra_bytes, &without) == BK_OK) {
+      budget_check_box(s, box, max_memory, r->extra_bytes, &without) == BK_OK) {
     /* an optimisation, not worth a refusal: each frame builds its own */
     bk_warn("%s: the march's fields are not kept from frame to frame: they would add %.0f "
             "bytes per voxel to a peak that then does not fit (%s)",
@@ -174,7 +181,9 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
   }
   if (!rc && cl_device && !s->density_vdb.present && !s->ior_vdb.present)
     fr_opencl_begin(r, cl_device, s->frame);
-  if (!rc) rc = vox_build(s, &r->volume, t, err);
+  if (!rc) rc = crops ? vox_build_meshes(s, &meshes, &r->volume, t, err)
+                      : vox_build(s, &r->volume, t, err);
+  vox_meshes_free(&meshes);
   if (rc) return rc;
   r->volume.key = key;
   r->has_volume = 1;

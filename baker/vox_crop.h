@@ -26,9 +26,10 @@ int vox_grid_for(const scene_t *s, int resolution, const float box_lo[3], const 
                  grid_dims_t *whole, grid_dims_t *out, int off[3], int *cropped,
                  bk_error_t *err);
 
-/* The world box of every object's transformed mesh, for the memory budget
- * before anything is voxelized (the meshes are read and freed; vox_build
- * takes the box from the meshes it voxelizes). */
+/* The world box of every object's transformed mesh, for a memory budget
+ * made without the meshes at hand (budget_estimate; the meshes are read
+ * and freed). A bake reads them once with vox_meshes_load, whose box goes
+ * to the budget and whose meshes to the voxelizer. */
 int vox_objects_box(const scene_t *s, float lo[3], float hi[3], bk_error_t *err);
 
 /* Grows [lo, hi] by the finite vertices of m. */

@@ -448,32 +448,6 @@ static int vox_prepare(const scene_t *scene, const char *grid_where, const float
   return BK_OK;
 }
 
-/* Every object's mesh, read, checked and moved into the world (its
- * transform applied), in scene order; *tris counts their triangles. */
-static int vox_load_meshes(const scene_t *scene, mesh_tris_t *meshes, double *load_ms,
-                           long long *tris, bk_error_t *err) {
-  for (int oi = 0; oi < scene->object_count; oi++) {
-    const scene_object_t *obj = &scene->objects[oi];
-    char buf[VOX_WHERE_MAX];
-    mesh_tris_t *mesh = &meshes[oi];
-    int rc = vox_read_mesh(obj, vox_object_where(scene, oi, buf), mesh, load_ms, err);
-    if (rc) return rc;
-    mesh_report_t report;
-    double t_check = bk_now_ms();
-    if ((rc = mesh_check(mesh, &report, err))) return rc;
-    mesh_check_log(obj->mesh, &report);
-    bk_log(2, "%s: topology check %.0f ms", obj->mesh, bk_now_ms() - t_check);
-    mesh_transform(mesh, obj);
-    *tris += mesh->triangle_count;
-  }
-  return BK_OK;
-}
-
-static void vox_free_meshes(mesh_tris_t *meshes, int count) {
-  for (int oi = 0; meshes && oi < count; oi++) mesh_io_free(&meshes[oi]);
-  free(meshes);
-}
-
 /* World (the transform applied) -> voxel index space (voxel centres at
  * integers); lo and hi get the mesh's bounds there. A vertex the transform
  * sent to infinity is an input error, not a silent hole in the inside test. */
@@ -558,22 +532,58 @@ static int vox_object_passes(const scene_object_t *obj, const mesh_tris_t *mesh,
   return BK_OK;
 }
 
+int vox_meshes_load(const scene_t *scene, vox_meshes_t *m, bk_error_t *err) {
+  memset(m, 0, sizeof *m);
+  for (int a = 0; a < 3; a++) m->box[0][a] = INFINITY, m->box[1][a] = -INFINITY;
+  m->mesh = bk_calloc((size_t)scene->object_count + 1, sizeof *m->mesh, "voxelize: meshes", err);
+  if (!m->mesh) return BK_ERR_RUNTIME;
+  m->count = scene->object_count;
+  for (int oi = 0; oi < scene->object_count; oi++) {
+    const scene_object_t *obj = &scene->objects[oi];
+    char buf[VOX_WHERE_MAX];
+    mesh_tris_t *mesh = &m->mesh[oi];
+    int rc = vox_read_mesh(obj, vox_object_where(scene, oi, buf), mesh, &m->load_ms, err);
+    if (rc) return rc;
+    mesh_report_t report;
+    double t_check = bk_now_ms();
+    if ((rc = mesh_check(mesh, &report, err))) return rc;
+    mesh_check_log(obj->mesh, &report);
+    bk_log(2, "%s: topology check %.0f ms", obj->mesh, bk_now_ms() - t_check);
+    mesh_transform(mesh, obj);
+    vox_mesh_bounds(mesh, m->box[0], m->box[1]);
+    m->tris += mesh->triangle_count;
+    m->check_ms += bk_now_ms() - t_check;
+  }
+  return BK_OK;
+}
+
+void vox_meshes_free(vox_meshes_t *m) {
+  for (int oi = 0; m->mesh && oi < m->count; oi++) mesh_io_free(&m->mesh[oi]);
+  free(m->mesh);
+  memset(m, 0, sizeof *m);
+}
+
 int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_error_t *err) {
+  vox_meshes_t meshes;
+  int rc = vox_meshes_load(scene, &meshes, err);
+  if (!rc) return vox_build_meshes(scene, &meshes, out, timings, err);
+  vox_meshes_free(&meshes);
+  memset(out, 0, sizeof *out);
+  return rc;
+}
+
+int vox_build_meshes(const scene_t *scene, vox_meshes_t *meshes, volume_t *out,
+                     bk_timings_t *timings, bk_error_t *err) {
   vox_scratch_t scratch = {0};
   bk_progress_t prog = {0};
   char label[48];
-  long long total_tris = 0;
-  double load_ms = 0.0, t_start = bk_now_ms();
+  const long long total_tris = meshes->tris;
+  const double load_ms = meshes->load_ms, t_start = bk_now_ms();
   const char *grid_where = scene->where_resolution[0] ? scene->where_resolution : scene->path;
 
   memset(out, 0, sizeof *out);
-  mesh_tris_t *meshes = bk_calloc((size_t)scene->object_count + 1, sizeof *meshes,
-                                  "voxelize: meshes", err);
-  int rc = meshes ? vox_load_meshes(scene, meshes, &load_ms, &total_tris, err) : BK_ERR_RUNTIME;
-  /* the objects' world box, for a vacuum's crop (vox_crop.h) */
-  float box[2][3] = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
-  for (int oi = 0; !rc && oi < scene->object_count; oi++) vox_mesh_bounds(&meshes[oi], box[0], box[1]);
-  if (!rc) rc = vox_prepare(scene, grid_where, box, out, err);
+  /* the objects' world box is for a vacuum's crop (vox_crop.h) */
+  int rc = vox_prepare(scene, grid_where, (const float(*)[3])meshes->box, out, err);
   if (rc) goto error;
   const grid_dims_t *d = &out->dims;
   const size_t count = grid_count(d);
@@ -586,7 +596,7 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
     const scene_object_t *obj = &scene->objects[oi];
     char buf[VOX_WHERE_MAX];
     const char *where = vox_object_where(scene, oi, buf);
-    mesh_tris_t *mesh = &meshes[oi];
+    mesh_tris_t *mesh = &meshes->mesh[oi];
     float lo[3], hi[3];
     rc = vox_to_index_space(mesh, obj, where, d, lo, hi, err);
     if (rc) goto error;
@@ -612,18 +622,18 @@ int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_err
   if (scene->object_count > 0)
     bk_timings_add(timings, "mesh load", load_ms, "%d mesh%s, %lld tris", scene->object_count,
                    scene->object_count == 1 ? "" : "es", total_tris);
-  double vox_ms = bk_now_ms() - t_start - load_ms;
+  double vox_ms = bk_now_ms() - t_start + meshes->check_ms;
   bk_timings_add(timings, "voxelize", vox_ms,
                  "%d object%s, %lld tris, %dx%dx%d, n in [%g, %g], %.0f M voxels/s",
                  scene->object_count, scene->object_count == 1 ? "" : "s", total_tris, d->nx,
                  d->ny, d->nz, out->n_min, out->n_max, (double)count / (vox_ms * 1e3 + 1e-9));
-  vox_free_meshes(meshes, scene->object_count);
+  vox_meshes_free(meshes);
   free(scratch.dist2);
   free(scratch.vote);
   return BK_OK;
 
 error:
-  vox_free_meshes(meshes, scene->object_count);
+  vox_meshes_free(meshes);
   free(scratch.dist2);
   free(scratch.vote);
   vox_free(out);

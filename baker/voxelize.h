@@ -31,6 +31,7 @@
 
 #include "base/grid.h"
 #include "kernels/medium_code.h"
+#include "mesh_io.h"
 #include "scene.h"
 
 #ifdef __cplusplus
@@ -139,7 +140,26 @@ static inline float vol_sigma_t(const volume_t *v, size_t i, int c) { return vol
  * σa (then σt) with C = 1 (grey) or 3 values each. */
 #define VOX_BYTES_PER_VOXEL(C) ((1 + 2 * (size_t)(C)) * sizeof(float))
 
+/* Every object's mesh, read, checked and moved into the world (its
+ * transform applied), in scene order, with their world box (what a
+ * vacuum's crop and its memory budget need) and the time it took. */
+typedef struct vox_meshes {
+  mesh_tris_t *mesh;
+  int count;
+  long long tris;
+  double load_ms;  /* reading the files: the "mesh load" row */
+  double check_ms; /* checking and placing them: part of the "voxelize" row */
+  float box[2][3];
+} vox_meshes_t;
+int vox_meshes_load(const scene_t *scene, vox_meshes_t *m, bk_error_t *err);
+void vox_meshes_free(vox_meshes_t *m);
+
+/* The volume of the scene: vox_meshes_load, then vox_build_meshes. */
 int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_error_t *err);
+/* The volume from meshes already read, which it frees (each as soon as it
+ * is in the volume); the "mesh load" row gets their read's time. */
+int vox_build_meshes(const scene_t *scene, vox_meshes_t *meshes, volume_t *out,
+                     bk_timings_t *timings, bk_error_t *err);
 void vox_free(volume_t *v);
 
 #ifdef __cplusplus
