@@ -99,6 +99,12 @@ void bake_settings(const bake_options_t *opt, const scene_t *s, char *out, size_
     snprintf(out + at, len - at, " shard=%d/%d", opt->shard_index, opt->shard_count);
 }
 
+/* The march runs on OpenCL: the scene has lights to trace and the host
+ * path was not asked for. */
+static int bake_wants_cl(const bake_job_t *j, const bake_options_t *opt) {
+  return j->scene.light_count > 0 && !opt->host_only;
+}
+
 /* Stage 1: the scene (with the command's overrides, the frame's keyframed
  * values and paths) and its voxels, kept from the frame before when they
  * were made from the same inputs. */
@@ -114,8 +120,7 @@ static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene
   j->reuse->extra_bytes = (opt->shard_count ? budget_shard_bytes(&j->scene) : 0.0) +
                           budget_output_bytes(&j->scene, out_path);
   /* the march will want OpenCL: its driver loads while the voxels are made */
-  const int wants_cl = j->scene.light_count > 0 && !opt->host_only;
-  const char *cl_device = wants_cl ? (opt->device ? opt->device : "") : NULL;
+  const char *cl_device = bake_wants_cl(j, opt) ? (opt->device ? opt->device : "") : NULL;
   if ((rc = fr_volume(j->reuse, &j->scene, opt->max_memory, cl_device, &j->timings, err)))
     return rc;
   j->vol = &j->reuse->volume;
@@ -185,7 +190,7 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
       !(j->radiance = bk_calloc(n * 3, sizeof(float), "radiance grid", err)))
     return err->code;
   if (j->scene.light_count == 0) return BK_OK;
-  if (!opt->host_only) {
+  if (bake_wants_cl(j, opt)) {
     int rc = fr_opencl(j->reuse, opt->device, j->scene.frame, &j->timings, err);
     if (rc) return rc;
     j->cl = &j->reuse->cl;

@@ -60,19 +60,6 @@ static int estimate_in(const scene_t *s, int resolution, const float box[2][3], 
   return BK_OK;
 }
 
-/* The objects' world box when the bake is cropped to them (their meshes
- * read once for it); zeros otherwise. */
-static int budget_box(const scene_t *s, float box[2][3], bk_error_t *err) {
-  memset(box, 0, 2 * 3 * sizeof(float));
-  return scene_crops(s) ? vox_objects_box(s, box[0], box[1], err) : BK_OK;
-}
-
-int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err) {
-  float box[2][3];
-  int rc = budget_box(s, box, err);
-  return rc ? rc : estimate_in(s, resolution, box, b, err);
-}
-
 uint64_t budget_available(uint64_t max_bytes) {
   uint64_t avail = 0;
   FILE *f = fopen("/proc/meminfo", "r");
@@ -110,22 +97,12 @@ static int largest_fitting(const scene_t *s, int hi, const float box[2][3], doub
   return lo;
 }
 
-int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err) {
-  return budget_check_kept(s, max_bytes, 0.0, err);
-}
-
-int budget_check_kept(const scene_t *s, uint64_t max_bytes, double kept, bk_error_t *err) {
-  return budget_check_box(s, NULL, max_bytes, kept, err);
-}
-
-int budget_check_box(const scene_t *s, const float (*given)[3], uint64_t max_bytes, double kept,
-                     bk_error_t *err) {
+int budget_check(const scene_t *s, const float (*given)[3], uint64_t max_bytes, double kept,
+                 bk_error_t *err) {
   budget_t b;
-  float box[2][3];
-  int rc = BK_OK;
+  float box[2][3] = {{0}}; /* read by vox_grid_for only when the bake crops */
   if (given) memcpy(box, given, sizeof box);
-  else rc = budget_box(s, box, err);
-  if (!rc) rc = estimate_kept(s, s->resolution, box, kept, &b, err);
+  int rc = estimate_kept(s, s->resolution, box, kept, &b, err);
   if (rc != BK_OK) return rc;
   uint64_t limit = budget_available(max_bytes);
   char need[32], have[32];

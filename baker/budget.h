@@ -77,26 +77,18 @@ double budget_shard_bytes(const scene_t *s);
 /* Bytes per voxel writing to out_path holds beyond the bake's (NanoVDB). */
 double budget_output_bytes(const scene_t *s, const char *out_path);
 
-/* The estimate for the scene's grid at `resolution` voxels along the
- * longest side. BK_ERR_INPUT when the grid itself is invalid. */
-int budget_estimate(const scene_t *s, int resolution, budget_t *b, bk_error_t *err);
-
 /* Bytes this process may still use: MemAvailable of /proc/meminfo, else
  * the physical memory; capped by max_bytes when it is > 0. */
 uint64_t budget_available(uint64_t max_bytes);
 
 /* Refuses (BK_ERR_INPUT) a bake whose estimated peak exceeds what is
  * available, naming the estimate, the limit and the largest resolution that
- * would fit. */
-int budget_check(const scene_t *s, uint64_t max_bytes, bk_error_t *err);
-/* The same for a batch of frames that keeps `kept` more bytes per voxel
- * from one frame to the next (baker/frame_reuse.h: the march's fields). */
-int budget_check_kept(const scene_t *s, uint64_t max_bytes, double kept, bk_error_t *err);
-/* budget_check_kept with the objects' world box given (vox_meshes_t.box,
- * when the caller has read the meshes already); NULL reads them for it
- * when the bake is cropped to them (scene_crops). */
-int budget_check_box(const scene_t *s, const float (*box)[3], uint64_t max_bytes, double kept,
-                     bk_error_t *err);
+ * would fit. `kept`: bytes per voxel a batch of frames keeps from one frame
+ * to the next (baker/frame_reuse.h: the march's fields). box: the objects'
+ * world box (vox_meshes_t.box) when the bake is cropped to them
+ * (scene_crops), else NULL. */
+int budget_check(const scene_t *s, const float (*box)[3], uint64_t max_bytes, double kept,
+                 bk_error_t *err);
 
 /* Parses a size for --max-memory: a number with an optional K, M, G or T
  * (powers of 1024, an optional "iB" or "B"). Returns 0 when invalid. */

@@ -168,10 +168,10 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
   int rc = crops ? vox_meshes_load(s, &meshes, err) : BK_OK;
   const float(*box)[3] = crops ? (const float(*)[3])meshes.box : NULL;
   if (!rc)
-    rc = budget_check_box(s, box, max_memory, (r->keep_fields ? kept : 0.0) + r->extra_bytes, err);
+    rc = budget_check(s, box, max_memory, (r->keep_fields ? kept : 0.0) + r->extra_bytes, err);
   bk_error_t without;
   if (rc == BK_ERR_INPUT && r->keep_fields &&
-      budget_check_box(s, box, max_memory, r->extra_bytes, &without) == BK_OK) {
+      budget_check(s, box, max_memory, r->extra_bytes, &without) == BK_OK) {
     /* an optimisation, not worth a refusal: each frame builds its own */
     bk_warn("%s: the march's fields are not kept from frame to frame: they would add %.0f "
             "bytes per voxel to a peak that then does not fit (%s)",

@@ -4,7 +4,6 @@
 
 #include <math.h>
 
-#include "mesh.h"
 #include "mesh_io.h"
 #include "voxelize.h"
 
@@ -35,23 +34,6 @@ void vox_mesh_bounds(const mesh_tris_t *m, float lo[3], float hi[3]) {
     lo[a] = fminf(lo[a], p);
     hi[a] = fmaxf(hi[a], p);
   }
-}
-
-int vox_objects_box(const scene_t *s, float lo[3], float hi[3], bk_error_t *err) {
-  for (int a = 0; a < 3; a++) {
-    lo[a] = INFINITY;
-    hi[a] = -INFINITY;
-  }
-  for (int oi = 0; oi < s->object_count; oi++) {
-    char buf[VOX_WHERE_MAX];
-    mesh_tris_t mesh = {0};
-    int rc = vox_read_mesh(&s->objects[oi], vox_object_where(s, oi, buf), &mesh, NULL, err);
-    if (rc) return rc;
-    mesh_transform(&mesh, &s->objects[oi]);
-    vox_mesh_bounds(&mesh, lo, hi);
-    mesh_io_free(&mesh);
-  }
-  return BK_OK;
 }
 
 int vox_grid_for(const scene_t *s, int resolution, const float box_lo[3], const float box_hi[3],

@@ -20,17 +20,11 @@ extern "C" {
 /* The grid a bake of `resolution` allocates (*out) and, when *cropped, where
  * its first voxel lies in the scene's grid (off) and that grid (*whole;
  * equal to *out otherwise). box_lo/box_hi: the objects' world box
- * (vox_objects_box), read only when scene_crops(s). BK_ERR_INPUT for bad
+ * (vox_meshes_load's), read only when scene_crops(s). BK_ERR_INPUT for bad
  * grid keys. */
 int vox_grid_for(const scene_t *s, int resolution, const float box_lo[3], const float box_hi[3],
                  grid_dims_t *whole, grid_dims_t *out, int off[3], int *cropped,
                  bk_error_t *err);
-
-/* The world box of every object's transformed mesh, for a memory budget
- * made without the meshes at hand (budget_estimate; the meshes are read
- * and freed). A bake reads them once with vox_meshes_load, whose box goes
- * to the budget and whose meshes to the voxelizer. */
-int vox_objects_box(const scene_t *s, float lo[3], float hi[3], bk_error_t *err);
 
 /* Grows [lo, hi] by the finite vertices of m. */
 void vox_mesh_bounds(const mesh_tris_t *m, float lo[3], float hi[3]);
