@@ -49,20 +49,24 @@ static int load_batch(bt_run_t *x, int id, uint64_t photons, pm_setup_t *run, bk
   if (x->o->shard_count && id < 0x40000000)
     pm_share_range(run->lights.photons, x->o->shard_index, x->o->shard_count, &first, &last);
   pm_set_range(run, first, last);
-  return 1;
+  return PM_BATCH_GO;
 }
 
-/* Twin batches: traced once with each integrator into a zeroed acc. */
+/* Twin batches: traced once with each integrator, each into zeroed sums;
+ * acc is zero again at the end. */
 static int twin_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_error_t *err) {
   bt_run_t *x = ctx;
   if (done > 0) {
     float *fine = x->fine + (size_t)(done - 1) * x->tr->count;
     if (x->twin_phase == 1) ee_read(x->tr, x->s, acc, fine);
     else if (ee_twin_add(x->tr, x->s, acc, fine, err)) return -1;
-    memset(acc, 0, pm_acc_count(x->s) * sizeof *acc);
   }
-  if (done == BT_TWIN_BATCHES) return 0;
-  return load_batch(x, 0x40000000 + done, x->photons, run, err);
+  if (done == BT_TWIN_BATCHES) {
+    memset(acc, 0, pm_acc_count(x->s) * sizeof *acc);
+    return 0;
+  }
+  int rc = load_batch(x, 0x40000000 + done, x->photons, run, err);
+  return rc > 0 && done > 0 ? PM_BATCH_GO_ZERO : rc;
 }
 
 /* A deterministic price of a twin run (measured time would make target
@@ -155,9 +159,13 @@ static int run_twin(clh_context_t *cl, bt_run_t *x, uint64_t *acc, bk_error_t *e
                               "error estimate: twin", err);
   if (!x->fine) return BK_ERR_RUNTIME;
   int rc = twin_truth(cl, x, acc, &ms_truth, err);
+  bk_log(2, "error estimate: twins with the truth's RK4 at %g voxel: %.0f ms",
+         (double)BT_TRUTH_STEP, ms_truth);
   if (!rc && x->target > 0.0) rc = choose_integrator(cl, x, acc, err);
-  else if (!rc)
+  else if (!rc) {
     rc = twin_with(cl, x, acc, x->s->params.integrator, x->s->params.step, &ms, err);
+    bk_log(2, "error estimate: twins with the bake's integrator: %.0f ms", ms);
+  }
   free(x->fine);
   x->fine = NULL;
   return rc;
@@ -201,7 +209,7 @@ static void show_progress(bt_run_t *x, int done) {
  * photons than many small ones (docs/error.md). The prediction uses only
  * the measured noise and counted photons; a prediction short of the target
  * is finished by more batches of the new size. Returns 1 when it restarts. */
-static int plan_batches(bt_run_t *x, uint64_t *acc) {
+static int plan_batches(bt_run_t *x) {
   x->planned = 1;
   const double E = x->target, room = E * E - x->terms.step * x->terms.step;
   if (!(room > 0.0) || !(x->terms.noise > 0.0)) return 0;
@@ -217,8 +225,7 @@ static int plan_batches(bt_run_t *x, uint64_t *acc) {
   if (n <= (double)x->photons) return 0;
   bk_log(2, "target error %g: pilot noise %.4f in %d batches of %llu; restarting with batches "
             "of %.0f", E, x->terms.noise, x->done, (unsigned long long)x->photons, n);
-  memset(acc, 0, pm_acc_count(x->s) * sizeof *acc);
-  ee_batches_reset(x->tr);
+  ee_batches_reset(x->tr); /* and the sums: main_next has them zeroed */
   if (x->grid) ee_batches_reset(x->grid);
   if (x->half) memset(x->half, 0, x->s->voxels * sizeof(float));
   x->pilot = x->done;
@@ -250,7 +257,7 @@ static int track_batch(bt_run_t *x, int done, uint64_t *acc) {
   track_half(x, done, acc);
   if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
   if (!x->planned && x->pilot_split && done >= BT_MIN_BATCHES && x->terms.estimate > x->target &&
-      plan_batches(x, acc))
+      plan_batches(x))
     done = 0;
   x->ms_track += bk_now_ms() - t;
   return done;
@@ -259,16 +266,21 @@ static int track_batch(bt_run_t *x, int done, uint64_t *acc) {
 /* pm_run_batches' callback; `all` counts the pilot batches too. */
 static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_error_t *err) {
   bt_run_t *x = ctx;
-  int done = x->done = all - x->pilot;
+  int done = x->done = all - x->pilot, restarted = 0;
   if (done > 0) {
     if (x->batches != 1) done = track_batch(x, done, acc); /* one batch has no spread */
+    restarted = done == 0; /* target mode's plan starts over */
     show_progress(x, done);
   }
-  if (!keep_going(x, done)) return 0;
+  if (!keep_going(x, done)) {
+    if (restarted) memset(acc, 0, pm_acc_count(x->s) * sizeof *acc); /* the result: none */
+    return 0;
+  }
   if (x->o->retable && x->o->retable(x->o->retable_ctx, done, x->tr, err)) return -1;
   uint64_t n = x->batches ? ph_batch_photons(x->photons, x->batches, done) : x->photons;
   x->traced += n;
-  return load_batch(x, x->first_id + all, n, run, err);
+  int rc = load_batch(x, x->first_id + all, n, run, err);
+  return rc > 0 && restarted ? PM_BATCH_GO_ZERO : rc;
 }
 
 /* The integrator needs no twin: no refraction (straight DDA, exact), or it

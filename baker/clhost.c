@@ -250,7 +250,10 @@ int clh_init(clh_context_t *cl, const char *device_spec, bk_error_t *err) {
   cl->device = e->device;
   snprintf(cl->platform_name, sizeof cl->platform_name, "%s", e->pname);
   snprintf(cl->device_name, sizeof cl->device_name, "%s", e->dname);
-  cl->is_cpu = (e->type & CL_DEVICE_TYPE_CPU) != 0;
+  /* BAKER_CL_DISCRETE=1: a CPU device's buffers handled as a GPU's (copies,
+   * read-backs), so that PoCL tests the path a GPU takes */
+  const char *discrete = getenv("BAKER_CL_DISCRETE");
+  cl->is_cpu = (e->type & CL_DEVICE_TYPE_CPU) != 0 && !(discrete && strcmp(discrete, "1") == 0);
   cl_device_fp_config fp = 0;
   if (clGetDeviceInfo(cl->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) == CL_SUCCESS)
     cl->exact_div_sqrt = (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) != 0;

@@ -371,6 +371,7 @@ static int run_host_batches(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stat
   for (int done = 0;; done++) {
     int go = next(ctx, done, acc, &run, err);
     if (go <= 0) return go < 0 ? err->code : BK_OK;
+    if (go == PM_BATCH_GO_ZERO) memset(acc, 0, pm_acc_count(s) * sizeof *acc);
     int rc = pm_run_host(&run, acc, stats, err);
     if (rc != BK_OK) return rc;
   }

@@ -207,14 +207,18 @@ int pm_run_cl(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t 
               bk_error_t *err);
 /* Batches (baker/batches.h): one march set up once, its photons traced in
  * batches. Before each batch the runner calls next(ctx, done, acc, run,
- * err) with `done` batches traced and acc holding their sums (readable and
- * writable by the host: the callback may read it or zero it); the callback
- * fills run->lights and run->params for the next batch and returns 1, or
- * returns 0 to stop (negative: an error, in err). run starts as a copy of s;
+ * err) with `done` batches traced and acc holding their sums (for the host
+ * to read, not to change); the callback fills run->lights and run->params
+ * for the next batch and returns PM_BATCH_GO, or PM_BATCH_GO_ZERO to have
+ * the runner zero the sums first (on a GPU, on the device: nothing crosses
+ * the bus), or returns 0 to stop, when it may also change acc (negative:
+ * an error, in err). run starts as a copy of s;
  * the callback may change the lights, photon_total and light_count, not the
  * kernel's specialisation (-D flags: integrator, refraction, channels, mode)
  * but may change params.step and, with sampling tables, the tables' contents
  * (not their number: one per light). */
+#define PM_BATCH_GO 1
+#define PM_BATCH_GO_ZERO 2
 typedef int (*pm_batch_fn)(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_error_t *err);
 int pm_run_batches(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats,
                    pm_batch_fn next, void *ctx, bk_error_t *err);

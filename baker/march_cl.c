@@ -256,8 +256,11 @@ done:
   return rc;
 }
 
-/* The host's view of acc around a batch callback: a map for reading and
- * writing on a CPU device, a read and a write back on a GPU. */
+/* The host's view of acc around a batch callback: a map on a CPU device.
+ * A GPU's copy is read after each batch (before the first it equals the
+ * host's, made from it) and zeroed on the device where the callback asks;
+ * a callback that stops may change the host's copy, which is then the
+ * result. */
 static int call_next(clh_context_t *cl, pm_cl_run_t *r, uint64_t *acc, int done, pm_setup_t *run,
                      pm_batch_fn next, void *ctx, int *go, bk_error_t *err) {
   cl_int cerr = CL_SUCCESS;
@@ -266,14 +269,20 @@ static int call_next(clh_context_t *cl, pm_cl_run_t *r, uint64_t *acc, int done,
     p = clEnqueueMapBuffer(cl->queue, r->acc, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, r->acc_bytes,
                            0, NULL, NULL, &cerr);
     CLH_CHECK(cerr, err, error);
-  } else {
+  } else if (done > 0) {
     CLH_CHECK(clEnqueueReadBuffer(cl->queue, r->acc, CL_TRUE, 0, r->acc_bytes, acc, 0, NULL, NULL),
               err, error);
   }
   *go = next(ctx, done, acc, run, err);
-  if (cl->is_cpu) CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, r->acc, p, 0, NULL, NULL), err, error);
-  else CLH_CHECK(clEnqueueWriteBuffer(cl->queue, r->acc, CL_TRUE, 0, r->acc_bytes, acc, 0, NULL, NULL),
-                 err, error);
+  if (cl->is_cpu) {
+    if (*go == PM_BATCH_GO_ZERO) memset(p, 0, r->acc_bytes);
+    CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, r->acc, p, 0, NULL, NULL), err, error);
+  } else if (*go == PM_BATCH_GO_ZERO) {
+    const cl_ulong zero = 0;
+    CLH_CHECK(clEnqueueFillBuffer(cl->queue, r->acc, &zero, sizeof zero, 0, r->acc_bytes, 0, NULL,
+                                  NULL),
+              err, error);
+  }
   return *go < 0 ? err->code : BK_OK;
 error:
   return BK_ERR_RUNTIME;
