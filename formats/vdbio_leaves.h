@@ -16,7 +16,10 @@
  * A leaf may also come without values (made with PartialCreate: its value
  * mask only, the buffer never allocated): the tree's `values` function then
  * gives them, into a scratch leaf per run, as the leaf is written, so a
- * grid's values exist twice only a window at a time (vdbio_write.cpp). */
+ * grid's values exist twice only a window at a time (vdbio_write.cpp).
+ * A tree's `window` function may give a whole window's values at once
+ * (cheaper where it can read the grid in long rows); where it declines,
+ * `values` gives them leaf by leaf. */
 #ifndef BAKER_VDBIO_LEAVES_H
 #define BAKER_VDBIO_LEAVES_H
 
@@ -38,10 +41,28 @@ static const size_t VDBIO_WRITE_RUN = 64;      /* leaves per buffer */
  * made from its mask and values(leaf, scratch). */
 template <typename LeafT>
 using vdbio_leaf_values = std::function<void(const LeafT &leaf, LeafT &scratch)>;
+/* The values of leaves[0..n) into out, LeafT::SIZE per leaf in leaf order
+ * (inactive voxels: anything); false: not given, ask `values` per leaf. */
+template <typename LeafT>
+using vdbio_window_values =
+    std::function<bool(const LeafT *const *leaves, size_t n, typename LeafT::ValueType *out)>;
+
+/* `leaf`'s mask into scratch, with values[] where it is on, zero elsewhere. */
+template <typename LeafT>
+static void vdbio_masked_copy(const LeafT &leaf, const typename LeafT::ValueType *values,
+                              LeafT &scratch) {
+  using ValueT = typename LeafT::ValueType;
+  const typename LeafT::NodeMaskType &mask = leaf.getValueMask();
+  scratch.setValueMask(mask);
+  ValueT *buf = scratch.buffer().data();
+  for (openvdb::Index n = 0; n < LeafT::SIZE; n++)
+    buf[n] = mask.isOn(n) ? values[n] : openvdb::zeroVal<ValueT>();
+}
 
 template <typename TreeT>
 void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
-                        const vdbio_leaf_values<typename TreeT::LeafNodeType> &values = nullptr) {
+                        const vdbio_leaf_values<typename TreeT::LeafNodeType> &values = nullptr,
+                        const vdbio_window_values<typename TreeT::LeafNodeType> &window = nullptr) {
   using LeafT = typename TreeT::LeafNodeType;
   std::vector<const LeafT *> leaves;
   leaves.reserve(tree.leafCount());
@@ -50,9 +71,17 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
   const void *background = openvdb::io::getGridBackgroundValuePtr(os);
   /* the runs of window w, compressed on every core into runs[w % 2] */
   std::vector<std::string> runs[2];
+  /* the window's values, where `window` gives them (one window is
+   * compressed at a time) */
+  std::vector<typename LeafT::ValueType> given;
   auto compress = [&](size_t w) {
     const size_t end = std::min(leaves.size(), w + VDBIO_WRITE_WINDOW);
     std::vector<std::string> &out = runs[(w / VDBIO_WRITE_WINDOW) % 2];
+    bool whole = false;
+    if (values && window) {
+      given.resize((end - w) * LeafT::SIZE);
+      whole = window(leaves.data() + w, end - w, given.data());
+    }
     out.assign((end - w + VDBIO_WRITE_RUN - 1) / VDBIO_WRITE_RUN, std::string());
     tbb::parallel_for(size_t(0), out.size(), [&](size_t r) {
       std::ostringstream run(std::ios_base::out | std::ios_base::binary);
@@ -66,7 +95,8 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
           continue;
         }
         if (!scratch) scratch.reset(new LeafT(leaves[i]->origin()));
-        values(*leaves[i], *scratch);
+        if (whole) vdbio_masked_copy(*leaves[i], given.data() + (i - w) * LeafT::SIZE, *scratch);
+        else values(*leaves[i], *scratch);
         scratch->writeBuffers(run, to_half);
       }
       out[r] = run.str();
@@ -90,10 +120,11 @@ template <typename TreeT> class vdbio_parallel_tree : public TreeT {
 public:
   explicit vdbio_parallel_tree(const typename TreeT::ValueType &background) : TreeT(background) {}
   void writeBuffers(std::ostream &os, bool to_half) const override {
-    vdbio_write_leaves(static_cast<const TreeT &>(*this), os, to_half, values);
+    vdbio_write_leaves(static_cast<const TreeT &>(*this), os, to_half, values, window);
   }
   /* the values of leaves made without them (set before the tree is written) */
   vdbio_leaf_values<typename TreeT::LeafNodeType> values;
+  vdbio_window_values<typename TreeT::LeafNodeType> window;
 };
 
 #endif

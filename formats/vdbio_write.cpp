@@ -172,6 +172,61 @@ static void vdbio_leaf_fill(const grid_dims_t &d, const vdbio_grid_t &g, const L
     }
 }
 
+/* A window of deferred leaves' values (vdbio_window_values), read across
+ * the box of their 8^3 cells in whole rows: a leaf alone takes 64 rows of 8
+ * voxels, each a cache line and often a page of its own, whereas a row of
+ * the box serves up to 8 leaves of the window at once. Declined (false)
+ * where the leaves fill less than half their box. */
+template <typename LeafT>
+static bool vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
+                              const LeafT *const *leaves, size_t n,
+                              typename LeafT::ValueType *out) {
+  using ValueT = typename LeafT::ValueType;
+  const int C = sizeof(ValueT) / sizeof(float), D = (int)LeafT::DIM;
+  vdb::Coord lo = leaves[0]->origin(), hi = lo;
+  for (size_t i = 1; i < n; i++) {
+    lo.minComponent(leaves[i]->origin());
+    hi.maxComponent(leaves[i]->origin());
+  }
+  const int cx = (hi[0] - lo[0]) / D + 1, cy = (hi[1] - lo[1]) / D + 1,
+            cz = (hi[2] - lo[2]) / D + 1;
+  if ((size_t)cx * (size_t)cy * (size_t)cz > 2 * n) return false;
+  std::vector<int> slot((size_t)cx * (size_t)cy * (size_t)cz, -1); /* cell -> leaf */
+  auto cell = [&](int kx, int ky, int kz) {
+    return (size_t)kx + (size_t)cx * ((size_t)ky + (size_t)cy * (size_t)kz);
+  };
+  for (size_t i = 0; i < n; i++) {
+    const vdb::Coord o = leaves[i]->origin() - lo;
+    slot[cell(o[0] / D, o[1] / D, o[2] / D)] = (int)i;
+  }
+  const int x0 = lo[0], x1 = std::min(hi[0] + D, d.nx), y1 = std::min(hi[1] + D, d.ny);
+  /* a layer of cells along z per task: its leaves are that task's alone */
+  tbb::parallel_for(0, cz, [&](int kz) {
+    std::vector<float> made(g.data ? 0 : (size_t)C * (size_t)(x1 - x0));
+    const int z1 = std::min(lo[2] + D * (kz + 1), d.nz);
+    for (int z = lo[2] + D * kz; z < z1; z++)
+      for (int y = lo[1]; y < y1; y++) {
+        const int ky = (y - lo[1]) / D;
+        bool any = false;
+        for (int kx = 0; kx < cx && !any; kx++) any = slot[cell(kx, ky, kz)] >= 0;
+        if (!any) continue;
+        const size_t at = grid_index(&d, x0, y, z);
+        const float *r = g.data ? g.data + (size_t)C * at : made.data();
+        if (!g.data) g.fill(g.fill_ctx, at, at + (size_t)(x1 - x0), made.data());
+        for (int kx = 0; kx < cx; kx++) {
+          const int s = slot[cell(kx, ky, kz)];
+          if (s < 0) continue;
+          ValueT *leaf = out + (size_t)s * LeafT::SIZE;
+          const int xa = x0 + D * kx, xb = std::min(xa + D, x1);
+          for (int x = xa; x < xb; x++)
+            leaf[LeafT::coordToOffset(vdb::Coord(x, y, z))] =
+                *reinterpret_cast<const ValueT *>(r + (size_t)C * (size_t)(x - x0));
+        }
+      }
+  });
+  return true;
+}
+
 const float *vdbio_slices(const grid_dims_t *d, const vdbio_grid_t &g, int z0, int nz,
                           std::vector<float> &buf) {
   const size_t C = g.type == VDBIO_VEC3 ? 3 : 1, plane = (size_t)d->nx * (size_t)d->ny;
@@ -209,6 +264,9 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
   if (deferred) {
     const grid_dims_t dims = *d;
     tree->values = [dims, g](const LeafT &leaf, LeafT &s) { vdbio_leaf_fill(dims, g, leaf, s); };
+    tree->window = [dims, g](const LeafT *const *leaves, size_t n, ValueT *out) {
+      return vdbio_window_fill(dims, g, leaves, n, out);
+    };
   }
   vdb::tree::ValueAccessor<TreeT> acc(grid->tree());
   for (int bz = 0; bz < lz; bz++) {
