@@ -181,8 +181,8 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
   }
   if (!rc && cl_device && !s->density_vdb.present && !s->ior_vdb.present)
     fr_opencl_begin(r, cl_device, s->frame);
-  if (!rc) rc = crops ? vox_build_meshes(s, &meshes, &r->volume, t, err)
-                      : vox_build(s, &r->volume, t, err);
+  if (!rc && !crops) rc = vox_meshes_load(s, &meshes, err); /* the budget needed none */
+  if (!rc) rc = vox_build_meshes(s, &meshes, &r->volume, t, err);
   vox_meshes_free(&meshes);
   if (rc) return rc;
   r->volume.key = key;
