@@ -173,10 +173,14 @@ static void vdbio_leaf_fill(const grid_dims_t &d, const vdbio_grid_t &g, const L
 }
 
 /* A window of deferred leaves' values (vdbio_window_values), read across
- * the box of their 8^3 cells in whole rows: a leaf alone takes 64 rows of 8
- * voxels, each a cache line and often a page of its own, whereas a row of
- * the box serves up to 8 leaves of the window at once. Declined (false)
- * where the leaves fill less than half their box. */
+ * the box of their 8^3 cells in rows: a leaf alone takes 64 rows of 8
+ * voxels, each a cache line and often a page of its own, whereas one row
+ * made across a run of neighbouring leaves serves them all at once. Each
+ * row of cells is made only over its runs of leaves, so a sparse window
+ * costs its leaves, not its box. Declined (false) where the box has over
+ * VDBIO_WINDOW_SPREAD cells per leaf (leaves scattered far apart). */
+static const size_t VDBIO_WINDOW_SPREAD = 16;
+
 template <typename LeafT>
 static bool vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
                               const LeafT *const *leaves, size_t n,
@@ -190,7 +194,7 @@ static bool vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
   }
   const int cx = (hi[0] - lo[0]) / D + 1, cy = (hi[1] - lo[1]) / D + 1,
             cz = (hi[2] - lo[2]) / D + 1;
-  if ((size_t)cx * (size_t)cy * (size_t)cz > 2 * n) return false;
+  if ((size_t)cx * (size_t)cy * (size_t)cz > VDBIO_WINDOW_SPREAD * n) return false;
   std::vector<int> slot((size_t)cx * (size_t)cy * (size_t)cz, -1); /* cell -> leaf */
   auto cell = [&](int kx, int ky, int kz) {
     return (size_t)kx + (size_t)cx * ((size_t)ky + (size_t)cy * (size_t)kz);
@@ -207,20 +211,24 @@ static bool vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
     for (int z = lo[2] + D * kz; z < z1; z++)
       for (int y = lo[1]; y < y1; y++) {
         const int ky = (y - lo[1]) / D;
-        bool any = false;
-        for (int kx = 0; kx < cx && !any; kx++) any = slot[cell(kx, ky, kz)] >= 0;
-        if (!any) continue;
-        const size_t at = grid_index(&d, x0, y, z);
-        const float *r = g.data ? g.data + (size_t)C * at : made.data();
-        if (!g.data) g.fill(g.fill_ctx, at, at + (size_t)(x1 - x0), made.data());
-        for (int kx = 0; kx < cx; kx++) {
-          const int s = slot[cell(kx, ky, kz)];
-          if (s < 0) continue;
-          ValueT *leaf = out + (size_t)s * LeafT::SIZE;
-          const int xa = x0 + D * kx, xb = std::min(xa + D, x1);
-          for (int x = xa; x < xb; x++)
-            leaf[LeafT::coordToOffset(vdb::Coord(x, y, z))] =
-                *reinterpret_cast<const ValueT *>(r + (size_t)C * (size_t)(x - x0));
+        for (int ka = 0, kb; ka < cx; ka = kb) { /* the runs [ka, kb) of leaves */
+          if (slot[cell(ka, ky, kz)] < 0) {
+            kb = ka + 1;
+            continue;
+          }
+          for (kb = ka + 1; kb < cx && slot[cell(kb, ky, kz)] >= 0;) kb++;
+          const int xa = x0 + D * ka, xb = std::min(x0 + D * kb, x1);
+          const size_t at = grid_index(&d, xa, y, z);
+          const float *r = g.data ? g.data + (size_t)C * at : made.data();
+          if (!g.data) g.fill(g.fill_ctx, at, at + (size_t)(xb - xa), made.data());
+          const vdb::Index row = LeafT::coordToOffset(vdb::Coord(0, y, z)); /* x = 0 */
+          for (int k = ka; k < kb; k++) {
+            ValueT *leaf = out + (size_t)slot[cell(k, ky, kz)] * LeafT::SIZE + row;
+            const int xl = x0 + D * k, xh = std::min(xl + D, x1);
+            for (int x = xl; x < xh; x++)
+              leaf[LeafT::coordToOffset(vdb::Coord(x - xl, 0, 0))] =
+                  *reinterpret_cast<const ValueT *>(r + (size_t)C * (size_t)(x - xa));
+          }
         }
       }
   });
