@@ -3,6 +3,7 @@
  * hashes the dense arrays it stores, the checker the values it reads back
  * over the same box, through the one function below. */
 #include "vdbio_internal.h"
+#include "vdbio_hash.h"
 
 #include <openvdb/tools/Dense.h>
 #include <tbb/parallel_for.h>
@@ -21,117 +22,12 @@
 
 namespace vdb = openvdb;
 
-static const uint64_t CK_OFFSET = 14695981039346656037ull, CK_PRIME = 1099511628211ull;
-static const uint32_t CK_OFFSET32 = 2166136261u, CK_PRIME32 = 16777619u;
 /* The metadata key of a grid's checksum under each rule (vdbio.h): the
  * eight-lane rule this baker writes, and the serial one of older files. An
  * older baker finds no key of its own in a newer file and reports the grids
  * unchecked, not corrupt. */
 static std::string ck_key(const std::string &grid, bool lanes) {
   return (lanes ? "checksum_v2_" : "checksum_") + grid;
-}
-
-/* One value's bits under the rules of vdbio.h. */
-static inline uint32_t ck_bits(float v, bool half) {
-  if (half) v = static_cast<float>(vdb::math::half(v));
-  if (v == 0.0f) v = 0.0f; /* -0 -> +0 */
-  uint32_t u;
-  std::memcpy(&u, &v, sizeof u);
-  return u;
-}
-
-/* The lane rule's word: the bits, or 0 for +-0 and NaN (a voxel of such
- * values is stored as inactive background and reads back as 0). */
-static inline uint32_t ck_word(uint32_t u) {
-  return (u & 0x7fffffffu) - 1u < 0x7f800000u ? u : 0u;
-}
-
-/* A grid's hash under either rule (vdbio.h), fed its values in box order. */
-class ck_hasher {
-public:
-  explicit ck_hasher(bool lanes) : lanes_(lanes) {
-    for (int j = 0; j < 8; j++) lane_[j] = CK_OFFSET32;
-  }
-
-  void add(const float *data, size_t voxels, int ch, bool half) {
-    if (!lanes_) {
-      serial_ = serial(data, voxels, ch, half, serial_);
-      return;
-    }
-    const size_t words = voxels * (size_t)ch;
-    size_t i = 0;
-    auto one = [&](size_t k) {
-      uint32_t u;
-      std::memcpy(&u, data + k, sizeof u);
-      if (half) u = ck_bits(data[k], true);
-      lane_[pos_] = (lane_[pos_] ^ ck_word(u)) * CK_PRIME32;
-      pos_ = (pos_ + 1) & 7;
-    };
-    while (i < words && pos_ != 0) one(i++);
-    if (!half) i = lanes8(data, i, words);
-    while (i < words) one(i++);
-  }
-
-  /* The grid's background (its value outside the box, the same in every
-   * channel when written) ends the hash, so that a changed background is a
-   * changed checksum. */
-  uint64_t finish(const float *bg, int ch) const {
-    uint64_t h = lanes_ ? CK_OFFSET : serial_;
-    for (int j = 0; lanes_ && j < 8; j++) h = (h ^ lane_[j]) * CK_PRIME;
-    for (int c = 0; c < ch; c++) h = (h ^ ck_bits(bg[c], false)) * CK_PRIME;
-    return h;
-  }
-
-private:
-  /* the legacy rule: FNV-1a over 32-bit words, one chain */
-  static uint64_t serial(const float *data, size_t voxels, int ch, bool half, uint64_t h) {
-    for (size_t i = 0; i < voxels; i++) {
-      const float *v = data + i * (size_t)ch;
-      bool background = true; /* copyFromDense's test at tolerance 0 */
-      for (int c = 0; c < ch; c++) background = background && !(std::fabs(v[c]) > 0.0f);
-      for (int c = 0; c < ch; c++) {
-        h ^= background ? 0u : ck_bits(v[c], half);
-        h *= CK_PRIME;
-      }
-    }
-    return h;
-  }
-
-  /* Words [i, words) eight at a time from lane 0 (GCC/Clang vectors: the
-   * eight chains are independent, so this runs at memory speed); returns
-   * where it stopped. */
-  size_t lanes8(const float *data, size_t i, size_t words) {
-    typedef uint32_t v4 __attribute__((vector_size(16)));
-    v4 a, b;
-    std::memcpy(&a, lane_, sizeof a);
-    std::memcpy(&b, lane_ + 4, sizeof b);
-    const v4 sign = {0x7fffffffu, 0x7fffffffu, 0x7fffffffu, 0x7fffffffu};
-    const v4 inf = {0x7f800000u, 0x7f800000u, 0x7f800000u, 0x7f800000u};
-    const v4 one = {1u, 1u, 1u, 1u};
-    for (; i + 8 <= words; i += 8) {
-      v4 x, y;
-      std::memcpy(&x, data + i, sizeof x);
-      std::memcpy(&y, data + i + 4, sizeof y);
-      x &= (v4)((x & sign) - one < inf); /* ck_word: -1 where kept */
-      y &= (v4)((y & sign) - one < inf);
-      a = (a ^ x) * CK_PRIME32;
-      b = (b ^ y) * CK_PRIME32;
-    }
-    std::memcpy(lane_, &a, sizeof a);
-    std::memcpy(lane_ + 4, &b, sizeof b);
-    return i;
-  }
-
-  bool lanes_;
-  uint64_t serial_ = CK_OFFSET;
-  uint32_t lane_[8];
-  unsigned pos_ = 0; /* the lane of the next word */
-};
-
-static std::string ck_hex(uint64_t h) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%016" PRIx64, h);
-  return buf;
 }
 
 std::string vdbio_checksum_placeholder(uint64_t key, int g) {
@@ -156,44 +52,6 @@ void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t
   for (int g = 0; g < count; g++)
     file_meta.insertMeta(ck_key(grids[g].name, true),
                          vdb::StringMetadata(vdbio_checksum_placeholder(key, g)));
-}
-
-void vdbio_hash_progress::done(int g) {
-  std::lock_guard<std::mutex> hold(lock);
-  if (g < 0) failed = true;
-  else hashed[(size_t)g] = 1;
-  changed.notify_all();
-}
-
-void vdbio_hash_progress::wait_for(int g) {
-  std::unique_lock<std::mutex> hold(lock);
-  changed.wait(hold, [&] { return failed || hashed[(size_t)g]; });
-}
-
-std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
-                                         int count, bool half, vdbio_hash_progress *progress) {
-  /* one hash per grid, a z slice at a time (a grid made by its fill is
-   * one slice here), the grids side by side */
-  std::vector<std::string> hex((size_t)count);
-  const size_t plane = (size_t)dims->nx * (size_t)dims->ny;
-  auto hash = [&](int g) {
-    const int ch = grids[g].type == VDBIO_VEC3 ? 3 : 1;
-    const float bg[3] = {grids[g].background, grids[g].background, grids[g].background};
-    std::vector<float> buf;
-    ck_hasher hg(true);
-    for (int z = 0; z < dims->nz; z++) hg.add(vdbio_slices(dims, grids[g], z, 1, buf), plane, ch, half);
-    hex[(size_t)g] = ck_hex(hg.finish(bg, ch));
-  };
-  try {
-    tbb::parallel_for(0, count, [&](int g) {
-      hash(g);
-      if (progress) progress->done(g);
-    });
-  } catch (...) {
-    if (progress) progress->done(-1); /* no writer waits for what will not come; get() throws */
-    throw;
-  }
-  return hex;
 }
 
 /* --- checking ---------------------------------------------------------------- */

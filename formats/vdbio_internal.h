@@ -7,9 +7,7 @@
 
 #include <openvdb/openvdb.h>
 
-#include <condition_variable>
 #include <functional>
-#include <mutex>
 #include <string>
 #include <vector>
 
@@ -63,30 +61,16 @@ int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
 const float *vdbio_slices(const grid_dims_t *dims, const vdbio_grid_t &grid, int z0, int nz,
                           std::vector<float> &buf);
 
-/* The file's checksums (vdbio_checksum.cpp; the rule is in vdbio.h),
- * taken while the grids are written: checksum_box and checksum_<grid> for
- * every grid, each grid's holding vdbio_checksum_placeholder(key, g), 16
- * characters like the hex that replaces it in the file once
- * vdbio_checksums has it; key (vdbio_checksum_key) is drawn per file, so
- * that no other metadata holds the same text. `half`: the values are
- * stored as 16-bit floats, so the checksum covers the rounded values. */
+/* The file's checksums (the rule is in vdbio.h): checksum_box and
+ * checksum_<grid> for every grid, each grid's holding
+ * vdbio_checksum_placeholder(key, g), 16 characters like the hex that
+ * replaces it once the grid is written (the writer hashes each grid as it
+ * builds its tree, vdbio_hash.h); key (vdbio_checksum_key) is drawn per
+ * file, so that no other metadata holds the same text. */
 void vdbio_add_checksum_placeholders(const grid_dims_t *dims, const vdbio_grid_t *grids,
                                      int grid_count, uint64_t key, openvdb::MetaMap &file_meta);
 std::string vdbio_checksum_placeholder(uint64_t key, int g);
 uint64_t vdbio_checksum_key(void);
-/* `progress` (optional): progress->done(g) is called as each grid's hash
- * is taken, in any order. */
-struct vdbio_hash_progress {
-  std::mutex lock;
-  std::condition_variable changed;
-  std::vector<char> hashed; /* per grid; sized before the hashing starts */
-  bool failed = false;      /* the hashing threw: nobody waits for more */
-  void done(int g);
-  void wait_for(int g); /* until grid g is hashed (or the hashing failed) */
-};
-std::vector<std::string> vdbio_checksums(const grid_dims_t *dims, const vdbio_grid_t *grids,
-                                         int grid_count, bool half,
-                                         vdbio_hash_progress *progress);
 
 /* Whether `box` is the box the file's checksums were taken over. */
 bool vdbio_is_checksum_box(const openvdb::MetaMap *meta, const openvdb::CoordBBox &box);

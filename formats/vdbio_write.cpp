@@ -4,6 +4,7 @@
  * bk_error_t; the file is written under a temporary name and renamed, so a
  * failed write never leaves a half file where the output should be. */
 #include "vdbio_internal.h"
+#include "vdbio_hash.h"
 #include "fdstream.h"
 #include "vdbio_leaves.h"
 
@@ -13,13 +14,13 @@
 #include <openvdb/tools/Prune.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <future>
 #include <new>
 #include <sstream>
 #include <stdexcept>
@@ -253,10 +254,13 @@ const float *vdbio_slices(const grid_dims_t *d, const vdbio_grid_t &g, int z0, i
  * `deferred` the leaves hold their masks only and their values are read
  * again as each is written (vdbio_leaves.h): the tree then costs its masks,
  * not a copy of the grid's values; *deferred_bytes: the values' bytes the
- * leaves would hold (the file's file_mem_bytes counts them). */
+ * leaves would hold (the file's file_mem_bytes counts them). `hash`
+ * (optional) is fed every slab in box order, beside the slab's blocks, so
+ * the checksum needs no pass of its own over values made on the fly. */
 template <typename GridT>
 static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_grid_t &g,
-                                            bool deferred, size_t *deferred_bytes) {
+                                            bool deferred, size_t *deferred_bytes,
+                                            ck_hasher *hash, bool half) {
   using ValueT = typename GridT::ValueType;
   using TreeT = typename GridT::TreeType;
   using LeafT = typename TreeT::LeafNodeType;
@@ -279,7 +283,13 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
   vdb::tree::ValueAccessor<TreeT> acc(grid->tree());
   for (int bz = 0; bz < lz; bz++) {
     const int z0 = D * bz;
-    const float *slab = vdbio_slices(d, g, z0, std::min(D, d->nz - z0), buf);
+    const int nzs = std::min(D, d->nz - z0);
+    const float *slab = vdbio_slices(d, g, z0, nzs, buf);
+    tbb::task_group hashing;
+    if (hash)
+      hashing.run([&] {
+        hash->add(slab, (size_t)d->nx * (size_t)d->ny * (size_t)nzs, (int)(sizeof(ValueT) / sizeof(float)), half);
+      });
     auto origin = [&](size_t b) { return vdb::Coord(D * (int)(b % lx), D * (int)(b / lx), z0); };
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks),
                       [&](const tbb::blocked_range<size_t> &r) {
@@ -294,6 +304,7 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
       else if (out[b].tile_on)
         acc.addTile(1, origin(b), out[b].tile, true);
     }
+    hashing.wait(); /* before the next slab reuses buf */
   }
   /* pruning looks at leaves' masks, never at their values: the internal
    * nodes above leaves are never constant */
@@ -340,14 +351,16 @@ static int vdbio_check_write_args(const char *path, const grid_dims_t *dims,
  * class and vector_type invariant. Throws what OpenVDB throws (the caller
  * catches). */
 static vdb::GridBase::Ptr vdbio_make_grid(const grid_dims_t *dims, const vdbio_grid_t &g,
-                                          bool half, bool deferred, size_t *deferred_bytes) {
+                                          bool half, bool deferred, size_t *deferred_bytes,
+                                          ck_hasher *hash) {
   vdb::GridBase::Ptr base;
   deferred = deferred && g.background == 0.0f; /* changeBackground needs the values */
   if (g.type == VDBIO_FLOAT) {
-    base = vdbio_from_dense<vdb::FloatGrid>(dims, g, deferred, deferred_bytes);
+    base = vdbio_from_dense<vdb::FloatGrid>(dims, g, deferred, deferred_bytes, hash, half);
     base->setGridClass(vdb::GRID_FOG_VOLUME);
   } else {
-    vdb::Vec3SGrid::Ptr v = vdbio_from_dense<vdb::Vec3SGrid>(dims, g, deferred, deferred_bytes);
+    vdb::Vec3SGrid::Ptr v =
+        vdbio_from_dense<vdb::Vec3SGrid>(dims, g, deferred, deferred_bytes, hash, half);
     /* unset means the OpenVDB default, which is also invariant; set it
      * explicitly so readers (Houdini) see the metadata */
     if (g.vector_invariant)
@@ -401,17 +414,14 @@ static int vdbio_file_meta(const char *path, const grid_dims_t *d, const vdbio_m
 class vdbio_checked_archive : public vdb::io::Archive {
 public:
   /* key: the checksum placeholders' (vdbio_add_checksum_placeholders);
-   * tell: the caller's grid_done, once each grid's checksum is in
-   * progress too */
-  vdbio_checked_archive(uint64_t key, const vdbio_write_opts_t *tell, vdbio_hash_progress *progress)
-      : key_(key), tell_(tell), progress_(progress) {}
+   * tell: the caller's grid_done, called as each grid is in the file */
+  vdbio_checked_archive(uint64_t key, const vdbio_write_opts_t *tell) : key_(key), tell_(tell) {}
   /* 0, or the errno of the first failed write or close. */
   int write_file(const char *tmp, const grid_dims_t *dims, const vdbio_grid_t *grids, int count,
-                 bool half, const vdb::MetaMap &meta,
-                 std::future<std::vector<std::string>> &checksums) const {
+                 bool half, const vdb::MetaMap &meta) const {
     bk_fd_streambuf sb(tmp);
     std::ostream os(&sb);
-    if (!sb.error()) write_grids(os, dims, grids, count, half, meta, checksums);
+    if (!sb.error()) write_grids(os, dims, grids, count, half, meta);
     os.flush();
     int e = sb.close_file();
     return e ? e : (os.fail() ? EIO : 0);
@@ -466,10 +476,11 @@ private:
    * tree built just before it is written and freed after: one tree at a
    * time instead of all of them. The names are unique and not empty
    * (vdbio_check_write_args) and no two grids share a tree, so the
-   * descriptors need neither suffixes nor instancing. */
+   * descriptors need neither suffixes nor instancing. Each grid is hashed
+   * as its tree is built; the checksums go over their placeholders at the
+   * end. */
   void write_grids(std::ostream &os, const grid_dims_t *dims, const vdbio_grid_t *grids,
-                   int count, bool half, const vdb::MetaMap &meta,
-                   std::future<std::vector<std::string>> &checksums) const {
+                   int count, bool half, const vdb::MetaMap &meta) const {
     vdb::io::StreamMetadata::Ptr sm = vdb::io::getStreamMetadataPtr(os);
     if (!sm) {
       sm.reset(new vdb::io::StreamMetadata);
@@ -485,10 +496,14 @@ private:
     os.write(file_meta.data(), (std::streamsize)file_meta.size());
     const int32_t n = count;
     os.write(reinterpret_cast<const char *>(&n), sizeof n);
+    std::vector<std::string> hex((size_t)count);
     for (int g = 0; g < count; g++) {
       double t = bk_now_ms();
       size_t deferred_bytes;
-      vdb::GridBase::Ptr grid = vdbio_make_grid(dims, grids[g], half, true, &deferred_bytes);
+      ck_hasher hash(true);
+      vdb::GridBase::Ptr grid = vdbio_make_grid(dims, grids[g], half, true, &deferred_bytes, &hash);
+      const float bg[3] = {grids[g].background, grids[g].background, grids[g].background};
+      hex[(size_t)g] = ck_hex(hash.finish(bg, grids[g].type == VDBIO_VEC3 ? 3 : 1));
       vdb::io::GridDescriptor gd(grid->getName(), grid->type(), grid->saveFloatAsHalf());
       write_grid(gd, grid, deferred_bytes, os, sm);
       /* per-grid compression options (mask compression) reset, as Archive::write does */
@@ -497,23 +512,16 @@ private:
       grid.reset();
       if (tell_) {
         t = bk_now_ms();
-        progress_->wait_for(g);
-        const double waited = bk_now_ms() - t;
         tell_->grid_done(tell_->grid_done_ctx, g);
-        bk_log(2, "write: grid %s done: %.0f ms for its checksum, %.0f ms to release", grids[g].name,
-               waited, bk_now_ms() - t - waited);
+        bk_log(2, "write: grid %s released in %.0f ms", grids[g].name, bk_now_ms() - t);
       }
     }
-    put_checksums(os, meta_at, file_meta, checksums, count);
+    put_checksums(os, meta_at, file_meta, hex, count);
   }
 
-  /* Each grid's checksum over its placeholder in the file metadata, once
-   * the hashing that ran beside the grids' writing has it. */
+  /* Each grid's checksum over its placeholder in the file metadata. */
   void put_checksums(std::ostream &os, std::streampos meta_at, const std::string &file_meta,
-                     std::future<std::vector<std::string>> &checksums, int count) const {
-    double t = bk_now_ms();
-    const std::vector<std::string> hex = checksums.get();
-    bk_log(2, "write: waited %.0f ms for the checksums", bk_now_ms() - t);
+                     const std::vector<std::string> &hex, int count) const {
     for (int g = 0; g < count; g++) {
       const std::string mark = vdbio_checksum_placeholder(key_, g);
       const size_t at = file_meta.find(mark);
@@ -528,7 +536,6 @@ private:
 
   uint64_t key_;
   const vdbio_write_opts_t *tell_;
-  vdbio_hash_progress *progress_;
 };
 
 /* Zip by default; Blosc only where this OpenVDB was built with it. */
@@ -570,26 +577,17 @@ int vdbio_write(const char *path, const grid_dims_t *dims, const vdbio_grid_t *g
       size_t unused; /* NanoVDB converts whole trees: every leaf holds its values */
       nvdbio_write(
           tmp, names,
-          [&](int g) { return vdbio_make_grid(dims, grids[g], half, false, &unused); },
+          [&](int g) { return vdbio_make_grid(dims, grids[g], half, false, &unused, nullptr); },
           [&](int g) { /* in the file */
             if (opts && opts->grid_done) opts->grid_done(opts->grid_done_ctx, g);
           });
     } else {
-      /* the checksums (a serial hash per grid) are taken beside the
-       * grids' writing and put in place after them; the future's
-       * destructor waits for them on every way out */
       double t_file = bk_now_ms();
-      vdbio_hash_progress progress;
-      progress.hashed.assign((size_t)grid_count, 0);
-      const bool tell = opts && opts->grid_done;
-      std::future<std::vector<std::string>> checksums = std::async(std::launch::async, [&] {
-        return vdbio_checksums(dims, grids, grid_count, half, tell ? &progress : nullptr);
-      });
       const uint64_t key = vdbio_checksum_key();
       vdbio_add_checksum_placeholders(dims, grids, grid_count, key, file_meta);
-      vdbio_checked_archive archive(key, tell ? opts : nullptr, &progress);
+      vdbio_checked_archive archive(key, opts && opts->grid_done ? opts : nullptr);
       archive.setCompression(vdbio_compression(path, opts));
-      if (int e = archive.write_file(tmp, dims, grids, grid_count, half, file_meta, checksums)) {
+      if (int e = archive.write_file(tmp, dims, grids, grid_count, half, file_meta)) {
         remove(tmp);
         return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot write %s: %s", path, tmp, strerror(e));
       }
