@@ -286,10 +286,9 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
     const int nzs = std::min(D, d->nz - z0);
     const float *slab = vdbio_slices(d, g, z0, nzs, buf);
     tbb::task_group hashing;
+    const int C = (int)(sizeof(ValueT) / sizeof(float));
     if (hash)
-      hashing.run([&] {
-        hash->add(slab, (size_t)d->nx * (size_t)d->ny * (size_t)nzs, (int)(sizeof(ValueT) / sizeof(float)), half);
-      });
+      hashing.run([&] { hash->add(slab, (size_t)d->nx * (size_t)d->ny * (size_t)nzs, C, half); });
     auto origin = [&](size_t b) { return vdb::Coord(D * (int)(b % lx), D * (int)(b / lx), z0); };
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks),
                       [&](const tbb::blocked_range<size_t> &r) {
