@@ -37,7 +37,8 @@ typedef enum { VDBIO_FLOAT = 1, VDBIO_VEC3 = 3 } vdbio_type_t;
 /* A grid made on the fly instead of read from a dense array: writes voxels
  * [lo, hi) (x fastest) as (hi - lo) * type floats to out. The writer asks for
  * a few z slices at a time, from several threads at once, and for each voxel
- * twice (checksum, then tree), so a derived grid (extinction = σs + σa) never
+ * twice (the slab its tree and checksum are built from, then the rows of the
+ * leaves being written), so a derived grid (extinction = σs + σa) never
  * exists whole. */
 typedef void (*vdbio_fill_fn)(const void *ctx, size_t lo, size_t hi, float *out);
 

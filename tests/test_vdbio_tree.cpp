@@ -51,9 +51,10 @@ static float value_at(int i, int j, int k, int c) {
 }
 
 template <typename GridT>
-static typename GridT::Ptr reference(std::vector<float> &data, float bg) {
+static typename GridT::Ptr reference(std::vector<float> &data, float bg, int nx = NX, int ny = NY,
+                                     int nz = NZ) {
   using ValueT = typename GridT::ValueType;
-  const vdb::CoordBBox box(vdb::Coord(0), vdb::Coord(NX - 1, NY - 1, NZ - 1));
+  const vdb::CoordBBox box(vdb::Coord(0), vdb::Coord(nx - 1, ny - 1, nz - 1));
   vdb::tools::Dense<ValueT, vdb::tools::LayoutXYZ> dense(box,
                                                          reinterpret_cast<ValueT *>(data.data()));
   typename GridT::Ptr g = GridT::create(vdb::zeroVal<ValueT>());
@@ -68,7 +69,8 @@ static bool same_value(const vdb::Vec3s &a, const vdb::Vec3s &b) {
 }
 
 template <typename GridT>
-static void compare(const char *label, const GridT &got, const GridT &want) {
+static void compare(const char *label, const GridT &got, const GridT &want, int nx = NX,
+                    int ny = NY, int nz = NZ) {
   CHECK(got.tree().hasSameTopology(want.tree()), "%s: topology differs", label);
   CHECK(got.tree().leafCount() == want.tree().leafCount(), "%s: %u leaves, want %u", label,
         (unsigned)got.tree().leafCount(), (unsigned)want.tree().leafCount());
@@ -78,9 +80,9 @@ static void compare(const char *label, const GridT &got, const GridT &want) {
   auto ga = got.getConstAccessor();
   auto wa = want.getConstAccessor();
   int bad = 0;
-  for (int k = -2; k < NZ + 2; k++)
-    for (int j = -2; j < NY + 2; j++)
-      for (int i = -2; i < NX + 2; i++) {
+  for (int k = -2; k < nz + 2; k++)
+    for (int j = -2; j < ny + 2; j++)
+      for (int i = -2; i < nx + 2; i++) {
         const vdb::Coord c(i, j, k);
         if (ga.isValueOn(c) != wa.isValueOn(c) || !same_value(ga.getValue(c), wa.getValue(c)))
           bad++;
@@ -138,6 +140,62 @@ static void test_leaf_bytes() {
     }
 }
 
+/* Sparse leaves: 3 in 7 of the 8^3 blocks of a box that is not a whole
+ * number of them hold varying values, the rest background, so the leaves
+ * of a write window fill less than half the box of their cells and are
+ * made over runs of one to a few neighbours (vdbio_window_fill). Written
+ * from a dense array and from a fill (the made-on-the-fly path), float and
+ * Vec3, each against copyFromDense. */
+enum { SX = 70, SY = 41, SZ = 50 };
+
+static float sparse_value(size_t at, int c) {
+  const int i = (int)(at % SX), j = (int)(at / SX % SY), k = (int)(at / SX / SY);
+  const int bi = i / 8, bj = j / 8, bk = k / 8; /* runs of 1 to 4 blocks along x */
+  return (bi * bi + 3 * bj * bi + 5 * bk + 2 * bj + bk * bi) % 7 < 3 ? 1.0f + 0.001f * (float)(i + 3 * j + 7 * k) + 0.1f * (float)c : 0.0f;
+}
+
+static void sparse_fill(const void *ctx, size_t lo, size_t hi, float *out) {
+  const int ch = *static_cast<const int *>(ctx);
+  for (size_t at = lo; at < hi; at++)
+    for (int c = 0; c < ch; c++) *out++ = sparse_value(at, c);
+}
+
+static void test_sparse_windows(const std::string &dir) {
+  const size_t n = (size_t)SX * SY * SZ;
+  std::vector<float> f(n), v(3 * n);
+  for (size_t at = 0; at < n; at++) {
+    f[at] = sparse_value(at, 0);
+    for (int c = 0; c < 3; c++) v[3 * at + c] = sparse_value(at, c);
+  }
+  static const int one = 1, three = 3;
+  const vdbio_grid_t grids[] = {{"data", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
+                                {"fill", VDBIO_FLOAT, NULL, 0, 0.0f, sparse_fill, &one},
+                                {"fill3", VDBIO_VEC3, NULL, 1, 0.0f, sparse_fill, &three}};
+  grid_dims_t d = {};
+  d.nx = SX, d.ny = SY, d.nz = SZ;
+  d.voxel_size = 0.1f;
+  vdbio_write_opts_t opts = {};
+  opts.compression = VDBIO_COMPRESS_ZIP;
+  bk_error_t err = {};
+  const std::string path = dir + "/sparse.vdb";
+  if (vdbio_write(path.c_str(), &d, grids, 3, NULL, 0, &opts, &err) != BK_OK) {
+    CHECK(false, "vdbio_write (sparse): %s", err.msg);
+    return;
+  }
+  vdb::io::File file(path);
+  file.open();
+  auto want = reference<vdb::FloatGrid>(f, 0.0f, SX, SY, SZ);
+  CHECK(want->tree().leafCount() * 2 < (size_t)9 * 6 * 7, "%u leaves: not sparse",
+        (unsigned)want->tree().leafCount());
+  compare("sparse data", *vdb::gridPtrCast<vdb::FloatGrid>(file.readGrid("data")), *want, SX, SY,
+          SZ);
+  compare("sparse fill", *vdb::gridPtrCast<vdb::FloatGrid>(file.readGrid("fill")), *want, SX, SY,
+          SZ);
+  compare("sparse fill Vec3", *vdb::gridPtrCast<vdb::Vec3SGrid>(file.readGrid("fill3")),
+          *reference<vdb::Vec3SGrid>(v, 0.0f, SX, SY, SZ), SX, SY, SZ);
+  file.close();
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: test_vdbio_tree DIR\n");
@@ -176,6 +234,7 @@ int main(int argc, char **argv) {
           *reference<vdb::Vec3SGrid>(v, 0.0f));
   file.close();
   test_leaf_bytes();
+  test_sparse_windows(argv[1]);
   if (failures) std::fprintf(stderr, "test_vdbio_tree: %d check(s) failed\n", failures);
   else std::printf("test_vdbio_tree: ok\n");
   return failures ? 1 : 0;
