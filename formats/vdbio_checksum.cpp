@@ -1,7 +1,8 @@
-/* vdbio_checksum.cpp: per-grid checksums in the file metadata, and their
- * check (`baker verify`). The rule is documented in vdbio.h; the writer
- * hashes the dense arrays it stores, the checker the values it reads back
- * over the same box, through the one function below. */
+/* vdbio_checksum.cpp: per-grid checksums in the file metadata (their
+ * placeholders), and their check (`baker verify`). The rule is documented
+ * in vdbio.h; the writer hashes the values it stores as it builds each
+ * tree (vdbio_write.cpp), the checker the values it reads back over the
+ * same box, both through the one hasher of vdbio_hash.h. */
 #include "vdbio_internal.h"
 #include "vdbio_hash.h"
 
