@@ -15,11 +15,10 @@
  *
  * A leaf may also come without values (made with PartialCreate: its value
  * mask only, the buffer never allocated): the tree's `values` function then
- * gives them, into a scratch leaf per run, as the leaf is written, so a
- * grid's values exist twice only a window at a time (vdbio_write.cpp).
- * A tree's `window` function may give a whole window's values at once
- * (cheaper where it can read the grid in long rows); where it declines,
- * `values` gives them leaf by leaf. */
+ * gives a whole window's values at once (vdbio_write.cpp reads the grid in
+ * rows across neighbouring leaves), copied into a scratch leaf per run as
+ * each leaf is written, so a grid's values exist twice only a window at a
+ * time. */
 #ifndef BAKER_VDBIO_LEAVES_H
 #define BAKER_VDBIO_LEAVES_H
 
@@ -37,15 +36,11 @@
 static const size_t VDBIO_WRITE_WINDOW = 2048; /* leaves: 4-12 MB of values */
 static const size_t VDBIO_WRITE_RUN = 64;      /* leaves per buffer */
 
-/* Writes `leaf` to os, or, when it holds no values, the leaf `scratch`
- * made from its mask and values(leaf, scratch). */
-template <typename LeafT>
-using vdbio_leaf_values = std::function<void(const LeafT &leaf, LeafT &scratch)>;
 /* The values of leaves[0..n) into out, LeafT::SIZE per leaf in leaf order
- * (inactive voxels: anything); false: not given, ask `values` per leaf. */
+ * (inactive voxels: anything). */
 template <typename LeafT>
 using vdbio_window_values =
-    std::function<bool(const LeafT *const *leaves, size_t n, typename LeafT::ValueType *out)>;
+    std::function<void(const LeafT *const *leaves, size_t n, typename LeafT::ValueType *out)>;
 
 /* `leaf`'s mask into scratch, with values[] where it is on, zero elsewhere. */
 template <typename LeafT>
@@ -61,8 +56,7 @@ static void vdbio_masked_copy(const LeafT &leaf, const typename LeafT::ValueType
 
 template <typename TreeT>
 void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
-                        const vdbio_leaf_values<typename TreeT::LeafNodeType> &values = nullptr,
-                        const vdbio_window_values<typename TreeT::LeafNodeType> &window = nullptr) {
+                        const vdbio_window_values<typename TreeT::LeafNodeType> &values = nullptr) {
   using LeafT = typename TreeT::LeafNodeType;
   std::vector<const LeafT *> leaves;
   leaves.reserve(tree.leafCount());
@@ -71,16 +65,15 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
   const void *background = openvdb::io::getGridBackgroundValuePtr(os);
   /* the runs of window w, compressed on every core into runs[w % 2] */
   std::vector<std::string> runs[2];
-  /* the window's values, where `window` gives them (one window is
+  /* the window's values, where `values` gives them (one window is
    * compressed at a time) */
   std::vector<typename LeafT::ValueType> given;
   auto compress = [&](size_t w) {
     const size_t end = std::min(leaves.size(), w + VDBIO_WRITE_WINDOW);
     std::vector<std::string> &out = runs[(w / VDBIO_WRITE_WINDOW) % 2];
-    bool whole = false;
-    if (values && window) {
+    if (values) {
       given.resize((end - w) * LeafT::SIZE);
-      whole = window(leaves.data() + w, end - w, given.data());
+      values(leaves.data() + w, end - w, given.data());
     }
     out.assign((end - w + VDBIO_WRITE_RUN - 1) / VDBIO_WRITE_RUN, std::string());
     tbb::parallel_for(size_t(0), out.size(), [&](size_t r) {
@@ -95,8 +88,7 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
           continue;
         }
         if (!scratch) scratch.reset(new LeafT(leaves[i]->origin()));
-        if (whole) vdbio_masked_copy(*leaves[i], given.data() + (i - w) * LeafT::SIZE, *scratch);
-        else values(*leaves[i], *scratch);
+        vdbio_masked_copy(*leaves[i], given.data() + (i - w) * LeafT::SIZE, *scratch);
         scratch->writeBuffers(run, to_half);
       }
       out[r] = run.str();
@@ -120,11 +112,10 @@ template <typename TreeT> class vdbio_parallel_tree : public TreeT {
 public:
   explicit vdbio_parallel_tree(const typename TreeT::ValueType &background) : TreeT(background) {}
   void writeBuffers(std::ostream &os, bool to_half) const override {
-    vdbio_write_leaves(static_cast<const TreeT &>(*this), os, to_half, values, window);
+    vdbio_write_leaves(static_cast<const TreeT &>(*this), os, to_half, values);
   }
   /* the values of leaves made without them (set before the tree is written) */
-  vdbio_leaf_values<typename TreeT::LeafNodeType> values;
-  vdbio_window_values<typename TreeT::LeafNodeType> window;
+  vdbio_window_values<typename TreeT::LeafNodeType> values;
 };
 
 #endif

@@ -90,7 +90,7 @@ static bool vdbio_block_uniform(const float *first, RowF row) {
 }
 
 /* `slab`: the voxels of z slices z0.. (vdbio_slices), the block's among them.
- * A `deferred` leaf gets its value mask only (vdbio_leaf_fill gives its
+ * A `deferred` leaf gets its value mask only (vdbio_window_fill gives its
  * values when it is written). */
 template <typename LeafT>
 static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
@@ -145,45 +145,18 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
   out.leaf = leaf;
 }
 
-/* A deferred leaf's values into `scratch`: its mask, the grid's values
- * where the mask is on and zero elsewhere, as vdbio_build_block fills a
- * leaf; read from the dense array, or made a row of the leaf at a time. */
-template <typename LeafT>
-static void vdbio_leaf_fill(const grid_dims_t &d, const vdbio_grid_t &g, const LeafT &leaf,
-                            LeafT &scratch) {
-  using ValueT = typename LeafT::ValueType;
-  const int C = sizeof(ValueT) / sizeof(float), D = (int)LeafT::DIM;
-  const vdb::Coord lo = leaf.origin();
-  const int ex = std::min(D, d.nx - lo[0]), ey = std::min(D, d.ny - lo[1]),
-            ez = std::min(D, d.nz - lo[2]);
-  const typename LeafT::NodeMaskType &mask = leaf.getValueMask();
-  scratch.buffer().fill(vdb::zeroVal<ValueT>());
-  scratch.setValueMask(mask);
-  ValueT *buf = scratch.buffer().data();
-  float made[3 * LeafT::DIM];
-  for (int z = 0; z < ez; z++)
-    for (int y = 0; y < ey; y++) {
-      const size_t at = grid_index(&d, lo[0], lo[1] + y, lo[2] + z);
-      const float *r = g.data ? g.data + (size_t)C * at : made;
-      if (!g.data) g.fill(g.fill_ctx, at, at + (size_t)ex, made);
-      for (int x = 0; x < ex; x++) {
-        const vdb::Index n = LeafT::coordToOffset(vdb::Coord(x, y, z));
-        if (mask.isOn(n)) buf[n] = *reinterpret_cast<const ValueT *>(r + C * x);
-      }
-    }
-}
-
 /* A window of deferred leaves' values (vdbio_window_values), read across
  * the box of their 8^3 cells in rows: a leaf alone takes 64 rows of 8
  * voxels, each a cache line and often a page of its own, whereas one row
  * made across a run of neighbouring leaves serves them all at once. Each
  * row of cells is made only over its runs of leaves, so a sparse window
- * costs its leaves, not its box. Declined (false) where the box has over
- * VDBIO_WINDOW_SPREAD cells per leaf (leaves scattered far apart). */
+ * costs its leaves, not its box. A window whose box has over
+ * VDBIO_WINDOW_SPREAD cells per leaf (leaves scattered far apart) is made
+ * in halves instead, so the cell table stays small; one leaf always fits. */
 static const size_t VDBIO_WINDOW_SPREAD = 16;
 
 template <typename LeafT>
-static bool vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
+static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
                               const LeafT *const *leaves, size_t n,
                               typename LeafT::ValueType *out) {
   using ValueT = typename LeafT::ValueType;
@@ -195,7 +168,12 @@ static bool vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
   }
   const int cx = (hi[0] - lo[0]) / D + 1, cy = (hi[1] - lo[1]) / D + 1,
             cz = (hi[2] - lo[2]) / D + 1;
-  if ((size_t)cx * (size_t)cy * (size_t)cz > VDBIO_WINDOW_SPREAD * n) return false;
+  if (n > 1 && (size_t)cx * (size_t)cy * (size_t)cz > VDBIO_WINDOW_SPREAD * n) {
+    const size_t h = n / 2;
+    vdbio_window_fill(d, g, leaves, h, out);
+    vdbio_window_fill(d, g, leaves + h, n - h, out + h * LeafT::SIZE);
+    return;
+  }
   std::vector<int> slot((size_t)cx * (size_t)cy * (size_t)cz, -1); /* cell -> leaf */
   auto cell = [&](int kx, int ky, int kz) {
     return (size_t)kx + (size_t)cx * ((size_t)ky + (size_t)cy * (size_t)kz);
@@ -233,7 +211,6 @@ static bool vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
         }
       }
   });
-  return true;
 }
 
 const float *vdbio_slices(const grid_dims_t *d, const vdbio_grid_t &g, int z0, int nz,
@@ -275,9 +252,8 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
   typename GridT::Ptr grid = GridT::create(typename TreeT::Ptr(tree));
   if (deferred) {
     const grid_dims_t dims = *d;
-    tree->values = [dims, g](const LeafT &leaf, LeafT &s) { vdbio_leaf_fill(dims, g, leaf, s); };
-    tree->window = [dims, g](const LeafT *const *leaves, size_t n, ValueT *out) {
-      return vdbio_window_fill(dims, g, leaves, n, out);
+    tree->values = [dims, g](const LeafT *const *leaves, size_t n, ValueT *out) {
+      vdbio_window_fill(dims, g, leaves, n, out);
     };
   }
   vdb::tree::ValueAccessor<TreeT> acc(grid->tree());
