@@ -423,6 +423,125 @@ static int test_flux(clh_context_t *cl) {
   return check_phase_factor();
 }
 
+/* The camera's counter (kernels/photon_march.h PM_CAMERA) for a camera at
+ * cam (world), the 16³ cube of flux_bake with g = 0.5; rad 3 and cam_c 1
+ * float per voxel. Returns the sums (pm_acc_count(setup) counters) and the
+ * counters per voxel after the radiance's in *slots. */
+static uint64_t *camera_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3],
+                             const float cam[3], float *rad, float *cam_c, size_t *count) {
+  volume_t v;
+  tv_alloc(&v, 16, 16, 16, 1.0f / 16, 0, 0, 0);
+  const float ss[3] = {3.0f, 3.0f, 3.0f}, sa[3] = {0.1f, rgb ? 0.3f : 0.1f, rgb ? 0.9f : 0.1f};
+  tv_fill(&v, 1.0f, ss, sa);
+  tv_summarise(&v);
+  scene_light_t light = tl_directional(dir[0], dir[1], dir[2], 1.0f);
+  scene_t s;
+  ts_init(&s, &light, 1, 20000);
+  s.bounces = bounces;
+  s.medium_g = 0.5f;
+  s.camera.present = 1;
+  memcpy(s.camera.position, cam, sizeof s.camera.position);
+  bk_error_t err;
+  memset(&err, 0, sizeof err);
+  pm_setup_t setup;
+  REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+  REQUIRE(setup.params.flux == 1 && setup.params.camera == 1, "g 0.5 and a camera: no counter");
+  *count = pm_acc_count(&setup);
+  uint64_t *acc = calloc(*count, sizeof *acc);
+  const size_t n = setup.voxels;
+  float *flux = calloc(3 * n, sizeof(float)), *unc = calloc(5 * n, sizeof(float));
+  REQUIRE(acc && flux && unc, "out of memory");
+  int rc = cl ? pm_run_cl(cl, &setup, acc, NULL, &err) : pm_run_host(&setup, acc, NULL, &err);
+  REQUIRE(rc == BK_OK, "march: %s", err.msg);
+  pm_to_radiance(&setup, acc, rad, 3);
+  pm_to_flux(&setup, acc, flux, unc);
+  memcpy(cam_c, unc + 4 * n, n * sizeof(float)); /* radiance_camera, after F0 */
+  free(flux), free(unc);
+  pm_setup_free(&setup);
+  tv_free(&v);
+  return acc;
+}
+
+/* radiance_camera, the light scattered towards the camera (march.h
+ * pm_to_flux). Single scattering of a parallel beam along w0: every photon
+ * in a voxel moves along w0, so C / Y(L̄) is the phase 4π p_HG(g, w0·ω_c)
+ * towards the camera from the voxel's centre, exactly (to float rounding),
+ * grey and RGB. Multiple scattering: C / Y(L̄) within the phase's range,
+ * and its mean over the lit voxels between the back and forward values.
+ * On OpenCL the sums equal the host C path's bit for bit. The camera is
+ * left out without a camera, with camera.bake_phase false, or when g
+ * varies. */
+static int test_camera(clh_context_t *cl) {
+  const size_t n = 16 * 16 * 16;
+  const float dir[3] = {0.3f, 0.2f, 1.0f}, cam[3] = {-1.5f, 0.6f, 0.4f}, g = 0.5f;
+  const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
+  float *rad = calloc(3 * n, sizeof(float)), *c = calloc(n, sizeof(float));
+  REQUIRE(rad && c, "out of memory");
+  size_t count;
+  for (int rgb = 0; rgb < 2; rgb++) {
+    uint64_t *acc = camera_bake(cl, 0, rgb, dir, cam, rad, c, &count);
+    double worst = 0.0;
+    size_t lit = 0;
+    for (size_t i = 0; i < n; i++) {
+      double y = lum3(rad + 3 * i), p[3], pl = 0.0;
+      if (!(y > 0.0)) continue;
+      const size_t ijk[3] = {i % 16, i / 16 % 16, i / 256};
+      for (int a = 0; a < 3; a++) p[a] = cam[a] - (ijk[a] + 0.5) / 16.0, pl += p[a] * p[a];
+      double cs = (p[0] * w0[0] + p[1] * w0[1] + p[2] * w0[2]) / sqrt(pl);
+      double want = (1 - g * g) / pow(1 + g * g - 2 * g * cs, 1.5);
+      worst = fmax(worst, fabs(c[i] / y / want - 1.0));
+      lit++;
+    }
+    printf("camera, single scattering (%s): %zu lit voxels, C / Y(L) against 4pi p_HG(g, w0.w_c) "
+           "off by %.2e at most (limit 1e-4)\n", rgb ? "RGB" : "grey", lit, worst);
+    REQUIRE(lit > n / 2 && worst < 1e-4, "camera phase off by %.3e", worst);
+    free(acc);
+  }
+  uint64_t *acc = camera_bake(cl, 8, 0, dir, cam, rad, c, &count);
+  double lo = (1 - g) / pow(1 + g, 2), hi = (1 + g) / pow(1 - g, 2), csum = 0, ysum = 0, out = 0;
+  for (size_t i = 0; i < n; i++) {
+    double y = lum3(rad + 3 * i);
+    csum += c[i], ysum += y;
+    if (y > 1e-3 * ysum / (i + 1)) out = fmax(out, fmax(lo - c[i] / y, c[i] / y - hi));
+  }
+  printf("camera, multiple scattering: C / Y(L) %.3f over the grid, out of [%.3f, %.3f] by %.2e "
+         "at most\n", csum / ysum, lo, hi, out);
+  REQUIRE(out < 1e-4 && csum / ysum > lo && csum / ysum < hi, "camera factor out of range");
+  if (cl) {
+    size_t count_h;
+    uint64_t *host = camera_bake(NULL, 8, 0, dir, cam, rad, c, &count_h);
+    REQUIRE(count_h == count && memcmp(host, acc, count * sizeof *acc) == 0,
+            "the OpenCL sums differ from the host's");
+    printf("camera: OpenCL and host sums bit-identical (%zu counters)\n", count);
+    free(host);
+  }
+  free(acc), free(rad), free(c);
+  /* not kept: no camera, camera.bake_phase false */
+  volume_t v;
+  tv_alloc(&v, 8, 8, 8, 1.0f / 8, 0, 0, 0);
+  const float ss[3] = {1, 1, 1}, sa[3] = {0.1f, 0.1f, 0.1f};
+  tv_fill(&v, 1.0f, ss, sa);
+  tv_summarise(&v);
+  scene_light_t light = tl_directional(0, 0, 1, 1);
+  for (int k = 0; k < 2; k++) {
+    scene_t s;
+    ts_init(&s, &light, 1, 100);
+    s.medium_g = 0.5f;
+    s.camera.present = k;
+    s.camera.bake_phase = 0;
+    pm_setup_t setup;
+    bk_error_t err = {0, ""};
+    REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+    REQUIRE(setup.params.flux && !setup.params.camera &&
+                pm_acc_count(&setup) == setup.voxels * (1 + PM_FLUX_SLOTS),
+            "camera counter kept (camera %d, bake_phase 0)", k);
+    pm_setup_free(&setup);
+  }
+  tv_free(&v);
+  printf("camera: no counter without a camera or with bake_phase false\n");
+  return 0;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     fprintf(stderr, "usage: test_scatter TEST [host|cl]\n");
@@ -439,6 +558,7 @@ int main(int argc, char **argv) {
   if (strcmp(t, "reproducible") == 0) return test_reproducible(cl);
   if (strcmp(t, "object_g") == 0) return test_object_g();
   if (strcmp(t, "flux") == 0) return test_flux(cl);
+  if (strcmp(t, "camera") == 0) return test_camera(cl);
   fprintf(stderr, "test_scatter: unknown test %s\n", t);
   return 2;
 }
