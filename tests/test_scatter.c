@@ -287,11 +287,13 @@ static int test_object_g(void) {
 
 /* A 16³ cube of 1 m with g = 0.5 (so the march keeps radiance_flux) under a
  * directional light along dir; RGB absorption when rgb (three channels,
- * the flux weighted in the kernel), else grey (one). The raw sums, with
- * radiance and flux (3 floats per voxel each) and the uncollided luminance
- * (1), then its flux (3), filled from them. */
-static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3], float *rad,
-                           float *flux, float *unc) {
+ * the flux weighted in the kernel), else grey (one); with cam (world; NULL:
+ * none) a scene camera there, so the camera's counter too. The raw sums
+ * (*count counters), with radiance and flux (3 floats per voxel each) and
+ * the uncollided luminance (1), then its flux (3) and, with cam,
+ * radiance_camera (1), filled from them. */
+static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3],
+                           const float *cam, float *rad, float *flux, float *unc, size_t *count) {
   volume_t v;
   tv_alloc(&v, 16, 16, 16, 1.0f / 16, 0, 0, 0);
   const float ss[3] = {3.0f, 3.0f, 3.0f}, sa[3] = {0.1f, rgb ? 0.3f : 0.1f, rgb ? 0.9f : 0.1f};
@@ -302,13 +304,18 @@ static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float 
   ts_init(&s, &light, 1, 20000);
   s.bounces = bounces;
   s.medium_g = 0.5f;
+  if (cam) memcpy(s.camera.position, cam, sizeof s.camera.position);
+  s.camera.present = cam != NULL;
   bk_error_t err;
   memset(&err, 0, sizeof err);
   pm_setup_t setup;
   REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
   REQUIRE(setup.params.flux == 1, "g = 0.5 must turn the flux on");
+  REQUIRE((int)setup.params.camera == (cam != NULL), "camera counter %s",
+          cam ? "missing with a camera" : "kept without a camera");
   REQUIRE(setup.channels == (rgb ? 3 : 1), "expected %d channels", rgb ? 3 : 1);
-  uint64_t *acc = calloc(pm_acc_count(&setup), sizeof *acc);
+  *count = pm_acc_count(&setup);
+  uint64_t *acc = calloc(*count, sizeof *acc);
   REQUIRE(acc, "out of memory");
   int rc = cl ? pm_run_cl(cl, &setup, acc, NULL, &err) : pm_run_host(&setup, acc, NULL, &err);
   REQUIRE(rc == BK_OK, "march: %s", err.msg);
@@ -361,9 +368,10 @@ static int test_flux(clh_context_t *cl) {
   const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
   float *rad = calloc(3 * n, sizeof(float)), *flux = calloc(3 * n, sizeof(float));
   float *unc = calloc(4 * n, sizeof(float)); /* Y0, then the uncollided flux F0 */
+  size_t count;
   REQUIRE(rad && flux && unc, "out of memory");
   for (int rgb = 0; rgb < 2; rgb++) {
-    uint64_t *acc = flux_bake(cl, 0, rgb, dir, rad, flux, unc);
+    uint64_t *acc = flux_bake(cl, 0, rgb, dir, NULL, rad, flux, unc, &count);
     double worst = 0.0, worst_u = 0.0;
     size_t lit = 0;
     for (size_t i = 0; i < n; i++) {
@@ -383,7 +391,7 @@ static int test_flux(clh_context_t *cl) {
     REQUIRE(worst_u < 1e-4, "uncollided share off by %.3e", worst_u);
     free(acc);
   }
-  uint64_t *acc = flux_bake(cl, 8, 0, dir, rad, flux, unc);
+  uint64_t *acc = flux_bake(cl, 8, 0, dir, NULL, rad, flux, unc, &count);
   double along = 0.0, ysum = 0.0, over = -1.0, ymax = 0.0, usum = 0.0, umin = 1.0, uover = -1.0;
   double beam = 0.0;
   for (size_t i = 0; i < n; i++) ymax = fmax(ymax, lum3(rad + 3 * i));
@@ -413,8 +421,8 @@ static int test_flux(clh_context_t *cl) {
   if (cl) {
     float *r2 = calloc(3 * n, sizeof(float)), *f2 = calloc(3 * n, sizeof(float));
     REQUIRE(r2 && f2, "out of memory");
-    uint64_t *again = flux_bake(cl, 8, 0, dir, r2, f2, unc);
-    REQUIRE(memcmp(again, acc, n * (1 + PM_FLUX_SLOTS) * sizeof *acc) == 0,
+    uint64_t *again = flux_bake(cl, 8, 0, dir, NULL, r2, f2, unc, &count);
+    REQUIRE(count == n * (1 + PM_FLUX_SLOTS) && memcmp(again, acc, count * sizeof *acc) == 0,
             "two OpenCL bakes' sums differ");
     printf("flux: two OpenCL bakes' sums bit-identical (the atomics' order does not matter)\n");
     free(again), free(r2), free(f2);
@@ -423,42 +431,16 @@ static int test_flux(clh_context_t *cl) {
   return check_phase_factor();
 }
 
-/* The camera's counter (kernels/photon_march.h PM_CAMERA) for a camera at
- * cam (world), the 16³ cube of flux_bake with g = 0.5; rad 3 and cam_c 1
- * float per voxel. Returns the sums (pm_acc_count(setup) counters) and the
- * counters per voxel after the radiance's in *slots. */
+/* flux_bake with a camera at cam: radiance (3 floats per voxel) and
+ * radiance_camera (1) into rad and cam_c. */
 static uint64_t *camera_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3],
                              const float cam[3], float *rad, float *cam_c, size_t *count) {
-  volume_t v;
-  tv_alloc(&v, 16, 16, 16, 1.0f / 16, 0, 0, 0);
-  const float ss[3] = {3.0f, 3.0f, 3.0f}, sa[3] = {0.1f, rgb ? 0.3f : 0.1f, rgb ? 0.9f : 0.1f};
-  tv_fill(&v, 1.0f, ss, sa);
-  tv_summarise(&v);
-  scene_light_t light = tl_directional(dir[0], dir[1], dir[2], 1.0f);
-  scene_t s;
-  ts_init(&s, &light, 1, 20000);
-  s.bounces = bounces;
-  s.medium_g = 0.5f;
-  s.camera.present = 1;
-  memcpy(s.camera.position, cam, sizeof s.camera.position);
-  bk_error_t err;
-  memset(&err, 0, sizeof err);
-  pm_setup_t setup;
-  REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
-  REQUIRE(setup.params.flux == 1 && setup.params.camera == 1, "g 0.5 and a camera: no counter");
-  *count = pm_acc_count(&setup);
-  uint64_t *acc = calloc(*count, sizeof *acc);
-  const size_t n = setup.voxels;
+  const size_t n = 16 * 16 * 16;
   float *flux = calloc(3 * n, sizeof(float)), *unc = calloc(5 * n, sizeof(float));
-  REQUIRE(acc && flux && unc, "out of memory");
-  int rc = cl ? pm_run_cl(cl, &setup, acc, NULL, &err) : pm_run_host(&setup, acc, NULL, &err);
-  REQUIRE(rc == BK_OK, "march: %s", err.msg);
-  pm_to_radiance(&setup, acc, rad, 3);
-  pm_to_flux(&setup, acc, flux, unc);
+  REQUIRE(flux && unc, "out of memory");
+  uint64_t *acc = flux_bake(cl, bounces, rgb, dir, cam, rad, flux, unc, count);
   memcpy(cam_c, unc + 4 * n, n * sizeof(float)); /* radiance_camera, after F0 */
   free(flux), free(unc);
-  pm_setup_free(&setup);
-  tv_free(&v);
   return acc;
 }
 
