@@ -240,6 +240,8 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]) {
   if (a->radiance_flux_uncollided)
     grids[g++] = made_grid("radiance_flux_uncollided", VDBIO_VEC3,
                            og_dense(a->radiance_flux_uncollided), 0, 0.0f);
+  if (a->radiance_camera)
+    grids[g++] = made_grid("radiance_camera", VDBIO_FLOAT, og_dense(a->radiance_camera), 0, 0.0f);
   if (og_present(a->phase_g)) grids[g++] = made_grid("phase_g", VDBIO_FLOAT, a->phase_g, 0, 0.0f);
   if (a->photon_count)
     grids[g++] = made_grid("photon_count", VDBIO_FLOAT, og_dense(a->photon_count), 0, 0.0f);
@@ -290,10 +292,11 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
                      og_made(og_density, src), og_dense(NULL),
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
                      j->scene.medium_ior, og_dense(NULL), j->error.flux, j->error.uncollided,
-                     og_dense(NULL), NULL};
+                     og_dense(NULL), NULL, NULL};
   if (j->radiance) a.emission = og_made(og_emission, src);
   if (j->radiance && rad_channels == 1) a.radiance = og_made(og_radiance, src);
   if (j->error.uncollided) a.radiance_flux_uncollided = j->error.uncollided + n; /* after Y0 */
+  if (j->error.camera) a.radiance_camera = j->error.uncollided + 4 * n;          /* after F0 */
   if (vol->ior_rb) a.ior_rgb = og_made(og_ior_rgb, src);
   if (j->error.flux || j->shard.sums.flux) /* a shard's flux is in its sums */
     a.phase_g = og_made(og_phase_g, src);
@@ -363,6 +366,12 @@ static vdbio_meta_t bake_crop_meta(const volume_t *v, char *buf, size_t size) {
   return m;
 }
 
+void bake_camera_meta(const float position[3], char *buf, size_t size, vdbio_meta_t *out) {
+  snprintf(buf, size, "[%.9g, %.9g, %.9g]", (double)position[0], (double)position[1],
+           (double)position[2]);
+  *out = (vdbio_meta_t){"radiance_camera_position", VDBIO_META_STRING, buf, 0, 0};
+}
+
 /* Stage 4: the grids and the metadata that says how they were made. */
 static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scene_path,
                       const char *out_path, int frame, const vdbio_grid_t *grids, int count,
@@ -425,10 +434,11 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
   };
   int meta_count = (int)(sizeof meta / sizeof meta[0]);
   if (s->mode != MODE_ADAPTIVE) meta_count -= 7;
-  vdbio_meta_t all[sizeof meta / sizeof meta[0] + 1 + SHARD_META_MAX];
+  vdbio_meta_t all[sizeof meta / sizeof meta[0] + 2 + SHARD_META_MAX];
   memcpy(all, meta, sizeof meta);
-  char crop[160];
+  char crop[160], camera[96];
   if (j->vol->cropped) all[meta_count++] = bake_crop_meta(j->vol, crop, sizeof crop);
+  if (j->error.camera) bake_camera_meta(s->camera.position, camera, sizeof camera, &all[meta_count++]);
   if (j->shard.sums.acc)
     meta_count += shard_meta(&j->shard, opt, s, &j->vol->dims, all + meta_count);
   vdbio_write_opts_t wo = opt->write;

@@ -85,8 +85,15 @@ typedef struct bake_arrays {
   const float *radiance_flux, *radiance_uncollided;
   og_values_t phase_g;
   const float *radiance_flux_uncollided;
+  /* the scene camera's: ∫ L_Y p(g, ω·ω_c) dω per voxel (baker/march.h
+   * pm_to_flux), towards the point in the metadata
+   * `radiance_camera_position` (bake_camera_meta) */
+  const float *radiance_camera;
 } bake_arrays_t;
-#define BAKE_MAX_GRIDS 15
+#define BAKE_MAX_GRIDS 20
+/* The metadata naming the camera point of `radiance_camera`: "[x, y, z]"
+ * in world units, each float exact ("%.9g"), written into buf. */
+void bake_camera_meta(const float position[3], char *buf, size_t size, vdbio_meta_t *out);
 /* The grids of a frame in file order, as `baker bake` and `baker merge`
  * write them; returns their count. */
 int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]);

@@ -390,9 +390,11 @@ static int run_all(clh_context_t *cl, bt_run_t *x, bt_result_t *res, uint64_t *a
 static int make_flux(const pm_setup_t *s, const uint64_t *acc, bt_result_t *res, bk_error_t *err) {
   if (!s->params.flux) return BK_OK;
   res->flux = bk_calloc(s->voxels, 3 * sizeof(float), "radiance_flux grid", err);
-  res->uncollided = bk_calloc(s->voxels, 4 * sizeof(float), "radiance_uncollided grids", err);
+  res->uncollided = bk_calloc(s->voxels, (size_t)pm_uncollided_floats(s) * sizeof(float),
+                              "radiance_uncollided grids", err);
   if (!res->flux || !res->uncollided) return err->code;
   pm_to_flux(s, acc, res->flux, res->uncollided);
+  res->camera = (int)s->params.camera;
   return BK_OK;
 }
 

@@ -105,6 +105,7 @@ typedef struct bt_result {
   double ms_twin, ms_track; /* the step twin; the per-batch statistics and error terms */
   float *error_grid;   /* opts.error_grid and >= 2 batches: the caller frees */
   float *flux, *uncollided; /* some g != 0 (not a shard): pm_to_flux's grids; the caller frees */
+  int camera;               /* uncollided also holds radiance_camera (pm_uncollided_floats) */
   int budget_short;    /* the time budget ended the bake before 2 batches */
   int target_missed;   /* the target was not reached (batch cap or budget) */
   integrator_t integrator; /* what marched: the scene's, or target mode's choice */

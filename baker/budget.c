@@ -55,7 +55,9 @@ static int estimate_in(const scene_t *s, int resolution, const float box[2][3], 
                        : (adaptive ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES)) +
                  (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0) +
                  (s->ior_vdb.present ? BUDGET_IOR_VDB_BYTES : 0.0) +
-                 (s->mode != MODE_ADAPTIVE && budget_anisotropic(s) ? BUDGET_FLUX_BYTES : 0.0);
+                 (s->mode != MODE_ADAPTIVE && budget_anisotropic(s)
+                      ? BUDGET_FLUX_BYTES + (s->camera.present && s->camera.bake_phase ? BUDGET_CAMERA_BYTES : 0.0)
+                      : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
   return BK_OK;
 }

@@ -55,6 +55,9 @@ extern "C" {
  * 7 counters, radiance_flux, radiance_uncollided, radiance_flux_uncollided
  * and phase_g (baker/march.h) */
 #define BUDGET_FLUX_BYTES 88.0
+/* and with a scene camera, its counter and `radiance_camera` (8 + 4):
+ * counted, not measured */
+#define BUDGET_CAMERA_BYTES 12.0
 /* per voxel more for a grey medium written as NanoVDB (.nvdb): each grid is
  * converted whole, its OpenVDB tree beside its NanoVDB copy (12 B each for
  * a Vec3 grid), where .vdb leaves hold masks only. Measured 32 B grey and

@@ -108,6 +108,26 @@ static void set_sigma(const volume_t *vol, pm_setup_t *s) {
   }
 }
 
+/* PM_CAMERA (kernels/photon_march.h): the flux is kept (some g != 0), the
+ * scene has a camera, and one g holds everywhere (the kernel reads no g
+ * per voxel for it). */
+static int wants_camera(const scene_t *scene, const ms_setup_t *ms) {
+  return ms->hg && scene->camera.present && scene->camera.bake_phase && !ms->g_grid;
+}
+
+/* The camera in voxel coordinates, its g and the phase's scale 1/P_max. */
+static void set_camera(const scene_t *scene, const volume_t *vol, pm_setup_t *s) {
+  pm_params *P = &s->params;
+  const grid_dims_t *d = &s->dims;
+  if (!wants_camera(scene, &s->ms)) return;
+  for (int a = 0; a < 3; a++)
+    P->cam[a] = (float)(((double)scene->camera.position[a] - d->origin[a]) / d->voxel_size);
+  const double g = vol->g ? vol->g[0] : scene->medium_g, ag = fabs(g);
+  P->cam_g = (float)g;
+  P->cam_scale = (float)((1.0 - ag) * (1.0 - ag) / (1.0 + ag));
+  P->camera = 1;
+}
+
 /* The march's parameters (kernels/photon_march.h) in reference mode. */
 static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
   const grid_dims_t *d = &s->dims;
@@ -132,6 +152,7 @@ static int set_params(const scene_t *scene, const volume_t *vol, pm_setup_t *s, 
   P->dispersion = vol->ior_rb != NULL;
   P->mode = PM_MODE_REFERENCE;
   P->flux = (bk_uint)s->ms.hg; /* the view's anisotropic phase needs the flux */
+  set_camera(scene, vol, s);
   P->sigma_stride = vol->sigma_channels == 1 ? 1u : 3u;
   P->h = d->voxel_size;
   set_sigma(vol, s);
@@ -216,7 +237,8 @@ int pm_prepare_kept(const scene_t *scene, const volume_t *vol, pm_field_cache_t 
    * are allocated (field.c), and the bake's budget counted the whole. */
   size_t per_voxel = (s->has_refraction ? 1 : 0) + s->channels * sizeof(uint64_t) +
                      3 * sizeof(float) +
-                     (s->ms.hg ? PM_FLUX_SLOTS * (sizeof(uint64_t) + sizeof(float)) + 4 : 0);
+                     (s->ms.hg ? PM_FLUX_SLOTS * (sizeof(uint64_t) + sizeof(float)) + 4 : 0) +
+                     (wants_camera(scene, &s->ms) ? sizeof(uint64_t) + sizeof(float) : 0);
   rc = grid_check_memory(d, per_voxel, scene->path, err);
   if (rc != BK_OK) return rc;
   double ms_generate = bk_now_ms() - t0;
@@ -330,7 +352,8 @@ size_t pm_acc_count(const pm_setup_t *s) {
   const pm_params *P = &s->params;
   if (P->mode == PM_MODE_ORIGINS) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
   return s->voxels *
-         ((size_t)pm_acc_stride((int)P->mode, s->channels) + (P->flux ? PM_FLUX_SLOTS : 0));
+         ((size_t)pm_acc_stride((int)P->mode, s->channels) +
+          (P->flux ? PM_FLUX_SLOTS_WITH(P->camera) : 0));
 }
 
 size_t pm_mask_count(const pm_setup_t *s) {
@@ -458,8 +481,12 @@ static void to_flux_range(void *arg, size_t lo, size_t hi) {
   const int stride = pm_acc_stride((int)u->s->params.mode, u->s->channels);
   const uint64_t *f = u->acc + u->s->voxels * (size_t)stride;
   const double k = pm_flux_scale(u->s);
+  const int camera = (int)u->s->params.camera, slots = PM_FLUX_SLOTS_WITH(camera);
+  const double kc = camera ? k / (double)u->s->params.cam_scale : 0.0;
+  float *cam = u->count + 4 * u->s->voxels; /* radiance_camera, after F0's */
   for (size_t i = lo; i < hi; i++) {
-    const uint64_t *q = f + PM_FLUX_SLOTS * i;
+    const uint64_t *q = f + slots * i;
+    if (camera) cam[i] = (float)((double)q[PM_CAMERA_SLOT] * kc);
     float *f0 = u->count + u->s->voxels + 3 * i; /* the uncollided flux, after Y0's */
     for (int a = 0; a < 3; a++) { /* F: the scattered light's sum + the uncollided one's */
       u->radiance[3 * i + a] = (float)((double)(int64_t)(q[a] + q[4 + a]) * k);
@@ -488,6 +515,8 @@ void pm_sums_keep(const pm_setup_t *s, uint64_t *acc, pm_sums_t *out) {
   out->mode = (int)s->params.mode;
   out->stride = pm_acc_stride(out->mode, s->channels);
   out->flux = (int)s->params.flux;
+  out->camera = (int)s->params.camera;
+  out->cam_scale = s->params.cam_scale;
   memcpy(out->to_radiance, s->to_radiance, sizeof out->to_radiance);
   out->count_shift = s->params.count_shift;
   out->weight_scale = s->params.weight_scale;
@@ -502,6 +531,8 @@ void pm_sums_setup(const pm_sums_t *k, pm_setup_t *out) {
   out->params.count_shift = k->count_shift;
   out->params.weight_scale = k->weight_scale;
   out->params.flux = (bk_uint)k->flux;
+  out->params.camera = (bk_uint)k->camera;
+  out->params.cam_scale = k->cam_scale;
   memcpy(out->to_radiance, k->to_radiance, sizeof out->to_radiance);
 }
 

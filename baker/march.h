@@ -251,9 +251,14 @@ float *pm_to_radiance_in_place(const pm_setup_t *s, uint64_t *acc, int channels)
  * and `radiance_uncollided`, 1 float per voxel, the part of Y(L̄) that has
  * not scattered yet (Y(L̄) itself with bounces 0), followed in the same
  * array (4 floats per voxel in all) by `radiance_flux_uncollided`, 3 floats
- * per voxel, that part's own F (|F0| <= Y0, = for one beam). pm_flux_scale:
- * quanta -> those units. */
+ * per voxel, that part's own F (|F0| <= Y0, = for one beam), and with
+ * params.camera (kernels/photon_march.h PM_CAMERA; 5 floats per voxel in
+ * all) by `radiance_camera`, 1 float per voxel, ∫ L_Y(ω) p(g, ω·ω_c) dω:
+ * the luminance the voxel scatters towards the camera, per unit σs.
+ * pm_flux_scale: quanta -> those units. */
 void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux, float *uncollided);
+/* Floats per voxel of pm_to_flux's `uncollided` array: 4, 5 with the camera. */
+static inline int pm_uncollided_floats(const pm_setup_t *s) { return s->params.camera ? 5 : 4; }
 double pm_flux_scale(const pm_setup_t *s);
 /* Weighted mode: per voxel the photon count and the mean weight (0 where no
  * photon came); either may be NULL. */
@@ -272,6 +277,8 @@ typedef struct pm_sums {
   unsigned count_shift;   /* PM_MODE_TABLES: the packed count's shift */
   float weight_scale;     /* ... and the weight sum's quanta per unit weight */
   int flux;               /* PM_FLUX_SLOTS counters per voxel after voxels·stride (pm_to_flux) */
+  int camera;             /* and one more, the camera's (PM_CAMERA_SLOT), with cam_scale */
+  float cam_scale;
 } pm_sums_t;
 /* Takes acc (pm_acc_count(s) counters, now owned by out) with s's scales. */
 void pm_sums_keep(const pm_setup_t *s, uint64_t *acc, pm_sums_t *out);

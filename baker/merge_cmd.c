@@ -94,7 +94,7 @@ static int read_shard(merge_shard_t *s, bk_error_t *err) {
  * shards), and the sums' layout and scales. */
 static const char *const SAME_KEYS[] = {
     "shard_key", "shard_photon_order", "shard_count", "shard_photons", "shard_sum_stride", "shard_sum_channels",
-    "shard_sum_mode", "shard_sum_flux", "shard_sum_scales", "shard_grid", "shard_ior_background", "shard_filter",
+    "shard_sum_mode", "shard_sum_flux", "shard_sum_camera", "radiance_camera_position", "shard_sum_scales", "shard_grid", "shard_ior_background", "shard_filter",
     "checksum_v2_ior", "checksum_v2_extinction", "checksum_v2_scattering", "checksum_v2_density"};
 
 static int check_together(const merge_shard_t *sh, int n, bk_error_t *err) {
@@ -171,7 +171,14 @@ static int add_sums(const merge_shard_t *sh, int n, const grid_dims_t *d, pm_sum
     return bk_fail(err, BK_ERR_INPUT, "%s: shard_sum_scales is not readable", sh[0].path);
   k->weight_scale = (float)ws;
   k->flux = meta_get(&sh[0], "shard_sum_flux") != NULL;
-  const int slots = k->stride + (k->flux ? PM_FLUX_SLOTS : 0);
+  const char *cam = meta_get(&sh[0], "shard_sum_camera");
+  double cs = 0.0;
+  if (cam && (sscanf(cam, "%la", &cs) != 1 || !(cs > 0.0 && cs <= 1.0) || !k->flux))
+    return bk_fail(err, BK_ERR_INPUT, "%s: shard_sum_camera \"%s\" is not a scale in (0, 1]",
+                   sh[0].path, cam);
+  k->camera = cam != NULL;
+  k->cam_scale = (float)cs;
+  const int fslots = PM_FLUX_SLOTS_WITH(k->camera), slots = k->stride + (k->flux ? fslots : 0);
   int rc = grid_check_memory(d, (size_t)slots * (sizeof(uint64_t) + 3 * sizeof(float)),
                              sh[0].path, err);
   if (rc) return rc;
@@ -188,7 +195,7 @@ static int add_sums(const merge_shard_t *sh, int n, const grid_dims_t *d, pm_sum
       snprintf(name, sizeof name, f < 0 ? "shard_sum_%d" : "shard_flux_%d", f < 0 ? s : f);
       if (!(rc = vdbio_read_box(sh[i].path, name, d, 3, enc, err)) &&
           !(f < 0 ? shard_decode_add(enc, k->voxels, k->stride, s, k->acc)
-                  : shard_decode_add(enc, k->voxels, PM_FLUX_SLOTS, f,
+                  : shard_decode_add(enc, k->voxels, fslots, f,
                                      k->acc + k->voxels * k->stride)))
         rc = bk_fail(err, BK_ERR_INPUT, "%s: grid %s holds values that are not sums of this "
                      "baker (a corrupt shard)", sh[i].path, name);
@@ -257,7 +264,8 @@ static int finish(const merge_shard_t *s, const pm_sums_t *k, merge_out_t *o, bk
     pm_to_radiance(&setup, k->acc, o->radiance, 3);
     if (!k->flux) return BK_OK;
     o->flux = bk_calloc(n, 3 * sizeof(float), "radiance_flux grid", err);
-    o->uncollided = bk_calloc(n, 4 * sizeof(float), "radiance_uncollided grids", err);
+    o->uncollided = bk_calloc(n, (size_t)pm_uncollided_floats(&setup) * sizeof(float),
+                              "radiance_uncollided grids", err);
     if (!o->flux || !o->uncollided) return err->code;
     pm_to_flux(&setup, k->acc, o->flux, o->uncollided);
     if (!(o->phase_g = bk_calloc(n, sizeof(float), "phase_g grid", err))) return err->code;
@@ -381,7 +389,8 @@ static int merge_run(merge_shard_t *sh, int n, const char *out_path, bk_error_t 
                        og_dense(o.density), og_made(og_emission, &src),
                        o.count, o.weight, o.radius, o.sca_channels, o.medium_ior,
                        og_dense(o.ior_rgb), o.flux, o.uncollided, og_dense(o.phase_g),
-                       o.uncollided ? o.uncollided + sums.voxels : NULL}; /* after Y0 */
+                       o.uncollided ? o.uncollided + sums.voxels : NULL, /* after Y0 */
+                       o.uncollided && sums.camera ? o.uncollided + 4 * sums.voxels : NULL};
     int count = bake_grid_list(&a, grids);
     int mc = merged_meta(sh, n, &o, &text, meta);
     vdbio_write_opts_t w = write_opts(text.settings);

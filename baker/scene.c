@@ -390,7 +390,8 @@ static const char *cam_vec_text(const json_value_t *v, int frame, const float x[
 }
 
 static int sc_camera(const sc_ctx_t *c, const json_value_t *v, scene_camera_t *cam) {
-  static const char *const keys[] = {"position", "look_at", "up", "fov_deg", "resolution", NULL};
+  static const char *const keys[] = {"position", "look_at", "up", "fov_deg", "resolution",
+                                     "bake_phase", NULL};
   const json_value_t *pos, *at, *up;
   float size[2] = {(float)cam->width, (float)cam->height};
   char text[128];
@@ -405,7 +406,8 @@ static int sc_camera(const sc_ctx_t *c, const json_value_t *v, scene_camera_t *c
       (rc = sc_keyed(c, at, "camera.look_at", &point, cam->look_at)) ||
       (rc = sc_opt_keyed(c, v, "camera", "up", &point, cam->up)) ||
       (rc = sc_opt_keyed(c, v, "camera", "fov_deg", &fov, &cam->fov_deg)) ||
-      (rc = sc_opt_floats(c, v, "camera", "resolution", &R_PIXELS, 2, 0, size)))
+      (rc = sc_opt_floats(c, v, "camera", "resolution", &R_PIXELS, 2, 0, size)) ||
+      (rc = sc_opt_bool(c, v, "camera", "bake_phase", &cam->bake_phase)))
     return rc;
   cam->width = (int)size[0];
   cam->height = (int)size[1];
@@ -496,6 +498,7 @@ void scene_defaults(scene_t *s) {
   s->alpha = 1.0f;
   s->camera.up[1] = 1.0f;
   s->camera.fov_deg = 40.0f;
+  s->camera.bake_phase = 1;
   s->camera.width = 800;
   s->camera.height = 600;
 }

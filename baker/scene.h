@@ -61,6 +61,8 @@ typedef struct scene_camera {
   float position[3], look_at[3], up[3];
   float fov_deg;       /* vertical field of view */
   int width, height;
+  int bake_phase;      /* some g != 0: bake the light scattered towards position
+                          (radiance_camera, baker/march.c) */
 } scene_camera_t;
 
 /* Thresholds of the adaptive pipeline: a negative value means "auto". */

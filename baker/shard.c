@@ -112,7 +112,7 @@ int shard_decode_add(const float *in, size_t voxels, int stride, int slot, uint6
 int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids, int *count,
                 int max, bk_error_t *err) {
   const pm_sums_t *k = &sh->sums;
-  const int slots = k->stride + (k->flux ? PM_FLUX_SLOTS : 0);
+  const int fslots = PM_FLUX_SLOTS_WITH(k->camera), slots = k->stride + (k->flux ? fslots : 0);
   if (k->stride < 1 || k->stride > SHARD_MAX_STRIDE || *count + slots > max)
     return bk_fail(err, BK_ERR_RUNTIME, "shard: %d counters per voxel do not fit the file",
                    slots);
@@ -120,7 +120,7 @@ int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids,
   for (int s = 0; s < slots; s++) {
     const int f = s - k->stride; /* >= 0: a flux counter, after the voxels' */
     sh->slots[s] = f < 0 ? (shard_slot_t){k->acc, k->stride, s}
-                         : (shard_slot_t){k->acc + n * (size_t)k->stride, PM_FLUX_SLOTS, f};
+                         : (shard_slot_t){k->acc + n * (size_t)k->stride, fslots, f};
     snprintf(sh->names[s], sizeof sh->names[s], f < 0 ? "shard_sum_%d" : "shard_flux_%d",
              f < 0 ? s : f);
     grids[(*count)++] =
@@ -148,6 +148,11 @@ int shard_meta(shard_state_t *sh, const bake_options_t *opt, const scene_t *s,
   meta[m++] = (vdbio_meta_t){"shard_sum_channels", VDBIO_META_INT, NULL, k->channels, 0};
   meta[m++] = (vdbio_meta_t){"shard_sum_mode", VDBIO_META_INT, NULL, k->mode, 0};
   if (k->flux) meta[m++] = (vdbio_meta_t){"shard_sum_flux", VDBIO_META_INT, NULL, 1, 0};
+  if (k->flux && k->camera) { /* its scale, and the point the merged file names */
+    snprintf(sh->camera, sizeof sh->camera, "%a", (double)k->cam_scale);
+    meta[m++] = (vdbio_meta_t){"shard_sum_camera", VDBIO_META_STRING, sh->camera, 0, 0};
+    bake_camera_meta(s->camera.position, sh->camera_at, sizeof sh->camera_at, &meta[m++]);
+  }
   meta[m++] = (vdbio_meta_t){"shard_sum_scales", VDBIO_META_STRING, sh->scales, 0, 0};
   snprintf(sh->ior_bg, sizeof sh->ior_bg, "%a", (double)s->medium_ior);
   snprintf(sh->grid, sizeof sh->grid, "%d %d %d %a %a %a %a", dims->nx, dims->ny, dims->nz,

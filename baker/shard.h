@@ -35,7 +35,8 @@
 
 #define SHARD_META_MAX 20 /* entries shard_meta adds, at most */
 #define SHARD_MAX_STRIDE 4 /* counters per voxel: 3 channels + packed count/weight */
-#define SHARD_MAX_SLOTS (SHARD_MAX_STRIDE + PM_FLUX_SLOTS) /* and the flux's (shard_flux_A) */
+/* and the flux's (shard_flux_A), the camera's last */
+#define SHARD_MAX_SLOTS (SHARD_MAX_STRIDE + PM_FLUX_SLOTS_WITH(1))
 #define SHARD_MAX_COUNT 100000
 
 /* One counter per voxel of the sums, as the write's fill reads it. */
@@ -50,6 +51,7 @@ typedef struct shard_state {
   uint64_t first, last, photons; /* the range of photons.count traced */
   shard_slot_t slots[SHARD_MAX_SLOTS]; /* shard_sum_S, then shard_flux_A */
   char key[24], scales[160], names[SHARD_MAX_SLOTS][16], filter[160], ior_bg[40], grid[160];
+  char camera[40], camera_at[96]; /* shard_sum_camera, radiance_camera_position */
   float alpha;                   /* adaptive.alpha, for the merge's filter */
 } shard_state_t;
 

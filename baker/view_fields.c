@@ -36,7 +36,7 @@ int view_fields_build(view_volume_t *v, bk_error_t *err) {
    * sampling reads: S and σt packed padded already (view_volume.c), the
    * phase lobes padded after */
   oct_source_t medium[4] = {{v->medium, 4, 4, 1}, {v->sigma_t4, 4, 3, 1}, {v->aniso, 4, 4, 0},
-                            {v->aniso_s, 4, 3, 0}};
+                            {v->aniso_s, 4, v->camera_phase ? 4 : 3, 0}};
   int nsrc = 1;
   if (v->sigma_t4) medium[nsrc++] = medium[1];
   if (v->aniso) { /* the phase lobes: part of the source */

@@ -40,6 +40,20 @@ static bk_v3 v3_from_linear(const double m[3][4], const double d[3]) {
   return v3((float)o[0], (float)o[1], (float)o[2]);
 }
 
+/* `radiance_camera` serves this camera: it stands where the bake's did (to
+ * a thousandth of a voxel; the metadata holds the float the scene gave). */
+static int view_camera_matches(const view_volume_t *v, const view_cam_t *c) {
+  if (!v->camera_phase) return 0;
+  double d2 = 0.0;
+  for (int k = 0; k < 3; k++) d2 += ((double)c->pos[k] - v->camera_world[k]) * ((double)c->pos[k] - v->camera_world[k]);
+  const double tol = 1e-3 * v->voxel_size;
+  if (d2 <= tol * tol) return 1;
+  bk_log(1, "view: radiance_camera was baked for a camera at [%g, %g, %g], not this one: the "
+            "phase towards the camera comes from the flux's lobes",
+         v->camera_world[0], v->camera_world[1], v->camera_world[2]);
+  return 0;
+}
+
 static void setup_params(const view_volume_t *v, const view_cam_t *c, const float bg[3],
                          float step, view_params_t *p) {
   memset(p, 0, sizeof *p);
@@ -71,6 +85,7 @@ static void setup_params(const view_volume_t *v, const view_cam_t *c, const floa
   double hmin = step < p->straight_step ? step : p->straight_step;
   double lim = 8.0 * ((double)v->nx + v->ny + v->nz) / hmin + 64.0;
   p->max_steps = lim > 1e9 ? 1000000000 : (int)lim;
+  p->camera_phase = view_camera_matches(v, c);
 }
 
 /* Bytes of a pyramid's levels; a 16-byte stand-in when it was not built. */

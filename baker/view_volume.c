@@ -5,6 +5,7 @@
 #include "view_volume.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -199,7 +200,7 @@ static int is_constant(const float *a, size_t n, int ch, float c[3]) {
   return 1;
 }
 
-enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_IOR_RGB, G_FLUX, G_PHG, G_UNC, G_FUNC, G_COUNT };
+enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_IOR_RGB, G_FLUX, G_PHG, G_UNC, G_FUNC, G_CAM, G_COUNT };
 
 /* One file's grids while they are read and moved onto one box. */
 typedef struct view_load {
@@ -237,7 +238,7 @@ static int load_select(view_load_t *L, bk_error_t *err) {
     if (idx[g] < 0) continue;
     const char *t = types[idx[g]];
     int ok = g == G_RAD || g == G_IOR_RGB || g == G_FLUX || g == G_FUNC ? is_vec3_type(t)
-             : g == G_IOR || g == G_PHG || g == G_UNC ? is_scalar_type(t)
+             : g == G_IOR || g == G_PHG || g == G_UNC || g == G_CAM ? is_scalar_type(t)
                                                         : (is_scalar_type(t) || is_vec3_type(t));
     if (!ok)
       return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %s values, expected %s", path,
@@ -245,7 +246,7 @@ static int load_select(view_load_t *L, bk_error_t *err) {
                      g == G_RAD                               ? "Vec3f (vec3s) radiance"
                      : g == G_IOR_RGB                         ? "Vec3f (vec3s) n per channel"
                      : g == G_FLUX || g == G_FUNC             ? "Vec3f (vec3s)"
-                     : g == G_IOR || g == G_PHG || g == G_UNC ? "float"
+                     : g == G_IOR || g == G_PHG || g == G_UNC || g == G_CAM ? "float"
                                                               : "float or Vec3f");
     L->present[g] = 1;
   }
@@ -470,6 +471,34 @@ static void aniso_voxel(const float *F, float g, const float *l, const float *y0
   a[3] = (float)u;
 }
 
+/* `radiance_camera`'s point (bake.h bake_camera_meta); 0 when the file
+ * names none, which leaves the lobes alone. */
+static int camera_point(const char *path, double out[3]) {
+  char text[128];
+  bk_error_t e = {0, ""};
+  if (vdbio_read_meta(path, "radiance_camera_position", text, sizeof text, &e) != BK_OK ||
+      sscanf(text, "[%lf, %lf, %lf]", &out[0], &out[1], &out[2]) != 3 ||
+      !(isfinite(out[0]) && isfinite(out[1]) && isfinite(out[2]))) {
+    bk_warn("%s: grid \"radiance_camera\" without a readable radiance_camera_position: "
+            "the phase towards the camera comes from the flux's lobes", path);
+    return 0;
+  }
+  return 1;
+}
+
+/* The camera's factor C / Y(L̄) per voxel into aniso_s's 4th float: what
+ * the voxel scatters towards the bake's camera per unit σs L̄, in place of
+ * the lobes for the rays that come straight from that point. */
+static void load_camera(view_load_t *L, view_volume_t *v, size_t nvox) {
+  const float *C = L->arr[G_CAM], *rad = L->arr[G_RAD];
+  if (!C || !(v->camera_phase = camera_point(L->path, v->camera_world))) return;
+  for (size_t i = 0; i < nvox; i++) {
+    const float *l = rad + 3 * i;
+    double y = 0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2];
+    v->aniso_s[4 * i + 3] = y > 0.0 && C[i] > 0.0f ? (float)(C[i] / y) : 0.0f;
+  }
+}
+
 static int load_aniso(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
   const float *F = L->arr[G_FLUX], *g = L->arr[G_PHG], *rad = L->arr[G_RAD];
   const float *unc = L->arr[G_UNC], *func = L->arr[G_FUNC];
@@ -493,6 +522,8 @@ static int load_aniso(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t 
     for (int k = 0; k < 3; k++)
       v->anisotropic |= v->aniso[4 * i + k] != 0.0f || v->aniso_s[4 * i + k] != 0.0f;
   }
+  load_camera(L, v, nvox);
+  v->anisotropic |= v->camera_phase;
   if (!v->anisotropic) {
     free(v->aniso), v->aniso = NULL;
     free(v->aniso_s), v->aniso_s = NULL;
@@ -596,7 +627,8 @@ int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void 
   L.scale = 1.0;
   const char *gname[G_COUNT] = {"radiance",      "ior",     "extinction",         "scattering",
                                 "ior_rgb",       "radiance_flux", "phase_g",
-                                "radiance_uncollided", "radiance_flux_uncollided"};
+                                "radiance_uncollided", "radiance_flux_uncollided",
+                                "radiance_camera"};
   memcpy(L.gname, gname, sizeof gname);
 
   double t0 = bk_now_ms(), t1, t2;

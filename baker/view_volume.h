@@ -4,7 +4,7 @@
  * In: a VDB with a `radiance` Vec3f grid and optionally `ior`, `extinction`
  * (else `density`), `scattering` (view.h says how absent grids default),
  * `radiance_flux` with `phase_g` and `radiance_uncollided` (the anisotropic
- * phase's lobes), any
+ * phase's lobes) and `radiance_camera` (the phase towards one camera), any
  * similarity transform. Out: the union of the grids' active boxes in the
  * radiance grid's index space, with the index <-> world transforms, and the
  * packed fields: S = σs L̄ with σt, RGB σt, n, {∇n, n}, the flat distances
@@ -29,8 +29,11 @@ typedef struct view_volume {
   float *medium;               /* 4 per voxel: S = σs L̄ (RGB), σt when grey; per voxel length;
                                   padded (field.h), packed so by the read */
   float *sigma_t4;             /* 4 per voxel: σt (RGB) when RGB and not homogeneous; padded */
-  float *aniso, *aniso_s;      /* 4 per voxel: the phase lobes (view_march.h), index space */
+  float *aniso, *aniso_s;      /* 4 per voxel: the phase lobes (view_march.h), index space;
+                                  aniso_s's 4th: the camera's factor (camera_phase) */
   int anisotropic;             /* some lobe is not isotropic (radiance_flux and phase_g) */
+  int camera_phase;            /* `radiance_camera`: its factor C / Y(L̄) per voxel in aniso_s */
+  double camera_world[3];      /* ... for a camera at this point (its metadata) */
   int sigma_ch;                /* 1: grey coefficients, 3: RGB */
   int homogeneous;             /* RGB σt constant: st_const */
   float st_const[3];

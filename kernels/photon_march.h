@@ -53,21 +53,8 @@
  *                     atomic per passage and none per extra deposit: the
  *                     slides lost time to atomics for exactly these data.
  *
- * PM_FLUX (g != 0 somewhere, baker/bounces.c ms_decide): the accumulator
- * also holds, after the voxels' counters, PM_FLUX_SLOTS counters per voxel:
- * 3 signed ones (two's complement in the ulong atomics, order-independent
- * like the others), the luminance-weighted deposit times the chord's unit
- * direction, Σ Y·ℓ·ω with Y = Σ_c lum_c Φ_c (Rec. 709; the one channel
- * itself when PM_CHANNELS is 1), of the photons that have scattered; then
- * Σ Y·ℓ and Σ Y·ℓ·ω (3 signed) of the photons not scattered yet (a
- * multiple-scattering chain's first leg; every deposit with bounces 0).
- * baker/march.h pm_to_flux: the first moment of radiance (the two Σ Y·ℓ·ω
- * added), next to radiance's zeroth, and the uncollided light with its own
- * flux: the view gives the beam and the scattered light each its own
- * direction (they differ by tens of degrees in thick fog, where one mean
- * direction for both misplaced the forward lobes by 5-15% of the image).
- * Not in PM_MODE_ORIGINS.
- * Without the flag nothing of it is compiled. */
+ * PM_FLUX and PM_CAMERA: the flux's and the camera's counters
+ * (kernels/march_deposit.h). */
 #ifndef BAKER_MARCH_KERNEL_H
 #define BAKER_MARCH_KERNEL_H
 
@@ -101,7 +88,6 @@
 #define PM_FATE_ABSORBED 2   /* power below PM_ABSORB_FRACTION */
 #define PM_FATE_STEP_LIMIT 3 /* PM_MAX_STEPS or PM_MAX_PATH_DIAGONALS */
 
-#define PM_FLUX_SLOTS 7 /* PM_FLUX: counters per voxel after the voxels' */
 
 #define PM_MODE_REFERENCE 0
 #define PM_MODE_ORIGINS 1
@@ -140,6 +126,11 @@
 #endif
 #define PM_FLUX_COMPILED (PM_FLUX && PM_MODE != PM_MODE_ORIGINS)
 #define PM_FLUX_OF(P) (PM_FLUX_COMPILED)
+#ifndef PM_CAMERA
+#define PM_CAMERA 0
+#endif
+#define PM_CAMERA_COMPILED (PM_FLUX_COMPILED && PM_CAMERA)
+#define PM_CAMERA_OF(P) (PM_CAMERA_COMPILED)
 #define PM_HAS_REFRACTION(P) (HAS_REFRACTION)
 #define PM_HOMOGENEOUS(P) (HOMOGENEOUS)
 #define PM_INTEGRATOR(P) (INTEGRATOR)
@@ -160,6 +151,8 @@
 #define PM_SIGMA_CODED_OF(P) (((P)->sigma_stride & PM_SIGMA_CODED_FLAG) != 0u)
 #define PM_FLUX_COMPILED 1
 #define PM_FLUX_OF(P) ((P)->flux && (P)->mode != PM_MODE_ORIGINS)
+#define PM_CAMERA_COMPILED 1
+#define PM_CAMERA_OF(P) ((P)->camera && PM_FLUX_OF(P))
 /* The host path marches one photon at a time on one thread. */
 #define PM_ATOMIC_ADD(p, q) (*(p) += (q))
 /* Host-only path recording for tests (pm_trace_* in baker/march.h). */
@@ -184,7 +177,7 @@ static inline void pm_record(pm_path_rec *rec, bk_v3 x) {
 /* pm_params.sigma_stride: the volume's σ is coded (kernels/medium_code.h) */
 #define PM_SIGMA_CODED_FLAG 0x100u
 
-/* Parameters of one march, shared by every photon. Pinned at 128 bytes. */
+/* Parameters of one march, shared by every photon. Pinned at 160 bytes. */
 typedef struct pm_params {
   bk_grid grid;
   float sigma_t[3];      /* HOMOGENEOUS: extinction per voxel length (σt h) */
@@ -207,8 +200,13 @@ typedef struct pm_params {
   float weight_scale;         /* weighted: quanta of the packed weight sum per unit w */
   bk_uint count_shift;        /* weighted: the count's lowest bit in the packed counter */
   float h;                    /* the voxel size: σ per metre -> per voxel length */
+  float cam[3];               /* PM_CAMERA: the camera's position, voxel coordinates */
+  float cam_g;                /* PM_CAMERA: the media's one g */
+  float cam_scale;            /* PM_CAMERA: 1 / P_max */
+  bk_uint camera;             /* host path only: the device uses -D PM_CAMERA */
+  bk_uint pad_cam0, pad_cam1;
 } pm_params;
-BK_STATIC_ASSERT(sizeof(pm_params) == 128, "pm_params layout is shared with kernels");
+BK_STATIC_ASSERT(sizeof(pm_params) == 160, "pm_params layout is shared with kernels");
 
 /* One photon's outcome. */
 typedef struct pm_result {
@@ -239,43 +237,7 @@ typedef struct pm_photon {
 #endif
 } pm_photon;
 
-/* Adds value (already multiplied by the fixed-point scale) to one counter,
- * rounded to the nearest quantum. */
-BK_INLINE void pm_deposit(BK_GLOBAL bk_ulong *acc, float value) {
-  bk_ulong q = (bk_ulong)(value + 0.5f);
-  if (q) PM_ATOMIC_ADD(acc, q);
-}
-
-#if PM_FLUX_COMPILED
-/* PM_FLUX: a channel's weight in the flux's luminance (Rec. 709; one
- * channel carries the sum of RGB, coloured by the host). */
-BK_INLINE float pm_flux_weight(int nch, int ch) {
-  return nch == 1 ? 1.0f : ch == 0 ? 0.2126f : ch == 1 ? 0.7152f : 0.0722f;
-}
-
-/* Adds y·d to three signed counters (quanta rounded to the nearest, in the
- * ulongs' two's complement). */
-BK_INLINE void pm_deposit_vector(BK_GLOBAL bk_ulong *f, float y, bk_v3 d) {
-  const float v[3] = {y * d.x, y * d.y, y * d.z};
-  for (int a = 0; a < 3; a++) {
-    bk_long q = (bk_long)(v[a] >= 0.0f ? v[a] + 0.5f : v[a] - 0.5f);
-    if (q) PM_ATOMIC_ADD(f + a, (bk_ulong)q);
-  }
-}
-
-/* Adds y·d to the scattered light's flux counters of a voxel, or, while
- * the photon has not scattered, y and y·d to the uncollided ones: four
- * atomics per deposit at most, as many as one flux sum for all and Y0 took
- * (the total F is the sum of the two, baker/march.c). */
-BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d, bk_uint scattered) {
-  if (scattered) {
-    pm_deposit_vector(f, y, d);
-    return;
-  }
-  pm_deposit(f + 3, y);
-  pm_deposit_vector(f + 4, y, d);
-}
-#endif
+#include "kernels/march_deposit.h"
 
 BK_INLINE bk_long pm_index(const bk_grid g, int i, int j, int k) {
   return (bk_long)i + (bk_long)g.nx * ((bk_long)j + (bk_long)g.ny * (bk_long)k);
@@ -380,8 +342,12 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
   if (PM_FLUX_OF(P)) {
     const bk_grid g = P->grid;
     const bk_long base = (bk_long)g.nx * (bk_long)g.ny * (bk_long)g.nz * (bk_long)stride;
-    pm_deposit_flux(acc + base + PM_FLUX_SLOTS * idx, lum * P->fixed_scale, ph->fdir,
-                    ph->scattered);
+    BK_GLOBAL bk_ulong *f = acc + base + PM_FLUX_SLOTS_WITH(PM_CAMERA_OF(P)) * idx;
+    pm_deposit_flux(f, lum * P->fixed_scale, ph->fdir, ph->scattered);
+#if PM_CAMERA_COMPILED
+    if (PM_CAMERA_OF(P))
+      pm_deposit(f + PM_CAMERA_SLOT, lum * P->fixed_scale * pm_camera_phase(P, c, ph->fdir));
+#endif
   }
 #endif
   ph->path += seg;

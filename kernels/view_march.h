@@ -31,6 +31,12 @@
  * A ray stops when it leaves the box or max(T) < VIEW_T_CUTOFF. Outside the
  * box the medium is empty.
  *
+ * Towards the bake's camera (params.camera_phase: the file's
+ * `radiance_camera` was baked for a camera at cam_pos): on the chords that
+ * still run along the camera ray's first direction, i.e. straight from that
+ * point, S → S · c with c = C / Y(L̄) (aniso_s's 4th float), the light each
+ * voxel scatters that way of every order, in place of the lobes below.
+ *
  * Anisotropic phase (flags.aniso, from `radiance_flux`, `phase_g`,
  * `radiance_uncollided` and `radiance_flux_uncollided`): the radiance at a
  * point is taken as the share u = Y0 / Y(L̄) of uncollided light, an HG
@@ -60,6 +66,9 @@
 #define VIEW_BRICK_LEVEL 2        /* bricks are the pyramid's blocks of 8³ */
 #define VIEW_DIR_EPS 1e-12f
 #define VIEW_ANISO_MAX 0.999f     /* |g·m|: a lobe narrower than this is a spike */
+/* cos of the most a chord may turn from its camera ray's first direction and
+ * still take the camera's factor (params.camera_phase): 0.08 degrees */
+#define VIEW_CAMERA_COS 0.999999f
 
 enum { VIEW_EULER = RC_EULER, VIEW_RK4 = RC_RK4 };
 
@@ -73,7 +82,8 @@ typedef struct view_params {
   bk_v3 sigma_t;      /* RGB and HOMOGENEOUS: σt per voxel length */
   int width, height;
   int nx, ny, nz;
-  int pad0, pad1, pad2;
+  int camera_phase;   /* aniso_s's 4th float is the factor towards cam_pos (radiance_camera) */
+  int pad1, pad2;
   int max_steps;      /* per ray (curved rays trapped by total internal reflection) */
   float step;         /* voxels, curved march */
   float straight_step;/* voxels, most, where n is constant (a brick's or the grid's) */
@@ -180,18 +190,25 @@ BK_INLINE float view_block_exit(const int *lo, const int *hi, bk_v3 *u, bk_v3 d,
 }
 
 /* Integrates one segment of length len (voxels) whose medium is sampled at
- * its midpoint um, into L and T. Grey media evaluate one channel, not three,
- * and keep their transmittance in T->x alone (the caller copies it to y, z). */
+ * its midpoint um, into L and T; from_cam: the segment runs straight from
+ * the bake's camera (params.camera_phase). Grey media evaluate one channel,
+ * not three, and keep their transmittance in T->x alone (the caller copies
+ * it to y, z). */
 BK_INLINE void view_segment(const view_params_t *p, view_fields f, view_flags fl, bk_v3 um,
-                            bk_v3 d, float len, bk_v3 *L, bk_v3 *T) {
+                            bk_v3 d, float len, int from_cam, bk_v3 *L, bk_v3 *T) {
   const rc_dims n = view_dims(p);
   rc_tri t = rc_tri_at(n, um);
   rc_f4 m = rc_gather4(n, f.medium, &t);
   bk_v3 src = v3(m.x, m.y, m.z);
   if (fl.aniso) {
-    rc_f4 a = rc_gather4(n, f.aniso, &t), b = rc_gather4(n, f.aniso_s, &t);
-    src = v3_scale(src, a.w * view_phase_factor(v3(a.x, a.y, a.z), d) +
-                            (1.0f - a.w) * view_phase_factor(v3(b.x, b.y, b.z), d));
+    rc_f4 b = rc_gather4(n, f.aniso_s, &t);
+    if (from_cam) {
+      src = v3_scale(src, b.w);
+    } else {
+      rc_f4 a = rc_gather4(n, f.aniso, &t);
+      src = v3_scale(src, a.w * view_phase_factor(v3(a.x, a.y, a.z), d) +
+                              (1.0f - a.w) * view_phase_factor(v3(b.x, b.y, b.z), d));
+    }
   }
   if (fl.grey) {
     float trans, wg = rc_atten(m.w * len, &trans);
@@ -338,8 +355,10 @@ BK_INLINE bk_uint view_march_ray(const view_params_t *p, view_fields f, view_fla
       view_next_chord(p, f, fl, &r);
       if (!(r.clen > 0.0f)) continue;
       const float h = r.clen / (float)r.cn;
+      const int from_cam = p->camera_phase && v3_dot(r.cd, d) >= VIEW_CAMERA_COS;
       for (int i = 0; i < r.cn; i++) {
-        view_segment(p, f, fl, v3_madd(r.ca, r.cd, ((float)i + 0.5f) * h), r.cd, h, &L, &T);
+        view_segment(p, f, fl, v3_madd(r.ca, r.cd, ((float)i + 0.5f) * h), r.cd, h, from_cam, &L,
+                     &T);
         steps++;
         if (view_t_max(fl, T) < VIEW_T_CUTOFF) {
           r.done = 1;

@@ -50,6 +50,15 @@ add_test(NAME cli_crop_vacuum
                  ${CMAKE_BINARY_DIR}/cli_crop ${CMAKE_SOURCE_DIR}/scenes)
 set_tests_properties(cli_crop_vacuum PROPERTIES RUN_SERIAL TRUE)
 
+# The light scattered towards the scene's camera (radiance_camera): written
+# with g != 0 and a camera, used by the view from that camera only, merged
+# from shards bit for bit.
+add_test(NAME cli_camera_phase
+         COMMAND bash ${BAKER_TEST_DIR}/camera_phase.sh $<TARGET_FILE:baker>
+                 $<TARGET_FILE:bench_tool> ${CMAKE_BINARY_DIR}/cli_camera_phase)
+set_tests_properties(cli_camera_phase PROPERTIES
+  ENVIRONMENT "BAKER_CACHE_DIR=${CMAKE_BINARY_DIR}/kernel-cache")
+
 # Keyframed lights and frame reuse (docs/animation.md): a light-only batch
 # voxelizes once and writes grids bit-identical to single-frame bakes.
 add_test(NAME cli_bake_reuse

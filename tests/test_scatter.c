@@ -287,11 +287,13 @@ static int test_object_g(void) {
 
 /* A 16³ cube of 1 m with g = 0.5 (so the march keeps radiance_flux) under a
  * directional light along dir; RGB absorption when rgb (three channels,
- * the flux weighted in the kernel), else grey (one). The raw sums, with
- * radiance and flux (3 floats per voxel each) and the uncollided luminance
- * (1), then its flux (3), filled from them. */
-static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3], float *rad,
-                           float *flux, float *unc) {
+ * the flux weighted in the kernel), else grey (one); with cam (world; NULL:
+ * none) a scene camera there, so the camera's counter too. The raw sums
+ * (*count counters), with radiance and flux (3 floats per voxel each) and
+ * the uncollided luminance (1), then its flux (3) and, with cam,
+ * radiance_camera (1), filled from them. */
+static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3],
+                           const float *cam, float *rad, float *flux, float *unc, size_t *count) {
   volume_t v;
   tv_alloc(&v, 16, 16, 16, 1.0f / 16, 0, 0, 0);
   const float ss[3] = {3.0f, 3.0f, 3.0f}, sa[3] = {0.1f, rgb ? 0.3f : 0.1f, rgb ? 0.9f : 0.1f};
@@ -302,13 +304,18 @@ static uint64_t *flux_bake(clh_context_t *cl, int bounces, int rgb, const float 
   ts_init(&s, &light, 1, 20000);
   s.bounces = bounces;
   s.medium_g = 0.5f;
+  if (cam) memcpy(s.camera.position, cam, sizeof s.camera.position);
+  s.camera.present = cam != NULL;
   bk_error_t err;
   memset(&err, 0, sizeof err);
   pm_setup_t setup;
   REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
   REQUIRE(setup.params.flux == 1, "g = 0.5 must turn the flux on");
+  REQUIRE((int)setup.params.camera == (cam != NULL), "camera counter %s",
+          cam ? "missing with a camera" : "kept without a camera");
   REQUIRE(setup.channels == (rgb ? 3 : 1), "expected %d channels", rgb ? 3 : 1);
-  uint64_t *acc = calloc(pm_acc_count(&setup), sizeof *acc);
+  *count = pm_acc_count(&setup);
+  uint64_t *acc = calloc(*count, sizeof *acc);
   REQUIRE(acc, "out of memory");
   int rc = cl ? pm_run_cl(cl, &setup, acc, NULL, &err) : pm_run_host(&setup, acc, NULL, &err);
   REQUIRE(rc == BK_OK, "march: %s", err.msg);
@@ -361,9 +368,10 @@ static int test_flux(clh_context_t *cl) {
   const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
   float *rad = calloc(3 * n, sizeof(float)), *flux = calloc(3 * n, sizeof(float));
   float *unc = calloc(4 * n, sizeof(float)); /* Y0, then the uncollided flux F0 */
+  size_t count;
   REQUIRE(rad && flux && unc, "out of memory");
   for (int rgb = 0; rgb < 2; rgb++) {
-    uint64_t *acc = flux_bake(cl, 0, rgb, dir, rad, flux, unc);
+    uint64_t *acc = flux_bake(cl, 0, rgb, dir, NULL, rad, flux, unc, &count);
     double worst = 0.0, worst_u = 0.0;
     size_t lit = 0;
     for (size_t i = 0; i < n; i++) {
@@ -383,7 +391,7 @@ static int test_flux(clh_context_t *cl) {
     REQUIRE(worst_u < 1e-4, "uncollided share off by %.3e", worst_u);
     free(acc);
   }
-  uint64_t *acc = flux_bake(cl, 8, 0, dir, rad, flux, unc);
+  uint64_t *acc = flux_bake(cl, 8, 0, dir, NULL, rad, flux, unc, &count);
   double along = 0.0, ysum = 0.0, over = -1.0, ymax = 0.0, usum = 0.0, umin = 1.0, uover = -1.0;
   double beam = 0.0;
   for (size_t i = 0; i < n; i++) ymax = fmax(ymax, lum3(rad + 3 * i));
@@ -413,14 +421,107 @@ static int test_flux(clh_context_t *cl) {
   if (cl) {
     float *r2 = calloc(3 * n, sizeof(float)), *f2 = calloc(3 * n, sizeof(float));
     REQUIRE(r2 && f2, "out of memory");
-    uint64_t *again = flux_bake(cl, 8, 0, dir, r2, f2, unc);
-    REQUIRE(memcmp(again, acc, n * (1 + PM_FLUX_SLOTS) * sizeof *acc) == 0,
+    uint64_t *again = flux_bake(cl, 8, 0, dir, NULL, r2, f2, unc, &count);
+    REQUIRE(count == n * (1 + PM_FLUX_SLOTS) && memcmp(again, acc, count * sizeof *acc) == 0,
             "two OpenCL bakes' sums differ");
     printf("flux: two OpenCL bakes' sums bit-identical (the atomics' order does not matter)\n");
     free(again), free(r2), free(f2);
   }
   free(acc), free(rad), free(flux), free(unc);
   return check_phase_factor();
+}
+
+/* flux_bake with a camera at cam: radiance (3 floats per voxel) and
+ * radiance_camera (1) into rad and cam_c. */
+static uint64_t *camera_bake(clh_context_t *cl, int bounces, int rgb, const float dir[3],
+                             const float cam[3], float *rad, float *cam_c, size_t *count) {
+  const size_t n = 16 * 16 * 16;
+  float *flux = calloc(3 * n, sizeof(float)), *unc = calloc(5 * n, sizeof(float));
+  REQUIRE(flux && unc, "out of memory");
+  uint64_t *acc = flux_bake(cl, bounces, rgb, dir, cam, rad, flux, unc, count);
+  memcpy(cam_c, unc + 4 * n, n * sizeof(float)); /* radiance_camera, after F0 */
+  free(flux), free(unc);
+  return acc;
+}
+
+/* radiance_camera, the light scattered towards the camera (march.h
+ * pm_to_flux). Single scattering of a parallel beam along w0: every photon
+ * in a voxel moves along w0, so C / Y(L̄) is the phase 4π p_HG(g, w0·ω_c)
+ * towards the camera from the voxel's centre, exactly (to float rounding),
+ * grey and RGB. Multiple scattering: C / Y(L̄) within the phase's range,
+ * and its mean over the lit voxels between the back and forward values.
+ * On OpenCL the sums equal the host C path's bit for bit. The camera is
+ * left out without a camera, with camera.bake_phase false, or when g
+ * varies. */
+static int test_camera(clh_context_t *cl) {
+  const size_t n = 16 * 16 * 16;
+  const float dir[3] = {0.3f, 0.2f, 1.0f}, cam[3] = {-1.5f, 0.6f, 0.4f}, g = 0.5f;
+  const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
+  float *rad = calloc(3 * n, sizeof(float)), *c = calloc(n, sizeof(float));
+  REQUIRE(rad && c, "out of memory");
+  size_t count;
+  for (int rgb = 0; rgb < 2; rgb++) {
+    uint64_t *acc = camera_bake(cl, 0, rgb, dir, cam, rad, c, &count);
+    double worst = 0.0;
+    size_t lit = 0;
+    for (size_t i = 0; i < n; i++) {
+      double y = lum3(rad + 3 * i), p[3], pl = 0.0;
+      if (!(y > 0.0)) continue;
+      const size_t ijk[3] = {i % 16, i / 16 % 16, i / 256};
+      for (int a = 0; a < 3; a++) p[a] = cam[a] - (ijk[a] + 0.5) / 16.0, pl += p[a] * p[a];
+      double cs = (p[0] * w0[0] + p[1] * w0[1] + p[2] * w0[2]) / sqrt(pl);
+      double want = (1 - g * g) / pow(1 + g * g - 2 * g * cs, 1.5);
+      worst = fmax(worst, fabs(c[i] / y / want - 1.0));
+      lit++;
+    }
+    printf("camera, single scattering (%s): %zu lit voxels, C / Y(L) against 4pi p_HG(g, w0.w_c) "
+           "off by %.2e at most (limit 1e-4)\n", rgb ? "RGB" : "grey", lit, worst);
+    REQUIRE(lit > n / 2 && worst < 1e-4, "camera phase off by %.3e", worst);
+    free(acc);
+  }
+  uint64_t *acc = camera_bake(cl, 8, 0, dir, cam, rad, c, &count);
+  double lo = (1 - g) / pow(1 + g, 2), hi = (1 + g) / pow(1 - g, 2), csum = 0, ysum = 0, out = 0;
+  for (size_t i = 0; i < n; i++) {
+    double y = lum3(rad + 3 * i);
+    csum += c[i], ysum += y;
+    if (y > 1e-3 * ysum / (i + 1)) out = fmax(out, fmax(lo - c[i] / y, c[i] / y - hi));
+  }
+  printf("camera, multiple scattering: C / Y(L) %.3f over the grid, out of [%.3f, %.3f] by %.2e "
+         "at most\n", csum / ysum, lo, hi, out);
+  REQUIRE(out < 1e-4 && csum / ysum > lo && csum / ysum < hi, "camera factor out of range");
+  if (cl) {
+    size_t count_h;
+    uint64_t *host = camera_bake(NULL, 8, 0, dir, cam, rad, c, &count_h);
+    REQUIRE(count_h == count && memcmp(host, acc, count * sizeof *acc) == 0,
+            "the OpenCL sums differ from the host's");
+    printf("camera: OpenCL and host sums bit-identical (%zu counters)\n", count);
+    free(host);
+  }
+  free(acc), free(rad), free(c);
+  /* not kept: no camera, camera.bake_phase false */
+  volume_t v;
+  tv_alloc(&v, 8, 8, 8, 1.0f / 8, 0, 0, 0);
+  const float ss[3] = {1, 1, 1}, sa[3] = {0.1f, 0.1f, 0.1f};
+  tv_fill(&v, 1.0f, ss, sa);
+  tv_summarise(&v);
+  scene_light_t light = tl_directional(0, 0, 1, 1);
+  for (int k = 0; k < 2; k++) {
+    scene_t s;
+    ts_init(&s, &light, 1, 100);
+    s.medium_g = 0.5f;
+    s.camera.present = k;
+    s.camera.bake_phase = 0;
+    pm_setup_t setup;
+    bk_error_t err = {0, ""};
+    REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+    REQUIRE(setup.params.flux && !setup.params.camera &&
+                pm_acc_count(&setup) == setup.voxels * (1 + PM_FLUX_SLOTS),
+            "camera counter kept (camera %d, bake_phase 0)", k);
+    pm_setup_free(&setup);
+  }
+  tv_free(&v);
+  printf("camera: no counter without a camera or with bake_phase false\n");
+  return 0;
 }
 
 int main(int argc, char **argv) {
@@ -439,6 +540,7 @@ int main(int argc, char **argv) {
   if (strcmp(t, "reproducible") == 0) return test_reproducible(cl);
   if (strcmp(t, "object_g") == 0) return test_object_g();
   if (strcmp(t, "flux") == 0) return test_flux(cl);
+  if (strcmp(t, "camera") == 0) return test_camera(cl);
   fprintf(stderr, "test_scatter: unknown test %s\n", t);
   return 2;
 }
