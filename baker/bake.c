@@ -438,7 +438,8 @@ static int bake_write(bake_job_t *j, const bake_options_t *opt, const char *scen
   memcpy(all, meta, sizeof meta);
   char crop[160], camera[96];
   if (j->vol->cropped) all[meta_count++] = bake_crop_meta(j->vol, crop, sizeof crop);
-  if (j->error.camera) bake_camera_meta(s->camera.position, camera, sizeof camera, &all[meta_count++]);
+  if (j->error.camera)
+    bake_camera_meta(s->camera.position, camera, sizeof camera, &all[meta_count++]);
   if (j->shard.sums.acc)
     meta_count += shard_meta(&j->shard, opt, s, &j->vol->dims, all + meta_count);
   vdbio_write_opts_t wo = opt->write;

@@ -51,13 +51,13 @@ static int estimate_in(const scene_t *s, int resolution, const float box[2][3], 
   if (rc) return rc;
   b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
   const int grey = budget_grey(s), adaptive = s->mode == MODE_ADAPTIVE;
+  const int flux = !adaptive && budget_anisotropic(s);
+  const int camera = flux && s->camera.present && s->camera.bake_phase;
   b->per_voxel = (grey ? (adaptive ? BUDGET_ADAPTIVE_GREY_BYTES : BUDGET_REFERENCE_GREY_BYTES)
                        : (adaptive ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES)) +
                  (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0) +
                  (s->ior_vdb.present ? BUDGET_IOR_VDB_BYTES : 0.0) +
-                 (s->mode != MODE_ADAPTIVE && budget_anisotropic(s)
-                      ? BUDGET_FLUX_BYTES + (s->camera.present && s->camera.bake_phase ? BUDGET_CAMERA_BYTES : 0.0)
-                      : 0.0);
+                 (flux ? BUDGET_FLUX_BYTES : 0.0) + (camera ? BUDGET_CAMERA_BYTES : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
   return BK_OK;
 }

@@ -94,7 +94,8 @@ static int read_shard(merge_shard_t *s, bk_error_t *err) {
  * shards), and the sums' layout and scales. */
 static const char *const SAME_KEYS[] = {
     "shard_key", "shard_photon_order", "shard_count", "shard_photons", "shard_sum_stride", "shard_sum_channels",
-    "shard_sum_mode", "shard_sum_flux", "shard_sum_camera", "radiance_camera_position", "shard_sum_scales", "shard_grid", "shard_ior_background", "shard_filter",
+    "shard_sum_mode", "shard_sum_flux", "shard_sum_scales", "shard_grid", "shard_ior_background", "shard_filter",
+    "shard_sum_camera", "radiance_camera_position",
     "checksum_v2_ior", "checksum_v2_extinction", "checksum_v2_scattering", "checksum_v2_density"};
 
 static int check_together(const merge_shard_t *sh, int n, bk_error_t *err) {

@@ -45,7 +45,10 @@ static bk_v3 v3_from_linear(const double m[3][4], const double d[3]) {
 static int view_camera_matches(const view_volume_t *v, const view_cam_t *c) {
   if (!v->camera_phase) return 0;
   double d2 = 0.0;
-  for (int k = 0; k < 3; k++) d2 += ((double)c->pos[k] - v->camera_world[k]) * ((double)c->pos[k] - v->camera_world[k]);
+  for (int k = 0; k < 3; k++) {
+    const double d = (double)c->pos[k] - v->camera_world[k];
+    d2 += d * d;
+  }
   const double tol = 1e-3 * v->voxel_size;
   if (d2 <= tol * tol) return 1;
   bk_log(1, "view: radiance_camera was baked for a camera at [%g, %g, %g], not this one: the "
