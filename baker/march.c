@@ -108,11 +108,13 @@ static void set_sigma(const volume_t *vol, pm_setup_t *s) {
   }
 }
 
-/* PM_CAMERA (kernels/photon_march.h): the flux is kept (some g != 0), the
- * scene has a camera, and one g holds everywhere (the kernel reads no g
- * per voxel for it). */
+/* PM_CAMERA (kernels/march_deposit.h): the flux is kept (some g != 0), the
+ * scene has a camera, and one g holds everywhere or photons scatter (the
+ * march of multiple scattering reads g per voxel; single scattering's does
+ * not, and its lobes are exact for one light). */
 static int wants_camera(const scene_t *scene, const ms_setup_t *ms) {
-  return ms->hg && scene->camera.present && scene->camera.bake_phase && !ms->g_grid;
+  return ms->hg && scene->camera.present && scene->camera.bake_phase &&
+         (!ms->g_grid || ms->params.max_bounces > 0);
 }
 
 /* The camera in voxel coordinates, its g and the phase's scale 1/P_max. */
@@ -122,8 +124,11 @@ static void set_camera(const scene_t *scene, const volume_t *vol, pm_setup_t *s)
   if (!wants_camera(scene, &s->ms)) return;
   for (int a = 0; a < 3; a++)
     P->cam[a] = (float)(((double)scene->camera.position[a] - d->origin[a]) / d->voxel_size);
-  const double g = vol->g ? vol->g[0] : scene->medium_g, ag = fabs(g);
+  const double g = vol->g ? vol->g[0] : scene->medium_g;
+  double ag = fabs(g);
   P->cam_g = (float)g;
+  P->cam_g_grid = (bk_uint)s->ms.g_grid;
+  for (size_t i = 0; P->cam_g_grid && i < s->voxels; i++) ag = fmax(ag, fabs((double)vol->g[i]));
   P->cam_scale = (float)((1.0 - ag) * (1.0 - ag) / (1.0 + ag));
   P->camera = 1;
 }

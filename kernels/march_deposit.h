@@ -21,8 +21,9 @@
  * Not in PM_MODE_ORIGINS.
  * Without the flag nothing of it is compiled.
  *
- * PM_CAMERA (with PM_FLUX, a scene camera and one g for every medium,
- * baker/march.c): one more counter per voxel after the flux's,
+ * PM_CAMERA (with PM_FLUX and a scene camera, baker/march.c; a g that
+ * varies only with multiple scattering, whose march reads g per voxel):
+ * one more counter per voxel after the flux's,
  * Σ Y·ℓ·P(ω·ω_c)/P_max, the deposit weighted by the Henyey–Greenstein
  * phase 4π p(g, ω·ω_c) from the photon's direction ω into ω_c, the
  * direction from the voxel's centre to the camera; P_max = (1+|g|)/(1−|g|)²
@@ -78,11 +79,12 @@ BK_INLINE void pm_deposit_flux(BK_GLOBAL bk_ulong *f, float y, bk_v3 d, bk_uint 
 
 #if PM_CAMERA_COMPILED
 /* PM_CAMERA: 4π p_HG(g, d·ω_c) / P_max, at most 1, for light moving along
- * unit d through voxel c; ω_c points from the voxel's centre to the camera. */
-BK_INLINE float pm_camera_phase(const pm_params *P, const int *c, bk_v3 d) {
+ * unit d through voxel c of asymmetry g; ω_c points from the voxel's centre
+ * to the camera. */
+BK_INLINE float pm_camera_phase(const pm_params *P, const int *c, bk_v3 d, float g) {
   const bk_v3 w = v3(P->cam[0] - ((float)c[0] + 0.5f), P->cam[1] - ((float)c[1] + 0.5f),
                      P->cam[2] - ((float)c[2] + 0.5f));
-  const float len = rc_length(w), g = P->cam_g;
+  const float len = rc_length(w);
   const float cosv = len > 0.0f ? v3_dot(d, w) / len : 1.0f;
   const float den = 1.0f + g * g - 2.0f * g * cosv;
   const float p = (1.0f - g * g) / (den * RC_SQRT(den)) * P->cam_scale;

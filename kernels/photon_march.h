@@ -201,10 +201,11 @@ typedef struct pm_params {
   bk_uint count_shift;        /* weighted: the count's lowest bit in the packed counter */
   float h;                    /* the voxel size: σ per metre -> per voxel length */
   float cam[3];               /* PM_CAMERA: the camera's position, voxel coordinates */
-  float cam_g;                /* PM_CAMERA: the media's one g */
-  float cam_scale;            /* PM_CAMERA: 1 / P_max */
+  float cam_g;                /* PM_CAMERA: the media's one g (not cam_g_grid) */
+  float cam_scale;            /* PM_CAMERA: 1 / P_max, of the largest |g| */
   bk_uint camera;             /* host path only: the device uses -D PM_CAMERA */
-  bk_uint pad_cam0, pad_cam1;
+  bk_uint cam_g_grid;         /* PM_CAMERA: g per voxel, from pm_photon.gvox */
+  bk_uint pad_cam1;
 } pm_params;
 BK_STATIC_ASSERT(sizeof(pm_params) == 160, "pm_params layout is shared with kernels");
 
@@ -234,6 +235,9 @@ typedef struct pm_photon {
 #if PM_FLUX_COMPILED
   bk_v3 fdir;       /* PM_FLUX: the unit direction of the chord being deposited */
   bk_uint scattered; /* PM_FLUX: 0 on the light's own leg, 1 after a scattering event */
+#endif
+#if PM_CAMERA_COMPILED
+  BK_GLOBAL const float *gvox; /* PM_CAMERA with cam_g_grid: g per voxel (the scatter's) */
 #endif
 } pm_photon;
 
@@ -345,8 +349,10 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
     BK_GLOBAL bk_ulong *f = acc + base + PM_FLUX_SLOTS_WITH(PM_CAMERA_OF(P)) * idx;
     pm_deposit_flux(f, lum * P->fixed_scale, ph->fdir, ph->scattered);
 #if PM_CAMERA_COMPILED
-    if (PM_CAMERA_OF(P))
-      pm_deposit(f + PM_CAMERA_SLOT, lum * P->fixed_scale * pm_camera_phase(P, c, ph->fdir));
+    if (PM_CAMERA_OF(P)) {
+      const float g = P->cam_g_grid ? ph->gvox[idx] : P->cam_g;
+      pm_deposit(f + PM_CAMERA_SLOT, lum * P->fixed_scale * pm_camera_phase(P, c, ph->fdir, g));
+    }
 #endif
   }
 #endif
@@ -618,6 +624,9 @@ BK_INLINE void pm_march_photon(BK_CONSTANT const pm_params *Pc, BK_CONSTANT cons
   ng = pm_begin(P, ng, index, res);
   pm_photon ph;
   if (!pm_start(P, lights, ng, tables, index, &ph PM_REC_ARG)) return;
+#if PM_CAMERA_COMPILED
+  ph.gvox = 0; /* single scattering keeps the camera only for one g */
+#endif
   bk_uint steps = 0;
   res->fate = pm_march_leg(P, ng, pyr, sigma, acc, masks, &ph, &steps PM_REC_ARG);
   res->steps = steps;

@@ -104,6 +104,9 @@ BK_INLINE void pm_march_scattered(BK_CONSTANT const pm_params *Pc, BK_CONSTANT c
   tally->events = 0;
   pm_photon ph;
   if (!pm_start(P, lights, ng, tables, index, &ph PM_REC_ARG)) return;
+#if PM_CAMERA_COMPILED
+  ph.gvox = med.g;
+#endif
   float w0 = 0.0f;
   for (int ch = 0; ch < nch; ch++) {
     w0 = fmax(w0, ph.power[ch]);

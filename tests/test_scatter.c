@@ -444,6 +444,75 @@ static uint64_t *camera_bake(clh_context_t *cl, int bounces, int rgb, const floa
   return acc;
 }
 
+/* g per voxel (0.2 for x < 1/2, 0.7 beyond), thin fog (τ 0.05 across, so
+ * a few % of the light has scattered) and multiple scattering, whose march
+ * reads g per voxel. The uncollided beam Y0 sends Y0·P towards the camera,
+ * P = 4π p_HG(g, w0·ω_c) with the voxel's own g, and the scattered rest
+ * Y − Y0 between 0 and (Y − Y0)·P_max(g), so
+ *   Y0·P <= C <= Y0·P + (Y − Y0)·(1 + g)/(1 − g)²
+ * in every voxel (to 1e-4 of Y; a march that took the other half's g
+ * breaks it: the halves' P differ by up to 3×). OpenCL's sums are the
+ * host's bit for bit. */
+static int test_camera_g_grid(clh_context_t *cl) {
+  const int N = 16;
+  const size_t n = (size_t)N * N * N;
+  volume_t v;
+  tv_alloc(&v, N, N, N, 1.0f / N, 0, 0, 0);
+  const float ss[3] = {0.05f, 0.05f, 0.05f}, sa[3] = {0.01f, 0.01f, 0.01f};
+  tv_fill(&v, 1.0f, ss, sa);
+  tv_summarise(&v);
+  v.g = malloc(n * sizeof(float));
+  REQUIRE(v.g, "out of memory");
+  for (size_t i = 0; i < n; i++) v.g[i] = (int)(i % N) < N / 2 ? 0.2f : 0.7f;
+  scene_light_t light = tl_directional(0.3f, 0.2f, 1.0f, 1.0f);
+  scene_t s;
+  ts_init(&s, &light, 1, 40000);
+  s.bounces = 8;
+  s.medium_g = 0.2f;
+  s.camera.present = 1;
+  const float cam[3] = {-1.5f, 0.6f, 0.4f};
+  memcpy(s.camera.position, cam, sizeof cam);
+  bk_error_t err = {0, ""};
+  pm_setup_t setup;
+  REQUIRE(pm_prepare(&s, &v, &setup, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+  REQUIRE(setup.ms.g_grid && setup.params.camera && setup.params.cam_g_grid,
+          "a g grid with multiple scattering must keep the camera's counter");
+  const size_t count = pm_acc_count(&setup);
+  uint64_t *acc = calloc(count, sizeof *acc), *host = calloc(count, sizeof *host);
+  float *rad = calloc(3 * n, sizeof(float)), *flux = calloc(3 * n, sizeof(float));
+  float *unc = calloc(5 * n, sizeof(float));
+  REQUIRE(acc && host && rad && flux && unc, "out of memory");
+  REQUIRE((cl ? pm_run_cl(cl, &setup, acc, NULL, &err) : pm_run_host(&setup, acc, NULL, &err)) ==
+              BK_OK, "march: %s", err.msg);
+  pm_to_radiance(&setup, acc, rad, 3);
+  pm_to_flux(&setup, acc, flux, unc);
+  const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
+  double out = -1.0, share = 0.0, y_all = 0.0;
+  for (size_t i = 0; i < n; i++) {
+    const double y = lum3(rad + 3 * i), y0 = unc[i], C = unc[4 * n + i], g = v.g[i];
+    const size_t ijk[3] = {i % N, i / N % N, i / ((size_t)N * N)};
+    double p[3], pl = 0.0;
+    for (int a = 0; a < 3; a++) p[a] = cam[a] - (ijk[a] + 0.5) / N, pl += p[a] * p[a];
+    const double cs = (p[0] * w0[0] + p[1] * w0[1] + p[2] * w0[2]) / sqrt(pl);
+    const double P = (1 - g * g) / pow(1 + g * g - 2 * g * cs, 1.5), pmax = (1 + g) / pow(1 - g, 2);
+    out = fmax(out, fmax(y0 * P - C, C - y0 * P - (y - y0) * pmax) / y);
+    share += y - y0, y_all += y;
+  }
+  printf("camera, g per voxel (0.2 | 0.7), thin fog, multiple scattering (%.1f%% scattered): "
+         "C outside [Y0 P, Y0 P + (Y - Y0) P_max] by %.2e of Y at most (limit 1e-4)\n",
+         100.0 * share / y_all, out);
+  REQUIRE(out < 1e-4, "camera phase with g per voxel out of its bounds by %.3e", out);
+  if (cl) {
+    REQUIRE(pm_run_host(&setup, host, NULL, &err) == BK_OK, "host march: %s", err.msg);
+    REQUIRE(memcmp(host, acc, count * sizeof *acc) == 0, "g per voxel: OpenCL differs from host");
+    printf("camera, g per voxel: OpenCL and host sums bit-identical\n");
+  }
+  free(acc), free(host), free(rad), free(flux), free(unc), free(v.g);
+  pm_setup_free(&setup);
+  tv_free(&v);
+  return 0;
+}
+
 /* radiance_camera, the light scattered towards the camera (march.h
  * pm_to_flux). Single scattering of a parallel beam along w0: every photon
  * in a voxel moves along w0, so C / Y(L̄) is the phase 4π p_HG(g, w0·ω_c)
@@ -498,6 +567,7 @@ static int test_camera(clh_context_t *cl) {
     free(host);
   }
   free(acc), free(rad), free(c);
+  if (test_camera_g_grid(cl)) return 1;
   /* not kept: no camera, camera.bake_phase false */
   volume_t v;
   tv_alloc(&v, 8, 8, 8, 1.0f / 8, 0, 0, 0);

@@ -11,6 +11,11 @@
 # turned +90° about x. A path with #### (or the first file of a numbered run)
 # loads as an animated sequence. Optionally the scene's camera and its meshes
 # (as glass of each object's IOR) come too, read from the scene JSON.
+# A file with `radiance_camera` (some g != 0 and a scene camera) scales the
+# emission by radiance_camera / Y(radiance), the light scattered towards the
+# baked camera, as `baker view` does from there: exact from that camera, and
+# wrong elsewhere (turn "Phase towards the baked camera" off for another
+# camera: the isotropic emission).
 #
 # Headless: import_baked(path, ...) does the same from a script, e.g.
 #   blender -b -P script.py, or `import bpy` from the bpy module.
@@ -63,8 +68,25 @@ def _node(nodes, kind, loc, **props):
     return n
 
 
-def _material(name, rgb_extinction):
-    """Emission × `emission` grid + Volume Absorption of the `extinction` grid."""
+def _camera_phase(nodes, links, emi_attr):
+    """`emission` × radiance_camera / Y(radiance) (Math's divide gives 0 for
+    0, where no light came); returns the socket to emit."""
+    rad = _node(nodes, "ShaderNodeAttribute", (-800, 500), attribute_name="radiance")
+    cam = _node(nodes, "ShaderNodeAttribute", (-800, 350), attribute_name="radiance_camera")
+    lum = _node(nodes, "ShaderNodeRGBToBW", (-600, 500))  # Rec. 709 luminance
+    div = _node(nodes, "ShaderNodeMath", (-400, 400), operation="DIVIDE")
+    scale = _node(nodes, "ShaderNodeVectorMath", (-200, 300), operation="SCALE")
+    links.new(rad.outputs["Color"], lum.inputs["Color"])
+    links.new(cam.outputs["Fac"], div.inputs[0])
+    links.new(lum.outputs["Val"], div.inputs[1])
+    links.new(emi_attr.outputs["Vector"], scale.inputs["Vector"])
+    links.new(div.outputs["Value"], scale.inputs["Scale"])
+    return scale.outputs["Vector"]
+
+
+def _material(name, rgb_extinction, camera_phase=False):
+    """Emission × `emission` grid (× the camera's phase) + Volume Absorption of
+    the `extinction` grid."""
     mat = bpy.data.materials.new(name)
     if hasattr(mat, "use_nodes") and not mat.use_nodes:
         mat.use_nodes = True
@@ -74,7 +96,8 @@ def _material(name, rgb_extinction):
     emi_attr = _node(nodes, "ShaderNodeAttribute", (-400, 200), attribute_name="emission")
     emission = _node(nodes, "ShaderNodeEmission", (0, 200))
     emission.inputs["Strength"].default_value = 1.0
-    links.new(emi_attr.outputs["Color"], emission.inputs["Color"])
+    links.new(_camera_phase(nodes, links, emi_attr) if camera_phase else emi_attr.outputs["Color"],
+              emission.inputs["Color"])
     ext_attr = _node(nodes, "ShaderNodeAttribute", (-400, -200), attribute_name="extinction")
     absorb = _node(nodes, "ShaderNodeVolumeAbsorption", (0, -200))
     if rgb_extinction:  # σa = density·(1 − colour): density 1, colour 1 − σt
@@ -161,10 +184,11 @@ def _add_meshes(scene_json, scene_dir, axis, context):
 
 
 def import_baked(filepath, y_up=True, sequence=True, scene_path="", camera=False,
-                 meshes=False, context=None):
+                 meshes=False, context=None, camera_phase=True):
     """Imports a baked file; returns the volume object. Callable headless.
 
-    scene_path: the scene JSON, read for camera=True and meshes=True."""
+    scene_path: the scene JSON, read for camera=True and meshes=True.
+    camera_phase: use `radiance_camera` when the file has it."""
     context = context or bpy.context
     axis = Y_UP_TO_Z_UP if y_up else Matrix.Identity(4)
     seq = _sequence(filepath) if sequence else None
@@ -182,7 +206,8 @@ def import_baked(filepath, y_up=True, sequence=True, scene_path="", camera=False
         vol.frame_start = seq[1]
         vol.frame_duration = seq[2]
         vol.frame_offset = seq[1] - 1
-    vol.materials.append(_material("baker " + os.path.basename(filepath), rgb))
+    phase = camera_phase and "radiance_camera" in grids and "radiance" in grids
+    vol.materials.append(_material("baker " + os.path.basename(filepath), rgb, phase))
     obj = bpy.data.objects.new(vol.name, vol)
     obj.matrix_world = axis
     context.collection.objects.link(obj)
@@ -212,11 +237,14 @@ class IMPORT_OT_baked_lighting(bpy.types.Operator, ImportHelper):
     camera: BoolProperty(name="Camera", default=False, description="The scene's camera")
     meshes: BoolProperty(name="Meshes as glass", default=False,
                          description="The scene's meshes, as glass of each object's IOR")
+    camera_phase: BoolProperty(name="Phase towards the baked camera", default=True,
+                               description="Files with radiance_camera (g != 0): the light "
+                               "scattered towards the scene's camera, exact from there only")
 
     def execute(self, context):
         try:
             import_baked(self.filepath, self.y_up, self.sequence, bpy.path.abspath(self.scene_path),
-                         self.camera, self.meshes, context)
+                         self.camera, self.meshes, context, self.camera_phase)
         except (OSError, RuntimeError, ValueError, KeyError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
