@@ -91,6 +91,10 @@ void view_report(const view_totals_t *tot, int with_png) {
            "%s: %llu of %llu camera rays stopped at the step limit (trapped by total internal "
            "reflection)", tot->capped * 10000 > tot->pixels ? "warning" : "view",
            (unsigned long long)tot->capped, (unsigned long long)tot->pixels);
+  if (tot->camera_frames && tot->lobe_frames)
+    bk_log(1, "view: the phase towards the camera came from radiance_camera in %d frame(s) and "
+              "from the flux's lobes in %d (cameras elsewhere than the bake's)",
+           tot->camera_frames, tot->lobe_frames);
   if (bk_verbosity >= 1) {
     bk_timings_t t;
     memset(&t, 0, sizeof t);

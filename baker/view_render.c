@@ -50,11 +50,21 @@ static int view_camera_matches(const view_volume_t *v, const view_cam_t *c) {
     d2 += d * d;
   }
   const double tol = 1e-3 * v->voxel_size;
-  if (d2 <= tol * tol) return 1;
-  bk_log(1, "view: radiance_camera was baked for a camera at [%g, %g, %g], not this one: the "
-            "phase towards the camera comes from the flux's lobes",
-         v->camera_world[0], v->camera_world[1], v->camera_world[2]);
-  return 0;
+  return d2 <= tol * tol;
+}
+
+/* Counts the frames by where their phase came from; says it the first time
+ * a camera stands elsewhere than the bake's (view_report sums up). */
+static void count_camera_phase(const view_volume_t *v, const view_params_t *p,
+                               view_totals_t *tot) {
+  if (!v->camera_phase) return;
+  if (p->camera_phase) {
+    tot->camera_frames++;
+  } else if (tot->lobe_frames++ == 0) {
+    bk_log(1, "view: radiance_camera was baked for a camera at [%g, %g, %g], not this one: "
+              "the phase towards the camera comes from the flux's lobes",
+           v->camera_world[0], v->camera_world[1], v->camera_world[2]);
+  }
 }
 
 static void setup_params(const view_volume_t *v, const view_cam_t *c, const float bg[3],
@@ -264,6 +274,7 @@ int view_render(view_gpu_t *g, const view_volume_t *v, const view_cam_t *c, cons
   bk_uint *steps = NULL;
   view_params_t p;
   setup_params(v, c, bg, step, &p);
+  count_camera_phase(v, &p, tot);
 
   if (v->empty) { /* nothing in the file but background */
     for (size_t i = 0; i < npix; i++) {

@@ -35,6 +35,7 @@ typedef struct view_totals {
   int frames;
   int reused;          /* frames that kept the previous frame's volume */
   int device_in_read;  /* the device was opened during the read (in its time) */
+  int camera_frames, lobe_frames; /* radiance_camera: frames at the bake's camera, elsewhere */
   char last_options[256];
 } view_totals_t;
 
