@@ -295,8 +295,8 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
                      og_dense(NULL), NULL, NULL};
   if (j->radiance) a.emission = og_made(og_emission, src);
   if (j->radiance && rad_channels == 1) a.radiance = og_made(og_radiance, src);
-  if (j->error.uncollided) a.radiance_flux_uncollided = j->error.uncollided + n; /* after Y0 */
-  if (j->error.camera) a.radiance_camera = j->error.uncollided + 4 * n;          /* after F0 */
+  if (j->error.uncollided) a.radiance_flux_uncollided = pm_flux_uncollided(j->error.uncollided, n);
+  if (j->error.camera) a.radiance_camera = pm_radiance_camera(j->error.uncollided, n);
   if (vol->ior_rb) a.ior_rgb = og_made(og_ior_rgb, src);
   if (j->error.flux || j->shard.sums.flux) /* a shard's flux is in its sums */
     a.phase_g = og_made(og_phase_g, src);

@@ -488,11 +488,11 @@ static void to_flux_range(void *arg, size_t lo, size_t hi) {
   const double k = pm_flux_scale(u->s);
   const int camera = (int)u->s->params.camera, slots = PM_FLUX_SLOTS_WITH(camera);
   const double kc = camera ? k / (double)u->s->params.cam_scale : 0.0;
-  float *cam = u->count + 4 * u->s->voxels; /* radiance_camera, after F0's */
+  float *cam = pm_radiance_camera(u->count, u->s->voxels);
   for (size_t i = lo; i < hi; i++) {
     const uint64_t *q = f + slots * i;
     if (camera) cam[i] = (float)((double)q[PM_CAMERA_SLOT] * kc);
-    float *f0 = u->count + u->s->voxels + 3 * i; /* the uncollided flux, after Y0's */
+    float *f0 = pm_flux_uncollided(u->count, u->s->voxels) + 3 * i;
     for (int a = 0; a < 3; a++) { /* F: the scattered light's sum + the uncollided one's */
       u->radiance[3 * i + a] = (float)((double)(int64_t)(q[a] + q[4 + a]) * k);
       f0[a] = (float)((double)(int64_t)q[4 + a] * k);

@@ -257,8 +257,11 @@ float *pm_to_radiance_in_place(const pm_setup_t *s, uint64_t *acc, int channels)
  * the luminance the voxel scatters towards the camera, per unit σs.
  * pm_flux_scale: quanta -> those units. */
 void pm_to_flux(const pm_setup_t *s, const uint64_t *acc, float *flux, float *uncollided);
-/* Floats per voxel of pm_to_flux's `uncollided` array: 4, 5 with the camera. */
+/* Floats per voxel of pm_to_flux's `uncollided` array: 4, 5 with the camera;
+ * and where in it F0 (3 per voxel) and radiance_camera (1) begin. */
 static inline int pm_uncollided_floats(const pm_setup_t *s) { return s->params.camera ? 5 : 4; }
+static inline float *pm_flux_uncollided(float *unc, size_t voxels) { return unc + voxels; }
+static inline float *pm_radiance_camera(float *unc, size_t voxels) { return unc + 4 * voxels; }
 double pm_flux_scale(const pm_setup_t *s);
 /* Weighted mode: per voxel the photon count and the mean weight (0 where no
  * photon came); either may be NULL. */

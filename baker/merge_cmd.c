@@ -390,8 +390,9 @@ static int merge_run(merge_shard_t *sh, int n, const char *out_path, bk_error_t 
                        og_dense(o.density), og_made(og_emission, &src),
                        o.count, o.weight, o.radius, o.sca_channels, o.medium_ior,
                        og_dense(o.ior_rgb), o.flux, o.uncollided, og_dense(o.phase_g),
-                       o.uncollided ? o.uncollided + sums.voxels : NULL, /* after Y0 */
-                       o.uncollided && sums.camera ? o.uncollided + 4 * sums.voxels : NULL};
+                       o.uncollided ? pm_flux_uncollided(o.uncollided, sums.voxels) : NULL,
+                       o.uncollided && sums.camera ? pm_radiance_camera(o.uncollided, sums.voxels)
+                                                   : NULL};
     int count = bake_grid_list(&a, grids);
     int mc = merged_meta(sh, n, &o, &text, meta);
     vdbio_write_opts_t w = write_opts(text.settings);

@@ -439,7 +439,7 @@ static uint64_t *camera_bake(clh_context_t *cl, int bounces, int rgb, const floa
   float *flux = calloc(3 * n, sizeof(float)), *unc = calloc(5 * n, sizeof(float));
   REQUIRE(flux && unc, "out of memory");
   uint64_t *acc = flux_bake(cl, bounces, rgb, dir, cam, rad, flux, unc, count);
-  memcpy(cam_c, unc + 4 * n, n * sizeof(float)); /* radiance_camera, after F0 */
+  memcpy(cam_c, pm_radiance_camera(unc, n), n * sizeof(float));
   free(flux), free(unc);
   return acc;
 }
@@ -489,7 +489,8 @@ static int test_camera_g_grid(clh_context_t *cl) {
   const double dn = sqrt(0.09 + 0.04 + 1.0), w0[3] = {0.3 / dn, 0.2 / dn, 1.0 / dn};
   double out = -1.0, share = 0.0, y_all = 0.0;
   for (size_t i = 0; i < n; i++) {
-    const double y = lum3(rad + 3 * i), y0 = unc[i], C = unc[4 * n + i], g = v.g[i];
+    const double y = lum3(rad + 3 * i), y0 = unc[i], g = v.g[i];
+    const double C = pm_radiance_camera(unc, n)[i];
     const size_t ijk[3] = {i % N, i / N % N, i / ((size_t)N * N)};
     double p[3], pl = 0.0;
     for (int a = 0; a < 3; a++) p[a] = cam[a] - (ijk[a] + 0.5) / N, pl += p[a] * p[a];
