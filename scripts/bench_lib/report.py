@@ -33,6 +33,8 @@ def machine(res):
              f"Profile `{res['profile']}`, started {res['started']}, took {res.get('elapsed_s', 0) / 60:.1f} min; "
              f"load average (1/5/15 min) {_la(la0)} at the start, {_la(la1)} at the end "
              f"(other processes share the CPU: timings are noisy)."]
+    if res.get("sets"):
+        lines.append("Every bake with " + ", ".join(f"`--set {kv}`" for kv in res["sets"]) + ".")
     return "\n".join(lines)
 
 
