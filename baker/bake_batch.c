@@ -109,17 +109,19 @@ static void settings_diff(const char *was, const char *now, char *out, size_t le
 
 /* 1 when out_path holds what this run would bake (skip it), 0 when it must
  * be baked (why: the reason, empty for a missing file); an error when the
- * scene cannot be loaded, so a missing scene is never a skip. */
+ * scene cannot be loaded, so a missing scene is never a skip. A missing
+ * output is baked without a look at the scene here: the bake loads it, and
+ * its warnings are said once. */
 static int up_to_date(const bake_options_t *opt, const char *scene_path, const char *out_path,
                       int frame, char *why, size_t len, bk_error_t *err) {
   scene_t s;
   char now[512], was[512];
   why[0] = 0;
+  if (access(out_path, F_OK) != 0) return 0;
   int rc = bake_load_scene(opt, scene_path, frame, &s, err);
   if (rc) return -rc;
   bake_settings(opt, &s, now, sizeof now);
   scene_free(&s);
-  if (access(out_path, F_OK) != 0) return 0;
   bk_error_t ignored;
   if (vdbio_read_meta(out_path, "creator", was, sizeof was, &ignored) != BK_OK ||
       strncmp(was, "baker", 5) != 0)

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Frame ranges in `baker bake` (DESIGN §6-7): a range writes one file per
 # frame, a second run skips complete frames (restartable), a Slurm array task
-# bakes its own frame, and a range into a path without a pattern is refused.
+# bakes its own frame, a range into a path without a pattern is refused, and a
+# fresh bake says its scene's warnings once.
 # Usage: bake_frames.sh BAKER WORKDIR SCENES_DIR
 set -u
 BAKER=$1 WORK=$2 SCENES=$3
@@ -28,4 +29,8 @@ SLURM_ARRAY_TASK_ID=12 "$BAKER" bake scene.json -o 'slurm.$F4.vdb' -q || fail "s
 [ $st = 2 ] || fail "range into a plain path exited $st, expected 2"
 grep -q "single.vdb" err.txt || fail "message does not name the output"
 [ -e single.vdb ] && fail "single.vdb written despite the error"
+# a scene's warnings are said once per frame, not once more by the check
+# of an existing output (there is none here)
+"$BAKER" bake scene.json -o once.vdb --set no.such=1 2> err.txt || fail "bake with an unknown --set key exited $?"
+[ "$(grep -c 'no.such=1: no: unknown key' err.txt)" = 1 ] || fail "the unknown key's warning is not said exactly once: $(cat err.txt)"
 echo "bake frames: ok"
