@@ -101,9 +101,11 @@ int bake_grid_list(const bake_arrays_t *a, vdbio_grid_t grids[BAKE_MAX_GRIDS]);
 /* Bakes one frame; `frame` is recorded in the metadata and picks the
  * scene's keyframed values. reuse (frame_reuse.h; NULL: nothing kept) holds
  * what the frame before left: the stages whose inputs hash the same are
- * taken from it, and this frame leaves its own there. */
+ * taken from it, and this frame leaves its own there. loaded (NULL: load it
+ * here) is the frame's scene as bake_load_scene gave it, taken over: its
+ * warnings were said when it was loaded. */
 struct bake_reuse;
 int bake_frame(const bake_options_t *opt, const char *scene_path, const char *out_path, int frame,
-               struct bake_reuse *reuse, bk_error_t *err);
+               scene_t *loaded, struct bake_reuse *reuse, bk_error_t *err);
 
 #endif

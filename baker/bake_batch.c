@@ -109,19 +109,20 @@ static void settings_diff(const char *was, const char *now, char *out, size_t le
 
 /* 1 when out_path holds what this run would bake (skip it), 0 when it must
  * be baked (why: the reason, empty for a missing file); an error when the
- * scene cannot be loaded, so a missing scene is never a skip. A missing
- * output is baked without a look at the scene here: the bake loads it, and
- * its warnings are said once. */
+ * scene cannot be loaded, so a missing scene is never a skip. The scene
+ * loaded for the comparison goes to the bake in *s (*loaded = 1), so its
+ * warnings are said once; a missing output is baked without a look. */
 static int up_to_date(const bake_options_t *opt, const char *scene_path, const char *out_path,
-                      int frame, char *why, size_t len, bk_error_t *err) {
-  scene_t s;
+                      int frame, char *why, size_t len, scene_t *s, int *loaded,
+                      bk_error_t *err) {
   char now[512], was[512];
   why[0] = 0;
+  *loaded = 0;
   if (access(out_path, F_OK) != 0) return 0;
-  int rc = bake_load_scene(opt, scene_path, frame, &s, err);
+  int rc = bake_load_scene(opt, scene_path, frame, s, err);
   if (rc) return -rc;
-  bake_settings(opt, &s, now, sizeof now);
-  scene_free(&s);
+  *loaded = 1;
+  bake_settings(opt, s, now, sizeof now);
   bk_error_t ignored;
   if (vdbio_read_meta(out_path, "creator", was, sizeof was, &ignored) != BK_OK ||
       strncmp(was, "baker", 5) != 0)
@@ -133,6 +134,8 @@ static int up_to_date(const bake_options_t *opt, const char *scene_path, const c
     settings_diff(was, now, diff, sizeof diff);
     snprintf(why, len, "%s was baked with %s", out_path, diff);
   } else {
+    scene_free(s);
+    *loaded = 0;
     return 1;
   }
   return 0;
@@ -152,8 +155,10 @@ static int run_frame(const bake_options_t *opt, int frame, int i, int count,
   if ((rc = frames_expand(opt->scene_path, frame, scene_path, sizeof scene_path, err)) ||
       (rc = frames_expand(opt->out_path, frame, out_path, sizeof out_path, err)))
     return rc;
+  scene_t scene;
+  int loaded = 0;
   if (!opt->force) {
-    int up = up_to_date(opt, scene_path, out_path, frame, why, sizeof why, err);
+    int up = up_to_date(opt, scene_path, out_path, frame, why, sizeof why, &scene, &loaded, err);
     if (up < 0) return -up;
     if (up) {
       bk_log(1, "frame %d: %s is up to date: skipped (--force re-bakes it)", frame, out_path);
@@ -164,7 +169,7 @@ static int run_frame(const bake_options_t *opt, int frame, int i, int count,
   }
   if (count > 1) bk_log(1, "frame %d (%d of %d)", frame, i + 1, count);
   bk_progress_frame = frame;
-  return bake_frame(opt, scene_path, out_path, frame, reuse, err);
+  return bake_frame(opt, scene_path, out_path, frame, loaded ? &scene : NULL, reuse, err);
 }
 
 /* The table --keep-going ends with, and the exit status it implies. */

@@ -33,4 +33,8 @@ grep -q "single.vdb" err.txt || fail "message does not name the output"
 # of an existing output (there is none here)
 "$BAKER" bake scene.json -o once.vdb --set no.such=1 2> err.txt || fail "bake with an unknown --set key exited $?"
 [ "$(grep -c 'no.such=1: no: unknown key' err.txt)" = 1 ] || fail "the unknown key's warning is not said exactly once: $(cat err.txt)"
+# ... nor by the check that finds the existing output baked otherwise
+"$BAKER" bake scene.json -o once.vdb --set no.such=1 --photons 4000 2> err.txt || fail "re-bake exited $?"
+grep -q "re-baking" err.txt || fail "once.vdb was not re-baked with other photons: $(cat err.txt)"
+[ "$(grep -c 'no.such=1: no: unknown key' err.txt)" = 1 ] || fail "the re-bake's warning is not said exactly once: $(cat err.txt)"
 echo "bake frames: ok"
