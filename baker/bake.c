@@ -109,11 +109,11 @@ static int bake_wants_cl(const bake_job_t *j, const bake_options_t *opt) {
  * values and paths) and its voxels, kept from the frame before when they
  * were made from the same inputs. */
 static int bake_load(bake_job_t *j, const bake_options_t *opt, const char *scene_path,
-                     const char *out_path, int frame, scene_t *loaded, bk_error_t *err) {
+                     const char *out_path, int frame, bk_error_t *err) {
   double t0 = bk_now_ms();
   int rc = BK_OK;
-  if (loaded) j->scene = *loaded;
-  else if ((rc = bake_load_scene(opt, scene_path, frame, &j->scene, err))) return rc;
+  if (!j->scene_loaded && (rc = bake_load_scene(opt, scene_path, frame, &j->scene, err)))
+    return rc;
   j->scene_loaded = 1;
   if ((rc = expand_scene_paths(&j->scene, frame, err))) return rc;
   bk_timings_add(&j->timings, "scene load", bk_now_ms() - t0, "%d objects, %d lights",
@@ -501,12 +501,12 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
   memset(&alone, 0, sizeof alone);
   j->reuse = reuse ? reuse : &alone;
   j->cl = &j->no_cl;
+  if (loaded) j->scene = *loaded, j->scene_loaded = 1; /* the job frees it from here */
   vdbio_grid_t grids[BAKE_MAX_GRIDS];
   int count = 0;
   int rc = bk_check_output_dir(out_path, err);
   if (!rc && opt->stats_path) rc = bk_check_output_dir(opt->stats_path, err);
-  if (rc && loaded) scene_free(loaded);
-  if (!rc) rc = bake_load(j, opt, scene_path, out_path, frame, loaded, err);
+  if (!rc) rc = bake_load(j, opt, scene_path, out_path, frame, err);
   if (!rc) rc = bake_photons(j, opt, err);
   double t0 = bk_now_ms();
   if (!rc) rc = bake_output_grids(j, grids, &count, err);
