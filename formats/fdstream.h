@@ -47,6 +47,14 @@ protected:
     return traits_type::not_eof(ch);
   }
   int sync() override { return flush_buffer() ? 0 : -1; }
+  /* A block at least the buffer's size goes to write(2) as it is, not
+   * copied through the buffer (a grid's compressed leaves: hundreds of MB). */
+  std::streamsize xsputn(const char *s, std::streamsize n) override {
+    if (n < (std::streamsize)sizeof buf_) return std::streambuf::xsputn(s, n);
+    if (!flush_buffer() || !write_all(s, (size_t)n)) return 0;
+    start_writeback();
+    return n;
+  }
   /* OpenVDB's seekable archives tell and seek to record grid offsets. */
   pos_type seekoff(off_type off, std::ios_base::seekdir dir, std::ios_base::openmode) override {
     if (!flush_buffer() || fd_ < 0) return pos_type(off_type(-1));
@@ -60,10 +68,15 @@ protected:
   }
 
 private:
-  /* write(2) the buffer out, retrying short writes and EINTR. */
+  /* write(2) the buffer out. */
   bool flush_buffer() {
-    const char *p = pbase();
-    size_t left = (size_t)(pptr() - pbase());
+    write_all(pbase(), (size_t)(pptr() - pbase()));
+    setp(buf_, buf_ + sizeof buf_);
+    start_writeback();
+    return !error_;
+  }
+  /* write(2) [p, p + left), retrying short writes and EINTR. */
+  bool write_all(const char *p, size_t left) {
     while (left > 0 && !error_) {
       ssize_t n = fd_ < 0 ? -1 : write(fd_, p, left);
       if (n < 0 && errno == EINTR) continue;
@@ -75,8 +88,6 @@ private:
       left -= (size_t)n;
       unkicked_ += (uint64_t)n;
     }
-    setp(buf_, buf_ + sizeof buf_);
-    start_writeback();
     return !error_;
   }
   /* Every WRITEBACK_BYTES written (2 MB: 1-2 MB gave the shortest 256³

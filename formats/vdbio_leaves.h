@@ -42,6 +42,26 @@ template <typename LeafT>
 using vdbio_window_values =
     std::function<void(const LeafT *const *leaves, size_t n, typename LeafT::ValueType *out)>;
 
+/* An output stream's bytes appended to a string the caller reserved and
+ * then takes whole (std::ostringstream grows by copying and copies again
+ * in str(): twice more a grid's bytes). */
+class vdbio_string_buf : public std::streambuf {
+public:
+  explicit vdbio_string_buf(size_t reserve) { bytes.reserve(reserve); }
+  std::string bytes;
+
+protected:
+  std::streamsize xsputn(const char *s, std::streamsize n) override {
+    bytes.append(s, (size_t)n);
+    return n;
+  }
+  int_type overflow(int_type ch) override {
+    if (!traits_type::eq_int_type(ch, traits_type::eof()))
+      bytes.push_back(traits_type::to_char_type(ch));
+    return traits_type::not_eof(ch);
+  }
+};
+
 /* `leaf`'s mask into scratch, with values[] where it is on, zero elsewhere. */
 template <typename LeafT>
 static void vdbio_masked_copy(const LeafT &leaf, const typename LeafT::ValueType *values,
@@ -77,10 +97,12 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
     }
     out.assign((end - w + VDBIO_WRITE_RUN - 1) / VDBIO_WRITE_RUN, std::string());
     tbb::parallel_for(size_t(0), out.size(), [&](size_t r) {
-      std::ostringstream run(std::ios_base::out | std::ios_base::binary);
+      const size_t lo = w + r * VDBIO_WRITE_RUN, hi = std::min(end, lo + VDBIO_WRITE_RUN);
+      /* a leaf's values with its masks and headers: room for most runs */
+      vdbio_string_buf bytes((hi - lo) * (sizeof(typename LeafT::ValueType) * LeafT::SIZE + 256));
+      std::ostream run(&bytes);
       openvdb::io::setDataCompression(run, compression);
       openvdb::io::setGridBackgroundValuePtr(run, background);
-      const size_t lo = w + r * VDBIO_WRITE_RUN, hi = std::min(end, lo + VDBIO_WRITE_RUN);
       std::unique_ptr<LeafT> scratch;
       for (size_t i = lo; i < hi; i++) {
         if (!values || !leaves[i]->buffer().empty()) {
@@ -91,7 +113,7 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
         vdbio_masked_copy(*leaves[i], given.data() + (i - w) * LeafT::SIZE, *scratch);
         scratch->writeBuffers(run, to_half);
       }
-      out[r] = run.str();
+      out[r] = std::move(bytes.bytes);
     });
   };
   if (!leaves.empty()) compress(0);
