@@ -16,9 +16,9 @@
  * A leaf may also come without values (made with PartialCreate: its value
  * mask only, the buffer never allocated): the tree's `values` function then
  * gives a whole window's values at once (vdbio_write.cpp reads the grid in
- * rows across neighbouring leaves), copied into a scratch leaf per run as
- * each leaf is written, so a grid's values exist twice only a window at a
- * time. */
+ * rows across neighbouring leaves) into a window of scratch leaves, each
+ * written in its leaf's place with that leaf's mask, so a grid's values
+ * exist twice only a window at a time. */
 #ifndef BAKER_VDBIO_LEAVES_H
 #define BAKER_VDBIO_LEAVES_H
 
@@ -36,11 +36,11 @@
 static const size_t VDBIO_WRITE_WINDOW = 2048; /* leaves: 4-12 MB of values */
 static const size_t VDBIO_WRITE_RUN = 64;      /* leaves per buffer */
 
-/* The values of leaves[0..n) into out, LeafT::SIZE per leaf in leaf order
- * (inactive voxels: anything). */
+/* The values of leaves[0..n) into out[0..n), LeafT::SIZE each (inactive
+ * voxels: anything). */
 template <typename LeafT>
-using vdbio_window_values =
-    std::function<void(const LeafT *const *leaves, size_t n, typename LeafT::ValueType *out)>;
+using vdbio_window_values = std::function<void(const LeafT *const *leaves, size_t n,
+                                               typename LeafT::ValueType *const *out)>;
 
 /* An output stream's bytes appended to a string the caller reserved and
  * then takes whole (std::ostringstream grows by copying and copies again
@@ -62,16 +62,13 @@ protected:
   }
 };
 
-/* `leaf`'s mask into scratch, with values[] where it is on, zero elsewhere. */
-template <typename LeafT>
-static void vdbio_masked_copy(const LeafT &leaf, const typename LeafT::ValueType *values,
-                              LeafT &scratch) {
-  using ValueT = typename LeafT::ValueType;
+/* scratch, holding `leaf`'s values where they are on, given leaf's mask and
+ * zero where it is off (as the leaf would have held them). */
+template <typename LeafT> static void vdbio_take_mask(const LeafT &leaf, LeafT &scratch) {
   const typename LeafT::NodeMaskType &mask = leaf.getValueMask();
   scratch.setValueMask(mask);
-  ValueT *buf = scratch.buffer().data();
-  for (openvdb::Index n = 0; n < LeafT::SIZE; n++)
-    buf[n] = mask.isOn(n) ? values[n] : openvdb::zeroVal<ValueT>();
+  typename LeafT::ValueType *buf = scratch.buffer().data();
+  for (auto off = mask.beginOff(); off; ++off) buf[off.pos()] = openvdb::zeroVal<typename LeafT::ValueType>();
 }
 
 template <typename TreeT>
@@ -85,16 +82,22 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
   const void *background = openvdb::io::getGridBackgroundValuePtr(os);
   /* the runs of window w, compressed on every core into runs[w % 2] */
   std::vector<std::string> runs[2];
-  /* the window's values, where `values` gives them (one window is
-   * compressed at a time) */
-  std::vector<typename LeafT::ValueType> given;
+  /* where `values` gives them, the window's values, made straight into
+   * scratch leaves written in the leaves' place (one window is compressed
+   * at a time) */
+  std::vector<std::unique_ptr<LeafT>> scratch;
+  std::vector<typename LeafT::ValueType *> given;
+  if (values) {
+    scratch.resize(std::min(leaves.size(), VDBIO_WRITE_WINDOW));
+    for (auto &leaf : scratch) {
+      leaf.reset(new LeafT);
+      given.push_back(leaf->buffer().data());
+    }
+  }
   auto compress = [&](size_t w) {
     const size_t end = std::min(leaves.size(), w + VDBIO_WRITE_WINDOW);
     std::vector<std::string> &out = runs[(w / VDBIO_WRITE_WINDOW) % 2];
-    if (values) {
-      given.resize((end - w) * LeafT::SIZE);
-      values(leaves.data() + w, end - w, given.data());
-    }
+    if (values) values(leaves.data() + w, end - w, given.data());
     out.assign((end - w + VDBIO_WRITE_RUN - 1) / VDBIO_WRITE_RUN, std::string());
     tbb::parallel_for(size_t(0), out.size(), [&](size_t r) {
       const size_t lo = w + r * VDBIO_WRITE_RUN, hi = std::min(end, lo + VDBIO_WRITE_RUN);
@@ -103,15 +106,13 @@ void vdbio_write_leaves(const TreeT &tree, std::ostream &os, bool to_half,
       std::ostream run(&bytes);
       openvdb::io::setDataCompression(run, compression);
       openvdb::io::setGridBackgroundValuePtr(run, background);
-      std::unique_ptr<LeafT> scratch;
       for (size_t i = lo; i < hi; i++) {
         if (!values || !leaves[i]->buffer().empty()) {
           leaves[i]->writeBuffers(run, to_half);
           continue;
         }
-        if (!scratch) scratch.reset(new LeafT(leaves[i]->origin()));
-        vdbio_masked_copy(*leaves[i], given.data() + (i - w) * LeafT::SIZE, *scratch);
-        scratch->writeBuffers(run, to_half);
+        vdbio_take_mask(*leaves[i], *scratch[i - w]);
+        scratch[i - w]->writeBuffers(run, to_half);
       }
       out[r] = std::move(bytes.bytes);
     });

@@ -158,7 +158,7 @@ static const size_t VDBIO_WINDOW_SPREAD = 16;
 template <typename LeafT>
 static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
                               const LeafT *const *leaves, size_t n,
-                              typename LeafT::ValueType *out) {
+                              typename LeafT::ValueType *const *out) {
   using ValueT = typename LeafT::ValueType;
   const int C = sizeof(ValueT) / sizeof(float), D = (int)LeafT::DIM;
   vdb::Coord lo = leaves[0]->origin(), hi = lo;
@@ -171,7 +171,7 @@ static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
   if (n > 1 && (size_t)cx * (size_t)cy * (size_t)cz > VDBIO_WINDOW_SPREAD * n) {
     const size_t h = n / 2;
     vdbio_window_fill(d, g, leaves, h, out);
-    vdbio_window_fill(d, g, leaves + h, n - h, out + h * LeafT::SIZE);
+    vdbio_window_fill(d, g, leaves + h, n - h, out + h);
     return;
   }
   std::vector<int> slot((size_t)cx * (size_t)cy * (size_t)cz, -1); /* cell -> leaf */
@@ -202,7 +202,7 @@ static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
           if (!g.data) g.fill(g.fill_ctx, at, at + (size_t)(xb - xa), made.data());
           const vdb::Index row = LeafT::coordToOffset(vdb::Coord(0, y, z)); /* x = 0 */
           for (int k = ka; k < kb; k++) {
-            ValueT *leaf = out + (size_t)slot[cell(k, ky, kz)] * LeafT::SIZE + row;
+            ValueT *leaf = out[slot[cell(k, ky, kz)]] + row;
             const int xl = x0 + D * k, xh = std::min(xl + D, x1);
             for (int x = xl; x < xh; x++)
               leaf[LeafT::coordToOffset(vdb::Coord(x - xl, 0, 0))] =
@@ -252,7 +252,7 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
   typename GridT::Ptr grid = GridT::create(typename TreeT::Ptr(tree));
   if (deferred) {
     const grid_dims_t dims = *d;
-    tree->values = [dims, g](const LeafT *const *leaves, size_t n, ValueT *out) {
+    tree->values = [dims, g](const LeafT *const *leaves, size_t n, ValueT *const *out) {
       vdbio_window_fill(dims, g, leaves, n, out);
     };
   }
