@@ -350,22 +350,53 @@ bool is_ply_format(const std::string &type, const std::string &version) {
   return dots <= 1;
 }
 
-// ASCII PLY: the x, y, z properties of the "vertex" element; elements before it
-// are skipped token by token (list properties carry their own count).
-bool prescan_ply(const char *text, std::string *msg) {
-  struct prop {
-    std::string name;
-    bool list;
-  };
-  struct element {
-    std::string name;
-    long count;
-    std::vector<prop> props;
-  };
-  text_cursor c{text, 1};
-  if (c.token(true, false) != "ply") return true;
-  std::vector<element> elems;
-  bool ascii = false;
+struct ply_prop {
+  std::string name;
+  bool list;
+};
+struct ply_element {
+  std::string name;
+  long count;
+  std::vector<ply_prop> props;
+};
+
+// The rest of an "element NAME COUNT" line onto elems.
+bool ply_element_line(text_cursor &c, std::vector<ply_element> &elems, std::string *msg) {
+  ply_element e;
+  e.name = c.token(false, false);
+  std::string count = c.token(false, false);
+  double n = 0;
+  /* OpenMesh reads "nan" or "-1" as a huge count; PLY counts are ints */
+  if (!parse_number(count, &n) || !(n >= 0) || n != std::floor(n) || n > 2147483647.0) {
+    *msg = std::to_string(c.line) + ": element " + e.name +
+           ": the count must be a whole number from 0 to 2147483647, found '" + count + "'";
+    return false;
+  }
+  e.count = (long)n;
+  elems.push_back(e);
+  return true;
+}
+
+// The rest of a "property TYPE NAME" or "property list T T NAME" line onto
+// the last element.
+bool ply_property_line(text_cursor &c, ply_element &e, std::string *msg) {
+  std::string type = c.token(false, false);
+  ply_prop pr;
+  pr.list = type == "list";
+  bool typed = pr.list ? is_ply_type(c.token(false, false)) && is_ply_type(c.token(false, false))
+                       : is_ply_type(type);
+  pr.name = c.token(false, false);
+  if (!typed || pr.name.empty()) {
+    *msg = std::to_string(c.line) + ": a PLY property needs a known type and a name";
+    return false;
+  }
+  e.props.push_back(pr);
+  return true;
+}
+
+// The header up to and past end_header: its elements, and whether the body
+// is ASCII. False with *msg on a line OpenMesh would loop on or misread.
+bool ply_header(text_cursor &c, std::vector<ply_element> &elems, bool *ascii, std::string *msg) {
   for (;;) {
     c.skip_space(false);
     // OpenMesh 9 loops forever on a header without end_header (found by
@@ -383,72 +414,68 @@ bool prescan_ply(const char *text, std::string *msg) {
                version.substr(0, 20) + "'";
         return false;
       }
-      ascii = type == "ascii";
+      *ascii = type == "ascii";
     } else if (kw == "element") {
-      element e;
-      e.name = c.token(false, false);
-      std::string count = c.token(false, false);
-      double n = 0;
-      /* OpenMesh reads "nan" or "-1" as a huge count; PLY counts are ints */
-      if (!parse_number(count, &n) || !(n >= 0) || n != std::floor(n) || n > 2147483647.0) {
-        *msg = std::to_string(c.line) + ": element " + e.name +
-               ": the count must be a whole number from 0 to 2147483647, found '" + count + "'";
-        return false;
-      }
-      e.count = (long)n;
-      elems.push_back(e);
+      if (!ply_element_line(c, elems, msg)) return false;
     } else if (kw == "property" && !elems.empty()) {
-      std::string type = c.token(false, false);
-      prop pr;
-      pr.list = type == "list";
-      bool typed = pr.list ? is_ply_type(c.token(false, false)) && is_ply_type(c.token(false, false))
-                           : is_ply_type(type);
-      pr.name = c.token(false, false);
-      if (!typed || pr.name.empty()) {
-        *msg = std::to_string(c.line) + ": a PLY property needs a known type and a name";
-        return false;
-      }
-      elems.back().props.push_back(pr);
+      if (!ply_property_line(c, elems.back(), msg)) return false;
     } else if (kw == "end_header") {
       c.next_line();
-      break;
-    } else if (kw != "format" && kw != "comment" && kw != "obj_info") {
+      return true;
+    } else if (kw != "comment" && kw != "obj_info") {
       *msg = std::to_string(c.line) + ": unknown PLY header line \"" + kw.substr(0, 20) + "\"";
       return false;
     }
     c.next_line();
   }
-  if (!ascii) return true; // binary: NaN passes through, checked after reading
-  for (const element &e : elems) {
-    int ix = -1, iy = -1, iz = -1;
-    bool is_vertex = e.name == "vertex";
+}
+
+// One element's rows of the ASCII body; for the "vertex" element, x, y and z
+// checked as coordinates. True also on a truncated body (OpenMesh reports it).
+bool ply_element_rows(text_cursor &c, const ply_element &e, std::string *msg) {
+  int ix = -1, iy = -1, iz = -1;
+  const bool is_vertex = e.name == "vertex";
+  for (size_t k = 0; k < e.props.size(); k++) {
+    if (e.props[k].name == "x") ix = (int)k;
+    if (e.props[k].name == "y") iy = (int)k;
+    if (e.props[k].name == "z") iz = (int)k;
+  }
+  for (long i = 0; i < e.count; i++) {
+    std::string tok[3];
+    int line = -1;
     for (size_t k = 0; k < e.props.size(); k++) {
-      if (e.props[k].name == "x") ix = (int)k;
-      if (e.props[k].name == "y") iy = (int)k;
-      if (e.props[k].name == "z") iz = (int)k;
-    }
-    for (long i = 0; i < e.count; i++) {
-      std::string tok[3];
-      int line = -1;
-      for (size_t k = 0; k < e.props.size(); k++) {
-        std::string t = c.token(true, false);
-        if (t.empty()) return true; // truncated: OpenMesh will notice
-        if (line < 0) line = c.line;
-        if (e.props[k].list) {
-          double n = 0;
-          if (!parse_number(t, &n) || n < 0) return true;
-          for (long m = 0; m < (long)n; m++) c.token(true, false);
-          continue;
-        }
-        if (is_vertex && (int)k == ix) tok[0] = t;
-        if (is_vertex && (int)k == iy) tok[1] = t;
-        if (is_vertex && (int)k == iz) tok[2] = t;
+      std::string t = c.token(true, false);
+      if (t.empty()) return true; // truncated: OpenMesh will notice
+      if (line < 0) line = c.line;
+      if (e.props[k].list) {
+        double n = 0;
+        if (!parse_number(t, &n) || n < 0) return true;
+        for (long m = 0; m < (long)n; m++) c.token(true, false);
+        continue;
       }
-      if (is_vertex && ix >= 0 && iy >= 0 && iz >= 0 &&
-          !check_coords(tok, line, "vertex " + std::to_string(i), msg))
-        return false;
+      if (is_vertex && (int)k == ix) tok[0] = t;
+      if (is_vertex && (int)k == iy) tok[1] = t;
+      if (is_vertex && (int)k == iz) tok[2] = t;
     }
-    if (is_vertex) return true;
+    if (is_vertex && ix >= 0 && iy >= 0 && iz >= 0 &&
+        !check_coords(tok, line, "vertex " + std::to_string(i), msg))
+      return false;
+  }
+  return true;
+}
+
+// ASCII PLY: the x, y, z properties of the "vertex" element; elements before it
+// are skipped token by token (list properties carry their own count).
+bool prescan_ply(const char *text, std::string *msg) {
+  text_cursor c{text, 1};
+  if (c.token(true, false) != "ply") return true;
+  std::vector<ply_element> elems;
+  bool ascii = false;
+  if (!ply_header(c, elems, &ascii, msg)) return false;
+  if (!ascii) return true; // binary: NaN passes through, checked after reading
+  for (const ply_element &e : elems) {
+    if (!ply_element_rows(c, e, msg)) return false;
+    if (e.name == "vertex") return true;
   }
   return true;
 }
