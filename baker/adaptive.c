@@ -496,6 +496,8 @@ static void report_error(const ad_stats_t *stats, bk_timings_t *timings) {
   const bt_result_t *res = &stats->error;
   const ee_terms_t *t = &res->terms;
   double ms = res->ms_twin + res->ms_track + stats->ms_error;
+  bk_log(2, "error estimate: twins %.0f ms, batch statistics %.0f ms, filter terms %.0f ms",
+         res->ms_twin, res->ms_track, stats->ms_error);
   char step[48];
   if (res->step_exact) snprintf(step, sizeof step, "step 0 (exact)");
   else snprintf(step, sizeof step, "step %.4f (%d twins)", t->step, t->twin_batches);
