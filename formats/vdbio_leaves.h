@@ -62,13 +62,14 @@ protected:
   }
 };
 
-/* scratch, holding `leaf`'s values where they are on, given leaf's mask and
- * zero where it is off (as the leaf would have held them). */
+/* scratch, already holding leaf's values, takes leaf's mask; its voxels off
+ * in the mask become zero, as the leaf's own buffer would hold them. */
 template <typename LeafT> static void vdbio_take_mask(const LeafT &leaf, LeafT &scratch) {
+  using ValueT = typename LeafT::ValueType;
   const typename LeafT::NodeMaskType &mask = leaf.getValueMask();
   scratch.setValueMask(mask);
-  typename LeafT::ValueType *buf = scratch.buffer().data();
-  for (auto off = mask.beginOff(); off; ++off) buf[off.pos()] = openvdb::zeroVal<typename LeafT::ValueType>();
+  ValueT *buf = scratch.buffer().data();
+  for (auto off = mask.beginOff(); off; ++off) buf[off.pos()] = openvdb::zeroVal<ValueT>();
 }
 
 template <typename TreeT>
