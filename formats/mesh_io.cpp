@@ -350,15 +350,8 @@ bool is_ply_format(const std::string &type, const std::string &version) {
   return dots <= 1;
 }
 
-struct ply_prop {
-  std::string name;
-  bool list;
-};
-struct ply_element {
-  std::string name;
-  long count;
-  std::vector<ply_prop> props;
-};
+struct ply_prop { std::string name; bool list; };
+struct ply_element { std::string name; long count; std::vector<ply_prop> props; };
 
 // The rest of an "element NAME COUNT" line onto elems.
 bool ply_element_line(text_cursor &c, std::vector<ply_element> &elems, std::string *msg) {
