@@ -107,21 +107,11 @@ static void settings_diff(const char *was, const char *now, char *out, size_t le
   snprintf(out, len, "other settings");
 }
 
-/* 1 when out_path holds what this run would bake (skip it), 0 when it must
- * be baked (why: the reason, empty for a missing file); an error when the
- * scene cannot be loaded, so a missing scene is never a skip. The scene
- * loaded for the comparison goes to the bake in *s (*loaded = 1), so its
- * warnings are said once; a missing output is baked without a look. */
-static int up_to_date(const bake_options_t *opt, const char *scene_path, const char *out_path,
-                      int frame, char *why, size_t len, scene_t *s, int *loaded,
-                      bk_error_t *err) {
+/* 1 when the existing out_path holds what this run would bake of scene s
+ * (skip it), else 0 with the reason in why. */
+static int up_to_date(const bake_options_t *opt, const scene_t *s, const char *out_path,
+                      char *why, size_t len) {
   char now[512], was[512];
-  why[0] = 0;
-  *loaded = 0;
-  if (access(out_path, F_OK) != 0) return 0;
-  int rc = bake_load_scene(opt, scene_path, frame, s, err);
-  if (rc) return -rc;
-  *loaded = 1;
   bake_settings(opt, s, now, sizeof now);
   bk_error_t ignored;
   if (vdbio_read_meta(out_path, "creator", was, sizeof was, &ignored) != BK_OK ||
@@ -134,8 +124,6 @@ static int up_to_date(const bake_options_t *opt, const char *scene_path, const c
     settings_diff(was, now, diff, sizeof diff);
     snprintf(why, len, "%s was baked with %s", out_path, diff);
   } else {
-    scene_free(s);
-    *loaded = 0;
     return 1;
   }
   return 0;
@@ -155,21 +143,24 @@ static int run_frame(const bake_options_t *opt, int frame, int i, int count,
   if ((rc = frames_expand(opt->scene_path, frame, scene_path, sizeof scene_path, err)) ||
       (rc = frames_expand(opt->out_path, frame, out_path, sizeof out_path, err)))
     return rc;
-  scene_t scene;
-  int loaded = 0;
-  if (!opt->force) {
-    int up = up_to_date(opt, scene_path, out_path, frame, why, sizeof why, &scene, &loaded, err);
-    if (up < 0) return -up;
-    if (up) {
+  /* An existing output is compared with the scene (a scene that cannot be
+   * loaded is then an error, never a skip), and the bake takes that scene
+   * over, so its warnings are said once. A missing output is baked unseen. */
+  scene_t scene, *loaded = NULL;
+  if (!opt->force && access(out_path, F_OK) == 0) {
+    if ((rc = bake_load_scene(opt, scene_path, frame, &scene, err))) return rc;
+    if (up_to_date(opt, &scene, out_path, why, sizeof why)) {
+      scene_free(&scene);
       bk_log(1, "frame %d: %s is up to date: skipped (--force re-bakes it)", frame, out_path);
       res->status = FRAME_SKIPPED;
       return BK_OK;
     }
-    if (why[0]) bk_log(1, "frame %d: %s: re-baking", frame, why);
+    loaded = &scene;
+    bk_log(1, "frame %d: %s: re-baking", frame, why);
   }
   if (count > 1) bk_log(1, "frame %d (%d of %d)", frame, i + 1, count);
   bk_progress_frame = frame;
-  return bake_frame(opt, scene_path, out_path, frame, loaded ? &scene : NULL, reuse, err);
+  return bake_frame(opt, scene_path, out_path, frame, loaded, reuse, err);
 }
 
 /* The table --keep-going ends with, and the exit status it implies. */
