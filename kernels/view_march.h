@@ -189,13 +189,32 @@ BK_INLINE float view_block_exit(const int *lo, const int *hi, bk_v3 *u, bk_v3 d,
   return t;
 }
 
+/* The last segment's optical depth per channel and its rc_atten results
+ * (grey media: x alone): along a chord through uniform fog every step has
+ * the same depth, and reusing the results gives the same bits without the
+ * series or the exponential (a tenth of the view's time). */
+typedef struct view_atten {
+  bk_v3 tau, weight, trans;
+} view_atten;
+
+/* at's weights and transmittances for the depths tau (channels: 1 or 3). */
+BK_INLINE void view_atten_at(view_atten *at, bk_v3 tau, int channels) {
+  if (tau.x == at->tau.x && (channels == 1 || (tau.y == at->tau.y && tau.z == at->tau.z))) return;
+  at->tau = tau;
+  at->weight.x = rc_atten(tau.x, &at->trans.x);
+  if (channels == 1) return;
+  at->weight.y = rc_atten(tau.y, &at->trans.y);
+  at->weight.z = rc_atten(tau.z, &at->trans.z);
+}
+
 /* Integrates one segment of length len (voxels) whose medium is sampled at
  * its midpoint um, into L and T; from_cam: the segment runs straight from
  * the bake's camera (params.camera_phase). Grey media evaluate one channel,
  * not three, and keep their transmittance in T->x alone (the caller copies
  * it to y, z). */
 BK_INLINE void view_segment(const view_params_t *p, view_fields f, view_flags fl, bk_v3 um,
-                            bk_v3 d, float len, int from_cam, bk_v3 *L, bk_v3 *T) {
+                            bk_v3 d, float len, int from_cam, view_atten *at, bk_v3 *L,
+                            bk_v3 *T) {
   const rc_dims n = view_dims(p);
   rc_tri t = rc_tri_at(n, um);
   rc_f4 m = rc_gather4(n, f.medium, &t);
@@ -211,21 +230,19 @@ BK_INLINE void view_segment(const view_params_t *p, view_fields f, view_flags fl
     }
   }
   if (fl.grey) {
-    float trans, wg = rc_atten(m.w * len, &trans);
-    *L = v3_madd(*L, src, T->x * wg * len);
-    T->x *= trans;
+    view_atten_at(at, v3(m.w * len, 0.0f, 0.0f), 1);
+    *L = v3_madd(*L, src, T->x * at->weight.x * len);
+    T->x *= at->trans.x;
     return;
   }
-  bk_v3 st = p->sigma_t, w, tr;
+  bk_v3 st = p->sigma_t;
   if (!fl.homogeneous) {
     rc_f4 q = rc_gather4(n, f.sigma_t, &t);
     st = v3(q.x, q.y, q.z);
   }
-  w.x = rc_atten(st.x * len, &tr.x);
-  w.y = rc_atten(st.y * len, &tr.y);
-  w.z = rc_atten(st.z * len, &tr.z);
-  *L = v3_add(*L, v3_scale(v3_mul(v3_mul(*T, src), w), len));
-  *T = v3_mul(*T, tr);
+  view_atten_at(at, v3(st.x * len, st.y * len, st.z * len), 3);
+  *L = v3_add(*L, v3_scale(v3_mul(v3_mul(*T, src), at->weight), len));
+  *T = v3_mul(*T, at->trans);
 }
 
 /* The largest transmittance left, for the cutoff: grey media keep it in x. */
@@ -341,6 +358,8 @@ BK_INLINE bk_uint view_march_ray(const view_params_t *p, view_fields f, view_fla
   if (rc_slab(p->cam_pos, d, v3(0.0f, 0.0f, 0.0f), v3((float)p->nx, (float)p->ny, (float)p->nz),
               &t0, &t1)) {
     view_ray r;
+    view_atten at; /* no depth is negative: the first segment computes */
+    at.tau = at.weight = at.trans = v3(-1.0f, -1.0f, -1.0f);
     r.x = v3_madd(p->cam_pos, d, t0);
     r.dir = r.v = d;
     r.inv = view_inv_dir(d);
@@ -357,8 +376,8 @@ BK_INLINE bk_uint view_march_ray(const view_params_t *p, view_fields f, view_fla
       const float h = r.clen / (float)r.cn;
       const int from_cam = p->camera_phase && v3_dot(r.cd, d) >= VIEW_CAMERA_COS;
       for (int i = 0; i < r.cn; i++) {
-        view_segment(p, f, fl, v3_madd(r.ca, r.cd, ((float)i + 0.5f) * h), r.cd, h, from_cam, &L,
-                     &T);
+        view_segment(p, f, fl, v3_madd(r.ca, r.cd, ((float)i + 0.5f) * h), r.cd, h, from_cam, &at,
+                     &L, &T);
         steps++;
         if (view_t_max(fl, T) < VIEW_T_CUTOFF) {
           r.done = 1;
