@@ -159,6 +159,7 @@ BK_INLINE void bk_sincos(float a, float *s, float *c) {
 
 BK_INLINE float bk_clampf(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
 BK_INLINE int bk_clampi(int x, int lo, int hi) { return x < lo ? lo : (x > hi ? hi : x); }
+BK_INLINE int bk_mini(int a, int b) { return a < b ? a : b; }
 
 /* Grid description passed to kernels: world <-> voxel coordinates.
  * Voxel coordinate u = (x - origin) / voxel_size, so voxel (i,j,k) spans

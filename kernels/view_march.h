@@ -64,6 +64,9 @@
 
 #define VIEW_T_CUTOFF 1e-4f      /* below this the rest of the ray is invisible */
 #define VIEW_BRICK_LEVEL 2        /* bricks are the pyramid's blocks of 8³ */
+#ifndef VIEW_RUN_LEVEL
+#define VIEW_RUN_LEVEL 3          /* a chord of varying medium crosses blocks of n of up to 32³ */
+#endif
 #define VIEW_DIR_EPS 1e-12f
 #define VIEW_ANISO_MAX 0.999f     /* |g·m|: a lobe narrower than this is a spike */
 /* cos of the most a chord may turn from its camera ray's first direction and
@@ -316,10 +319,13 @@ BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags
   r->cn = 1;
   r->flush = 0;
   view_voxel_at(n, r->x, r->dir, c);
-  int mconst = rc_block_level(f.mpyr, n, c) >= VIEW_BRICK_LEVEL;
-  int nlevel = fl.refraction ? rc_block_level(f.npyr, n, c) : RC_LEVELS;
+  const int mlevel = rc_block_level(f.mpyr, n, c), mconst = mlevel >= VIEW_BRICK_LEVEL;
+  const int nlevel = fl.refraction ? rc_block_level(f.npyr, n, c) : RC_LEVELS;
   if (nlevel >= VIEW_BRICK_LEVEL) {
-    rc_block_bounds(n, VIEW_BRICK_LEVEL, c, lo, hi);
+    /* constant medium: the largest block where both are constant, in one
+     * step; else the pending chord goes on across n's constant block */
+    const int level = mconst ? bk_mini(nlevel, mlevel) : bk_mini(nlevel, VIEW_RUN_LEVEL);
+    rc_block_bounds(n, level, c, lo, hi);
     view_straight(p, r, lo, hi, mconst, 0);
   } else if (nlevel > 0) {
     rc_block_bounds(n, nlevel, c, lo, hi);
