@@ -20,10 +20,13 @@
  * a brick (a level-2 block of the pyramid, 8³ voxels) whose n is constant
  * with its halo, and inside refracting bricks across the finer constant
  * blocks of 2³. Where, besides, S and σt are constant over a brick (e.g.
- * unlit fog), one step crosses the whole brick, which the exact integration
- * below makes exact; a point on a block face belongs to the block the ray
- * enters (the DDA rule). Consecutive straight bricks of varying medium are
- * one chord, sampled at most straight_step apart.
+ * unlit fog), one step crosses the largest block (8³ to 128³) over which
+ * both are constant, which the exact integration below makes exact; a point
+ * on a block face belongs to the block the ray enters (the DDA rule).
+ * Consecutive straight blocks of varying medium are one chord, sampled at
+ * most straight_step apart; the chord crosses n's constant block (up to
+ * VIEW_RUN_LEVEL, 32³) in one turn, constant-medium bricks inside it
+ * stepped with the rest: a turn costs as much as a few steps.
  * Each step of chord length Δ takes σt and S (interpolated as one field, so
  * a step reads one float4 per trilinear corner) at the chord's midpoint as
  * constant and integrates exactly with the ray core's attenuation:
@@ -346,8 +349,8 @@ BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags
 /* The whole camera ray of pixel (px, py): L (background included), T_end,
  * and the number of steps (returned).
  * The ray is cut into chords, each integrated by uniform steps:
- *  - a brick of constant medium where n is constant: one step across it;
- *  - consecutive bricks of constant n and varying medium (the whole box
+ *  - a block of constant medium where n is constant: one step across it;
+ *  - consecutive blocks of constant n and varying medium (the whole box
  *    without refraction) are gathered into one chord stepped at most
  *    straight_step apart: per step one trilinear lookup and one segment;
  *  - inside refracting bricks, a finer constant block of n is a straight
