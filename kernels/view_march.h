@@ -26,7 +26,8 @@
  * Consecutive straight blocks of varying medium are one chord, sampled at
  * most straight_step apart; the chord crosses n's constant block (up to
  * VIEW_RUN_LEVEL, 32³) in one turn, constant-medium bricks inside it
- * stepped with the rest: a turn costs as much as a few steps.
+ * stepped with the rest: a turn (finding a block and its exit) costs about
+ * as much as ten straight steps (docs/bench.md).
  * Each step of chord length Δ takes σt and S (interpolated as one field, so
  * a step reads one float4 per trilinear corner) at the chord's midpoint as
  * constant and integrates exactly with the ray core's attenuation:
@@ -67,9 +68,7 @@
 
 #define VIEW_T_CUTOFF 1e-4f      /* below this the rest of the ray is invisible */
 #define VIEW_BRICK_LEVEL 2        /* bricks are the pyramid's blocks of 8³ */
-#ifndef VIEW_RUN_LEVEL
 #define VIEW_RUN_LEVEL 3          /* a chord of varying medium crosses blocks of n of up to 32³ */
-#endif
 #define VIEW_DIR_EPS 1e-12f
 #define VIEW_ANISO_MAX 0.999f     /* |g·m|: a lobe narrower than this is a spike */
 /* cos of the most a chord may turn from its camera ray's first direction and
@@ -198,7 +197,7 @@ BK_INLINE float view_block_exit(const int *lo, const int *hi, bk_v3 *u, bk_v3 d,
 /* The last segment's optical depth per channel and its rc_atten results
  * (grey media: x alone): along a chord through uniform fog every step has
  * the same depth, and reusing the results gives the same bits without the
- * series or the exponential (a tenth of the view's time). */
+ * series or the exponential (6-9% of the view's march). */
 typedef struct view_atten {
   bk_v3 tau, weight, trans;
 } view_atten;
