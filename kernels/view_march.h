@@ -326,7 +326,7 @@ BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags
   if (nlevel >= VIEW_BRICK_LEVEL) {
     /* constant medium: the largest block where both are constant, in one
      * step; else the pending chord goes on across n's constant block */
-    const int level = mconst ? bk_mini(nlevel, mlevel) : bk_mini(nlevel, VIEW_RUN_LEVEL);
+    const int level = bk_mini(nlevel, mconst ? mlevel : VIEW_RUN_LEVEL);
     rc_block_bounds(n, level, c, lo, hi);
     view_straight(p, r, lo, hi, mconst, 0);
   } else if (nlevel > 0) {
