@@ -142,6 +142,7 @@ typedef struct ad_run {
   grid_dims_t cd;         /* the pilot's coarse grid */
   size_t cv;              /* its cells */
   uint64_t *pacc, *masks; /* pilot accumulator and origin masks */
+  uint64_t *work;         /* the pilot's photons and work per light-domain cell */
   float *tables;          /* one PDF table per light (at least one) */
   double pdf_min, pdf_max;
   int filter_on;
@@ -181,8 +182,11 @@ static int pilot_phase(ad_run_t *r, bk_error_t *err) {
     r->masks = bk_calloc(pm_mask_count(&r->pilot), sizeof(uint64_t), "adaptive origin masks", err);
     r->pacc = bk_calloc(pm_acc_count(&r->pilot), sizeof(uint64_t), "adaptive pilot accumulator",
                         err);
-    if (!r->masks || !r->pacc) return BK_ERR_RUNTIME;
+    r->work = bk_calloc((size_t)r->pilot.lights.count * 2 * LD_CELLS, sizeof(uint64_t),
+                        "adaptive pilot work", err);
+    if (!r->masks || !r->pacc || !r->work) return BK_ERR_RUNTIME;
     r->pilot.masks = r->masks;
+    r->pilot.cell_work = r->work;
     rc = run_march(r->cl, &r->pilot, r->pacc, &stats->pilot, err);
     if (rc != BK_OK) return rc;
   }
@@ -221,8 +225,10 @@ static int light_pdf(ad_run_t *r, int l, const uint8_t *sel, const float *vw, bk
   for (int q = 0; q < r->pilot.lights.count; q++)
     if (r->pilot.lights.scene_index[q] == r->base.lights.scene_index[l]) p = q;
   if (p >= 0) {
-    rc = ad_build_pdf(r->masks + (size_t)p * r->cv, sel, vw, r->cv, r->opt->floor_fraction, &pdf,
-                      err);
+    double cost[LD_CELLS];
+    ad_cell_costs(r->work + (size_t)p * 2 * LD_CELLS, cost);
+    rc = ad_build_pdf(r->masks + (size_t)p * r->cv, sel, vw, cost, r->cv, r->opt->floor_fraction,
+                      &pdf, err);
   } else {
     memset(&pdf, 0, sizeof pdf);
     double zero[LD_CELLS] = {0};
@@ -332,8 +338,8 @@ static int start_loop(ad_run_t *r, ad_loop_t *loop, bk_error_t *err) {
     for (int q = 0; q < r->pilot.lights.count; q++)
       if (r->pilot.lights.scene_index[q] == r->main.lights.scene_index[l]) pilot_of[l] = q;
   }
-  return ad_loop_init(loop, r->vol, &r->main, r->shift, &r->cd, r->masks, pilot_of, r->tables,
-                      r->opt->floor_fraction, err);
+  return ad_loop_init(loop, r->main.lights.count, r->shift, &r->cd, r->masks, r->work, pilot_of,
+                      r->tables, r->opt->floor_fraction, err);
 }
 
 /* The loop rebuilds the tables from 2 batches' spread before a third: a
@@ -617,6 +623,7 @@ error:
   }
   free(r.pacc);
   free(r.masks);
+  free(r.work);
   free(r.tables);
   free(r.raw);
   if (count != photon_count) free(count);

@@ -17,7 +17,9 @@
  *     every gradient would be noise. It yields the pilot radiance per cell
  *     and the origin masks: one uint64_t per cell per light, light major
  *     (ld_origin_index), bit c set when a pilot photon from light-domain cell
- *     c = ld_cell_of(a, b) crossed the cell (ld_origin_mark).
+ *     c = ld_cell_of(a, b) crossed the cell (ld_origin_mark). The march
+ *     also counts each light-domain cell's photons and their work
+ *     (pm_setup_t.cell_work): what a photon from that cell costs.
  *  2. ad_select_voxels on the pilot cells: those whose luminance gradient
  *     exceeds a threshold (edges, caustics) or whose luminance is below one
  *     (shadows). Thresholds are explicit or automatic (the rule is
@@ -27,7 +29,10 @@
  *     selected cell weighing by its pilot luminance gradient (by default,
  *     AD_IMPORTANCE_GRADIENT: an edge that is bright matters more to the
  *     error than a faint one; measured on the sphere scene it lowers the
- *     error at equal photons by 10% against 1 per cell), mixed with the
+ *     error at equal photons by 10% against 1 per cell), divided by the
+ *     square root of the cell's photon cost (ad_cell_costs: fewer photons
+ *     where each costs more, docs/bench.md "Pilot tables weighed by march
+ *     work"), mixed with the
  *     uniform density so that every cell keeps pdf >= floor_fraction (1/2:
  *     the Hammersley points converge about as 1/N, so a region sampled at
  *     density p has 1/p times the error; 1/4 cost more in the sparse fog
@@ -155,12 +160,22 @@ typedef struct ad_pdf {
  * selection. Each selected voxel with mask m spreads an importance of
  * voxel_weight[v] (voxel_weight NULL: 1) evenly over the popcount(m) cells
  * that reached it, so a voxel every cell reaches favours none; then
- *   pdf(c) = floor + (1 - floor) * LD_CELLS * importance(c) / sum(importance)
+ *   pdf(c) = floor + (1 - floor) * LD_CELLS * w(c) / sum(w),
+ *   w(c) = importance(c) / sqrt(cost(c))
  * a mixture with the uniform density (defensive sampling): pdf >= floor, so
  * weights stay <= 1/floor. No selected voxel with origin data: uniform.
+ * cost (LD_CELLS, ad_cell_costs; NULL: all equal) is a photon's march work
+ * from each cell: for a fixed march time the variance is least with photons
+ * in proportion to importance / sqrt(cost) (importance read as the spread
+ * a cell's photons reduce, Neyman allocation with costs).
  * floor_fraction must be in (0, 1]. */
 int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, const float *voxel_weight,
-                 size_t voxels, float floor_fraction, ad_pdf_t *pdf, bk_error_t *err);
+                 const double *cost, size_t voxels, float floor_fraction, ad_pdf_t *pdf,
+                 bk_error_t *err);
+/* One light's mean march work per photon in each light-domain cell
+ * (cost[LD_CELLS], at least 1), from its block of pm_setup_t.cell_work; a
+ * cell without photons gets the light's mean. */
+void ad_cell_costs(const uint64_t *cell_work, double *cost);
 
 /* The general form: a table (LD_TABLE_FLOATS(nx, ny) floats) from
  * non-negative cell weights (nx * ny, row major, cell = col + nx * row), with
@@ -217,12 +232,12 @@ typedef struct ad_loop {
   float *tables;          /* the march's tables, rewritten in place */
   float floor;
   float pdf[SCENE_MAX_LIGHTS][LD_CELLS]; /* the densities in use */
-  float *cost;            /* per pilot cell: a photon's work crossing it */
+  const uint64_t *work;   /* the pilot's cell_work, per pilot light (march.h) */
   double *cellvar;        /* per pilot cell: the lit voxels' spread */
   int rebuilt;            /* tables rebuilt so far */
 } ad_loop_t;
-int ad_loop_init(ad_loop_t *L, const volume_t *vol, const pm_setup_t *main_setup, int shift,
-                 const grid_dims_t *cd, const uint64_t *masks, const int *pilot_of, float *tables,
+int ad_loop_init(ad_loop_t *L, int lights, int shift, const grid_dims_t *cd,
+                 const uint64_t *masks, const uint64_t *work, const int *pilot_of, float *tables,
                  float floor_fraction, bk_error_t *err);
 /* bt_options_t.retable: after `done` batches, from the tracker t. */
 int ad_loop_retable(void *ctx, int done, const ee_tracker_t *t, bk_error_t *err);

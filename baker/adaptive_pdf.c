@@ -286,8 +286,19 @@ int ad_pdf_from_weights(const double *weights, int nx, int ny, float floor_fract
   return BK_OK;
 }
 
+void ad_cell_costs(const uint64_t *cell_work, double *cost) {
+  uint64_t photons = 0, work = 0;
+  for (int c = 0; c < LD_CELLS; c++) photons += cell_work[c], work += cell_work[LD_CELLS + c];
+  const double mean = photons ? (double)work / (double)photons : 1.0;
+  for (int c = 0; c < LD_CELLS; c++) {
+    double w = cell_work[c] ? (double)cell_work[LD_CELLS + c] / (double)cell_work[c] : mean;
+    cost[c] = w > 1.0 ? w : 1.0;
+  }
+}
+
 int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, const float *voxel_weight,
-                 size_t voxels, float floor_fraction, ad_pdf_t *pdf, bk_error_t *err) {
+                 const double *cost, size_t voxels, float floor_fraction, ad_pdf_t *pdf,
+                 bk_error_t *err) {
   if (!pdf) return bk_fail(err, BK_ERR_RUNTIME, "adaptive pdf: missing output");
   memset(pdf, 0, sizeof *pdf);
   if (voxels > 0 && (!origin_masks || !selected))
@@ -305,6 +316,8 @@ int ad_build_pdf(const uint64_t *origin_masks, const uint8_t *selected, const fl
     }
     pdf->selected_reached++;
   }
-  return ad_pdf_from_weights(pdf->importance, LD_CELLS_X, LD_CELLS_Y, floor_fraction, pdf->table,
-                             pdf->cell_pdf, err);
+  double w[LD_CELLS];
+  for (int c = 0; c < LD_CELLS; c++) w[c] = pdf->importance[c] / (cost ? sqrt(cost[c]) : 1.0);
+  return ad_pdf_from_weights(w, LD_CELLS_X, LD_CELLS_Y, floor_fraction, pdf->table, pdf->cell_pdf,
+                             err);
 }

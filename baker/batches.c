@@ -73,8 +73,7 @@ static int twin_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_err
  * mode's choice, and so its bits, depend on the machine's load): field
  * evaluations (1 per Euler step, 4 per RK4 step) plus voxel deposits. */
 static double twin_cost(const pm_stats_t *st, unsigned integ) {
-  double evals = integ == integrator_kind(INTEGRATOR_RK4)->device ? 4.0 : 1.0;
-  return (double)st->steps * evals + (double)st->voxels;
+  return (double)pm_work(integ, st->steps, st->voxels);
 }
 
 /* The truth integrator's twins, kept in x->fine. acc is zero before and after. */

@@ -4,8 +4,8 @@
 #include <string.h>
 
 const integrator_kind_t integrator_kinds[INTEGRATOR_KIND_COUNT] = {
-    {"euler", INTEGRATOR_EULER, 0, "INTEGRATOR=0"}, /* the paper's explicit scheme */
-    {"rk4", INTEGRATOR_RK4, 1, "INTEGRATOR=1"},     /* classical Runge–Kutta */
+    {"euler", INTEGRATOR_EULER, 0, "INTEGRATOR=0", 1}, /* the paper's explicit scheme */
+    {"rk4", INTEGRATOR_RK4, 1, "INTEGRATOR=1", 4}, /* classical Runge–Kutta */
 };
 
 const integrator_kind_t *integrator_find(const char *name) {

@@ -19,6 +19,7 @@ typedef struct integrator_kind {
   integrator_t id;         /* its row in integrator_kinds[] */
   unsigned device;         /* -DINTEGRATOR=device, pm_params.integrator */
   const char *define;      /* that flag as text, "INTEGRATOR=1" */
+  unsigned evals;          /* field evaluations per step: the march's work (pm_work) */
 } integrator_kind_t;
 
 #define INTEGRATOR_KIND_COUNT 2

@@ -27,32 +27,6 @@ bk_grid pm_kernel_grid(const grid_dims_t *d) {
   return g;
 }
 
-void pm_stats_add(pm_stats_t *st, const pm_result *r) {
-  st->photons++;
-  switch (r->fate) {
-  case PM_FATE_MISSED: st->missed_grid++; break;
-  case PM_FATE_LEFT: st->left_grid++; break;
-  case PM_FATE_ABSORBED: st->absorbed++; break;
-  default: st->step_limit++; break;
-  }
-  st->steps += r->steps;
-  st->voxels += r->voxels;
-  st->path_voxels += r->path;
-}
-
-void pm_stats_add_tally(pm_stats_t *st, const ms_tally *t) {
-  st->entered += t->entered;
-  st->escaped += t->escaped;
-  st->deposit_first += t->first;
-  st->deposit_later += t->later;
-  st->events += t->events;
-}
-
-double pm_scattered_share(const pm_stats_t *st) {
-  double all = st->deposit_first + st->deposit_later;
-  return all > 0.0 ? st->deposit_later / all : 0.0;
-}
-
 /* The fixed-point scale and the conversion to radiance for the setup's
  * lights, when no photon carries more than w_max times its light's power per
  * photon (the weighted march, march.h): the bound of march.h's scale rule
@@ -289,6 +263,7 @@ int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm
               bk_error_t *err) {
   *out = *base;
   out->masks = NULL;
+  out->cell_work = NULL;
   out->tables = NULL;
   out->params.mode = PM_MODE_REFERENCE;
   int rc = ph_prepare(scene, &base->dims, photons, base->seed, &out->lights, err);
@@ -387,6 +362,7 @@ int pm_run_host(const pm_setup_t *s, uint64_t *acc, pm_stats_t *stats, bk_error_
                       s->masks, s->tables, photon, &r, NULL);
     }
     if (stats) pm_stats_add(stats, &r);
+    pm_count_cell_work(s, i, &r);
     if (((i - s->first) & 4095) == 4095) bk_progress_update(&prog, i - s->first + 1);
   }
   bk_progress_end(&prog);
@@ -544,30 +520,6 @@ void pm_sums_setup(const pm_sums_t *k, pm_setup_t *out) {
 void pm_sums_free(pm_sums_t *k) {
   free(k->acc);
   k->acc = NULL;
-}
-
-/* What multiple scattering did: a timing row (no time of its own: the
- * march's) and a log line. */
-void pm_report_scattering(const pm_setup_t *s, pm_stats_t *stats, bk_timings_t *timings) {
-  const ms_setup_t *ms = &s->ms;
-  if (!ms->params.max_bounces) {
-    if (timings)
-      bk_timings_add(timings, "scattering", 0.0, "single scattering (bounces 0%s, order ratio %.3g)",
-                     ms->auto_chosen ? " by auto" : "", ms->ratio);
-    return;
-  }
-  double share = pm_scattered_share(stats);
-  if (timings)
-    bk_timings_add(timings, "scattering", 0.0,
-                   "up to %u events%s, %.2f per photon; %.1f%% of the deposit after the first "
-                   "event",
-                   ms->params.max_bounces, ms->auto_chosen ? " (auto)" : "",
-                   stats->photons ? (double)stats->events / (double)stats->photons : 0.0,
-                   100.0 * share);
-  bk_log(1, "march: multiple scattering: up to %u events per photon%s, %.1f%% of the deposited "
-            "energy after the first scattering event; %.4g W entered the grid, %.4g W left it",
-         ms->params.max_bounces, ms->auto_chosen ? " (auto)" : "", 100.0 * share, stats->entered,
-         stats->escaped);
 }
 
 int pm_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol, float *radiance,

@@ -98,6 +98,10 @@ typedef struct pm_setup {
   ms_setup_t ms;         /* multiple scattering: params.max_bounces 0 when off */
   /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */
   uint64_t *masks;       /* origin recorder: pm_mask_count masks, zeroed by the caller */
+  /* optional, any mode: per light, LD_CELLS photon counts then LD_CELLS
+   * sums of their pm_work, by the light-domain cell of the photon's
+   * (unwarped) Hammersley point; zeroed by the caller */
+  uint64_t *cell_work;
   const float *tables;   /* sampling tables: LD_TABLE_FLOATS(8, 8) floats per light */
   /* ng and pyramid belong to a pm_field_cache_t (not freed with the
    * setup): 1 built by this prepare, 2 taken from an earlier frame's
@@ -196,6 +200,12 @@ size_t pm_mask_count(const pm_setup_t *s);
 
 /* Counts one photon's outcome into st; and its energy accounting. */
 void pm_stats_add(pm_stats_t *st, const pm_result *r);
+/* A photon's march work, the cost model of the error twins and of the
+ * adaptive tables: steps × the integrator's field evaluations per step
+ * (integrators.h; integrator as pm_params.integrator) + voxel crossings. */
+uint64_t pm_work(unsigned integrator, uint64_t steps, uint64_t voxels);
+/* Adds the result r of launch slot `slot` to s->cell_work (when set). */
+void pm_count_cell_work(const pm_setup_t *s, uint64_t slot, const pm_result *r);
 void pm_stats_add_tally(pm_stats_t *st, const ms_tally *t);
 /* The share of the deposited energy after the first scattering event. */
 double pm_scattered_share(const pm_stats_t *st);

@@ -194,11 +194,11 @@ static int launch(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, pm_sta
       CLH_CHECK(clEnqueueReadBuffer(cl->queue, r->tally, CL_TRUE, 0, count * sizeof(ms_tally),
                                     r->tallies, 0, NULL, NULL),
                 err, error);
-    if (stats)
-      for (cl_uint i = 0; i < count; i++) {
-        pm_stats_add(stats, &r->res[i]);
-        if (r->tally) pm_stats_add_tally(stats, &r->tallies[i]);
-      }
+    for (cl_uint i = 0; i < count; i++) {
+      if (stats) pm_stats_add(stats, &r->res[i]);
+      if (stats && r->tally) pm_stats_add_tally(stats, &r->tallies[i]);
+      pm_count_cell_work(s, first + i, &r->res[i]);
+    }
     bk_progress_update(&progress, first + count - s->first);
   }
   rc = BK_OK;

@@ -241,7 +241,7 @@ static int test_pdf(void) {
     }
   }
   const float f = 0.25f;
-  EXPECT(ad_build_pdf(masks, sel, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_build_pdf(masks, sel, NULL, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   EXPECT(pdf.selected_reached == (size_t)nsel, "%zu selected with origins, expected %d",
         pdf.selected_reached, nsel);
   double imp = 0.0, integral = 0.0, lo = 1e9, hi = 0.0;
@@ -274,7 +274,7 @@ static int test_pdf(void) {
   masks[17] = ld_cell_bit(42);
   sel[17] = AD_SEL_SHADOW;
   sel[18] = AD_SEL_SHADOW; /* selected but never reached: no origin, no effect */
-  EXPECT(ad_build_pdf(masks, sel, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_build_pdf(masks, sel, NULL, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   EXPECT(fabs(pdf.cell_pdf[42] - (f + (1.0f - f) * LD_CELLS)) < 1e-3, "hot cell %g",
         (double)pdf.cell_pdf[42]);
   EXPECT(fabs(pdf.cell_pdf[0] - f) < 1e-6, "cold cell %g", (double)pdf.cell_pdf[0]);
@@ -282,16 +282,39 @@ static int test_pdf(void) {
   ld_sample s = ld_pdf_warp(pdf.table, pdf.nx, pdf.ny, 0.5f, 0.5f);
   EXPECT(s.cell == 42, "the middle of the domain warps into the hot cell, got %d", s.cell);
 
+  /* costs: two cells of equal importance, one whose photons do 4x the march
+   * work: importance / sqrt(cost) gives it half the other's share above the
+   * floor. ad_cell_costs: the mean work per photon; a cell without photons
+   * gets the light's mean; at least 1. */
+  uint64_t work[2 * LD_CELLS] = {0};
+  work[3] = 10, work[LD_CELLS + 3] = 400; /* 40 per photon */
+  work[9] = 30, work[LD_CELLS + 9] = 300; /* 10 per photon */
+  work[11] = 5, work[LD_CELLS + 11] = 0;  /* photons that missed the grid */
+  double cost[LD_CELLS];
+  ad_cell_costs(work, cost);
+  EXPECT(cost[3] == 40.0 && cost[9] == 10.0 && cost[11] == 1.0 && cost[0] == 700.0 / 45.0,
+        "cell costs %g %g %g %g, expected 40 10 1 %g", cost[3], cost[9], cost[11], cost[0],
+        700.0 / 45.0);
+  masks[17] = ld_cell_bit(3) | ld_cell_bit(9);
+  EXPECT(ad_build_pdf(masks, sel, NULL, cost, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  double above3 = pdf.cell_pdf[3] - f, above9 = pdf.cell_pdf[9] - f;
+  EXPECT(fabs(above3 / above9 - 0.5) < 1e-3 && fabs(pdf.importance[3] - 0.5) < 1e-12,
+        "costly cell's share %g of the cheap one's, expected 0.5 (importance %g)",
+        above3 / above9, pdf.importance[3]);
+  printf("pdf: a cell of 4x the work gets %.3f of the share of a cheap one (expected 0.5)\n",
+         above3 / above9);
+
   /* a voxel reached from every cell favours none; nothing selected: uniform */
   masks[17] = ~0ull;
-  EXPECT(ad_build_pdf(masks, sel, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_build_pdf(masks, sel, NULL, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   for (int c = 0; c < LD_CELLS; c++)
     EXPECT(fabs(pdf.cell_pdf[c] - 1.0f) < 1e-5, "cell %d pdf %g, expected uniform", c,
           (double)pdf.cell_pdf[c]);
   memset(sel, 0, V);
-  EXPECT(ad_build_pdf(masks, sel, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_build_pdf(masks, sel, NULL, NULL, V, f, &pdf, &err) == BK_OK, "%s", err.msg);
   EXPECT(pdf.selected_reached == 0 && fabs(pdf.cell_pdf[5] - 1.0f) < 1e-6, "no selection");
-  EXPECT(ad_build_pdf(masks, sel, NULL, V, 1.5f, &pdf, &err) == BK_ERR_INPUT, "floor 1.5 accepted");
+  EXPECT(ad_build_pdf(masks, sel, NULL, NULL, V, 1.5f, &pdf, &err) == BK_ERR_INPUT,
+         "floor 1.5 accepted");
   free(masks);
   free(sel);
   return tu_failures;
@@ -491,7 +514,8 @@ static int test_chain(void) {
   ad_select_stats_t st;
   ad_pdf_t pdf;
   EXPECT(ad_select_voxels(&d, pilot, NULL, &opt, sel, &st, &err) == BK_OK, "%s", err.msg);
-  EXPECT(ad_build_pdf(masks, sel, NULL, V, AD_DEFAULT_FLOOR, &pdf, &err) == BK_OK, "%s", err.msg);
+  EXPECT(ad_build_pdf(masks, sel, NULL, NULL, V, AD_DEFAULT_FLOOR, &pdf, &err) == BK_OK, "%s",
+         err.msg);
   /* the cells over the two squares are the favoured ones */
   int hot = 0, hot_feature = 0;
   for (int c = 0; c < LD_CELLS; c++) {
