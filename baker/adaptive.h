@@ -32,11 +32,10 @@
  *     error at equal photons by 10% against 1 per cell), divided by the
  *     square root of the cell's photon cost (ad_cell_costs: fewer photons
  *     where each costs more, docs/bench.md "Pilot tables weighed by march
- *     work"), mixed with the
- *     uniform density so that every cell keeps pdf >= floor_fraction (1/2:
- *     the Hammersley points converge about as 1/N, so a region sampled at
- *     density p has 1/p times the error; 1/4 cost more in the sparse fog
- *     than it gained at the edges).
+ *     work"), mixed with the uniform density so that every cell keeps
+ *     pdf >= floor_fraction (1/2: the Hammersley points converge about as
+ *     1/N, so a region sampled at density p has 1/p times the error; 1/4
+ *     cost more in the sparse fog than it gained at the edges).
  *  4. Main march, in the batches of the reference mode (bt_march,
  *     batches.h; each batch a rotated Hammersley set, a whole estimate, so
  *     the error is measured as there): photon k of N takes its Hammersley point u, warps it with
