@@ -182,8 +182,8 @@ static int pilot_phase(ad_run_t *r, bk_error_t *err) {
     r->masks = bk_calloc(pm_mask_count(&r->pilot), sizeof(uint64_t), "adaptive origin masks", err);
     r->pacc = bk_calloc(pm_acc_count(&r->pilot), sizeof(uint64_t), "adaptive pilot accumulator",
                         err);
-    r->work = bk_calloc((size_t)r->pilot.lights.count * 2 * LD_CELLS, sizeof(uint64_t),
-                        "adaptive pilot work", err);
+    r->work = bk_calloc((size_t)r->pilot.lights.count * PM_CELL_WORK_PER_LIGHT,
+                        sizeof(uint64_t), "adaptive pilot work", err);
     if (!r->masks || !r->pacc || !r->work) return BK_ERR_RUNTIME;
     r->pilot.masks = r->masks;
     r->pilot.cell_work = r->work;
@@ -226,7 +226,7 @@ static int light_pdf(ad_run_t *r, int l, const uint8_t *sel, const float *vw, bk
     if (r->pilot.lights.scene_index[q] == r->base.lights.scene_index[l]) p = q;
   if (p >= 0) {
     double cost[LD_CELLS];
-    ad_cell_costs(r->work + (size_t)p * 2 * LD_CELLS, cost);
+    ad_cell_costs(r->work + (size_t)p * PM_CELL_WORK_PER_LIGHT, cost);
     rc = ad_build_pdf(r->masks + (size_t)p * r->cv, sel, vw, cost, r->cv, r->opt->floor_fraction,
                       &pdf, err);
   } else {

@@ -51,7 +51,7 @@ static int retable_light(ad_loop_t *L, int l, bk_error_t *err) {
   if (p < 0) return BK_OK; /* no origin data: the light keeps its table */
   const uint64_t *m = L->masks + (size_t)p * L->cv;
   double imp[LD_CELLS] = {0}, cost[LD_CELLS], w[LD_CELLS];
-  ad_cell_costs(L->work + (size_t)p * 2 * LD_CELLS, cost);
+  ad_cell_costs(L->work + (size_t)p * PM_CELL_WORK_PER_LIGHT, cost);
   for (size_t c = 0; c < L->cv; c++) {
     if (!m[c]) continue;
     double share = L->cellvar[c] / __builtin_popcountll(m[c]);

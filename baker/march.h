@@ -66,6 +66,9 @@ typedef struct pm_stats {
   uint64_t events;
 } pm_stats_t;
 
+/* pm_setup_t.cell_work's entries per light. */
+#define PM_CELL_WORK_PER_LIGHT (2 * LD_CELLS)
+
 /* Everything the march needs, prepared once on the host. */
 typedef struct pm_setup {
   pm_params params;
@@ -98,9 +101,9 @@ typedef struct pm_setup {
   ms_setup_t ms;         /* multiple scattering: params.max_bounces 0 when off */
   /* The optional inputs (params.mode, kernels/photon_march.h), not owned: */
   uint64_t *masks;       /* origin recorder: pm_mask_count masks, zeroed by the caller */
-  /* optional, any mode: per light, LD_CELLS photon counts then LD_CELLS
-   * sums of their pm_work, by the light-domain cell of the photon's
-   * (unwarped) Hammersley point; zeroed by the caller */
+  /* optional, any mode: per light PM_CELL_WORK_PER_LIGHT entries, LD_CELLS
+   * photon counts then LD_CELLS sums of their pm_work, by the light-domain
+   * cell of the photon's (unwarped) Hammersley point; zeroed by the caller */
   uint64_t *cell_work;
   const float *tables;   /* sampling tables: LD_TABLE_FLOATS(8, 8) floats per light */
   /* ng and pyramid belong to a pm_field_cache_t (not freed with the

@@ -34,7 +34,7 @@ void pm_count_cell_work(const pm_setup_t *s, uint64_t slot, const pm_result *r) 
   float a, b;
   ph_point(lights + l, photon - lights[l].first, &a, &b);
   const int c = ld_cell_of(a, b);
-  uint64_t *w = s->cell_work + (size_t)l * 2 * LD_CELLS;
+  uint64_t *w = s->cell_work + (size_t)l * PM_CELL_WORK_PER_LIGHT;
   w[c]++;
   w[LD_CELLS + c] += pm_work(s->params.integrator, r->steps, r->voxels);
 }
