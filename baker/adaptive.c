@@ -214,6 +214,15 @@ static int pilot_importance(const ad_run_t *r, const float *prgb, float **out, b
   return BK_OK;
 }
 
+/* The pilot's light for the scene's light scene_index, -1 when the pilot
+ * has none (a faint light that got no pilot photon). */
+static int pilot_light(const ad_run_t *r, int scene_index) {
+  int p = -1;
+  for (int q = 0; q < r->pilot.lights.count; q++)
+    if (r->pilot.lights.scene_index[q] == scene_index) p = q;
+  return p;
+}
+
 /* Light l's table (of the main march's lights: base's, the same photon
  * count) from the selection and the importance vw; the pilot's lights may
  * lack a faint light that got no pilot photon, which then keeps the uniform
@@ -221,9 +230,7 @@ static int pilot_importance(const ad_run_t *r, const float *prgb, float **out, b
 static int light_pdf(ad_run_t *r, int l, const uint8_t *sel, const float *vw, bk_error_t *err) {
   const int TF = LD_TABLE_FLOATS(LD_CELLS_X, LD_CELLS_Y);
   ad_pdf_t pdf;
-  int p = -1, rc;
-  for (int q = 0; q < r->pilot.lights.count; q++)
-    if (r->pilot.lights.scene_index[q] == r->base.lights.scene_index[l]) p = q;
+  int p = pilot_light(r, r->base.lights.scene_index[l]), rc;
   if (p >= 0) {
     double cost[LD_CELLS];
     ad_cell_costs(r->work + (size_t)p * PM_CELL_WORK_PER_LIGHT, cost);
@@ -333,11 +340,8 @@ static int unpack_phase(ad_run_t *r, const uint64_t *acc, float *radiance, float
  * pilot light, as light_pdf finds it. */
 static int start_loop(ad_run_t *r, ad_loop_t *loop, bk_error_t *err) {
   int pilot_of[SCENE_MAX_LIGHTS];
-  for (int l = 0; l < r->main.lights.count && l < SCENE_MAX_LIGHTS; l++) {
-    pilot_of[l] = -1;
-    for (int q = 0; q < r->pilot.lights.count; q++)
-      if (r->pilot.lights.scene_index[q] == r->main.lights.scene_index[l]) pilot_of[l] = q;
-  }
+  for (int l = 0; l < r->main.lights.count && l < SCENE_MAX_LIGHTS; l++)
+    pilot_of[l] = pilot_light(r, r->main.lights.scene_index[l]);
   return ad_loop_init(loop, r->main.lights.count, r->shift, &r->cd, r->masks, r->work, pilot_of,
                       r->tables, r->opt->floor_fraction, err);
 }
