@@ -58,8 +58,8 @@ static int twin_next(void *ctx, int done, uint64_t *acc, pm_setup_t *run, bk_err
   bt_run_t *x = ctx;
   if (done > 0) {
     float *fine = x->fine + (size_t)(done - 1) * x->tr->count;
-    if (x->twin_phase == 1) ee_read(x->tr, x->s, acc, fine);
-    else if (ee_twin_add(x->tr, x->s, acc, fine, err)) return -1;
+    if (x->twin_phase == 1) ee_read(x->tr, run, acc, fine);
+    else if (ee_twin_add(x->tr, run, acc, fine, err)) return -1;
   }
   if (done == BT_TWIN_BATCHES) {
     memset(acc, 0, pm_acc_count(x->s) * sizeof *acc);
@@ -76,11 +76,21 @@ static double twin_cost(const pm_stats_t *st, unsigned integ) {
   return (double)pm_work(integ, st->steps, st->voxels);
 }
 
+/* The bake's setup for a twin run: uniform photons where the bake draws
+ * them from sampling tables. The step bias per voxel is the same whichever
+ * unbiased photons measure it, and the adaptive photons, sent through the
+ * refracting objects, cost about 1.5x a uniform one (docs/error.md). */
+static pm_setup_t twin_setup(const bt_run_t *x) {
+  pm_setup_t run = *x->s;
+  if (run.params.mode == PM_MODE_TABLES) run.params.mode = PM_MODE_REFERENCE, run.tables = NULL;
+  return run;
+}
+
 /* The truth integrator's twins, kept in x->fine. acc is zero before and after. */
 static int twin_truth(clh_context_t *cl, bt_run_t *x, uint64_t *acc, double *ms, bk_error_t *err) {
   pm_stats_t st;
   memset(&st, 0, sizeof st);
-  pm_setup_t truth = *x->s;
+  pm_setup_t truth = twin_setup(x);
   truth.params.integrator = integrator_kind(INTEGRATOR_RK4)->device;
   truth.params.step = BT_TRUTH_STEP;
   x->twin_phase = 1;
@@ -97,7 +107,7 @@ static int twin_with(clh_context_t *cl, bt_run_t *x, uint64_t *acc, unsigned int
                      double *ms, bk_error_t *err) {
   pm_stats_t st;
   memset(&st, 0, sizeof st);
-  pm_setup_t run = *x->s;
+  pm_setup_t run = twin_setup(x);
   run.params.integrator = integ;
   run.params.step = step;
   ee_twin_reset(x->tr);
