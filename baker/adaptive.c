@@ -414,28 +414,41 @@ error:
  * a linear map, ad_filter_fixed_lattice) and the filter's terms
  * (ee_filter_terms) from them and the filtered radiance, on the even
  * lattice that the noise term samples too (an eighth of the voxels). The
- * halves' means are made in place of the sums they come from (res->all,
- * res->half_a), once the lattice has its copy of the sums: no third grid. */
+ * luminance sum of all batches is the raw mean's (r->raw) times B: no pass
+ * over the march's sums for it. The halves' means are made in place of
+ * what they come from (res->half_a, r->raw: done with once the filter
+ * ran), once the lattice has its copy: no third grid. */
 static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
                         bk_error_t *err) {
   bt_result_t *res = &r->stats->error;
   const grid_dims_t *d = &r->base.dims;
   const size_t V = r->base.voxels;
   const size_t L = (size_t)((d->nx + 1) / 2) * ((d->ny + 1) / 2) * ((d->nz + 1) / 2);
-  const int B = res->batches;
+  const int B = res->batches, C = r->main.channels;
   const float na = (float)((B + 1) / 2), nb = (float)(B / 2);
+  /* raw -> the luminance sum: grey raw is one channel that colour_range
+   * scales by to_radiance / grey_k */
+  const double *k = r->main.to_radiance;
+  const float to_sum = (float)B * (C == 1 ? (float)((EE_LUM_R * k[0] + EE_LUM_G * k[1] +
+                                                     EE_LUM_B * k[2]) / r->grey_k)
+                                          : 1.0f);
   float *lat = bk_calloc(5 * L, sizeof(float), "adaptive error: lattice", err);
   if (!lat) return BK_ERR_RUNTIME;
   float *fa = lat, *fb = lat + L, *all = lat + 2 * L, *half_a = lat + 3 * L, *f = lat + 4 * L;
-  ee_lattice_gather(d, res->all, 1, all);
+  ee_lattice_gather(d, r->raw, C, all);
+  for (size_t l = 0; l < L; l++) all[l] *= to_sum;
   ee_lattice_gather(d, res->half_a, 1, half_a);
   ee_lattice_gather(d, radiance, 3, f);
+  float *half_b = r->raw; /* voxel v's mean lands at v, read from C v: in order */
   for (size_t v = 0; v < V; v++) {
-    const float sum_all = res->all[v], sum_a = res->half_a[v];
-    res->half_a[v] = sum_a / na;          /* half A's mean */
-    res->all[v] = (sum_all - sum_a) / nb; /* half B's mean */
+    const float *x = r->raw + (size_t)C * v;
+    const float lum = C == 1 ? x[0]
+                             : x[0] * (float)EE_LUM_R + x[1] * (float)EE_LUM_G + x[2] * (float)EE_LUM_B;
+    const float sum_a = res->half_a[v];
+    res->half_a[v] = sum_a / na;              /* half A's mean */
+    half_b[v] = (lum * to_sum - sum_a) / nb; /* half B's mean */
   }
-  const float *in[2] = {res->half_a, res->all};
+  const float *in[2] = {res->half_a, half_b};
   float *out[2] = {fa, fb};
   int rc = ad_filter_fixed_lattice(d, in, 2, radius, r->levels, out, err);
   if (rc == BK_OK) {
@@ -460,8 +473,8 @@ static int error_phase(ad_run_t *r, const float *radiance, const float *radius,
   if (rc == BK_OK && r->opt->error_grid)
     res->error_grid = ee_take_error_grid(&res->full, res->batches);
   ee_tracker_free(&res->full);
-  free(res->all), free(res->half_a);
-  res->all = res->half_a = NULL;
+  free(res->half_a);
+  res->half_a = NULL;
   r->stats->ms_error = bk_now_ms() - t0;
   return rc;
 }
@@ -619,8 +632,8 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
   rc = BK_OK;
 error:
   ee_tracker_free(&stats->error.full);
-  free(stats->error.all), free(stats->error.half_a);
-  stats->error.all = stats->error.half_a = NULL;
+  free(stats->error.half_a);
+  stats->error.half_a = NULL;
   if (rc != BK_OK) {
     free(stats->error.error_grid);
     stats->error.error_grid = NULL;

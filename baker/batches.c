@@ -432,7 +432,6 @@ static void finish(bt_run_t *x, pm_setup_t *s, const uint64_t *acc, bt_result_t 
   res->batch_photons = x->batches ? ph_batch_photons(x->photons, x->batches, 0) : x->photons;
   if (x->half && !x->batches && x->done > 0 && !(x->done & 1))
     ee_add_lum(x->tr, s, acc, 1.0f, x->half); /* the last batch was B's, not A's */
-  if (res->all) ee_add_lum(x->tr, s, acc, 1.0f, res->all);
   for (int c = 0; c < 3 && x->done > 1; c++) s->to_radiance[c] /= (double)x->done;
   ee_terms(x->tr, x->done, x->step_exact, &res->terms);
   res->terms.twin_photons = x->step_exact ? 0 : res->terms.twin_photons;
@@ -459,9 +458,8 @@ int bt_march(clh_context_t *cl, const scene_t *scene, pm_setup_t *s, const bt_op
   if (!rc && o->error_grid && !(rc = ee_tracker_init(&res->full, s, 1, err)))
     x.grid = &res->full;
   if (!rc && o->halves) {
-    res->all = bk_calloc(s->voxels, sizeof(float), "error estimate: luminance sums", err);
     x.half = res->half_a = bk_calloc(s->voxels, sizeof(float), "error estimate: half A", err);
-    if (!res->all || !res->half_a) rc = BK_ERR_RUNTIME;
+    if (!res->half_a) rc = BK_ERR_RUNTIME;
   }
   if (!rc) rc = run_all(cl, &x, res, acc, stats, &res->ms_march, err);
   if (!rc) {
@@ -474,8 +472,8 @@ int bt_march(clh_context_t *cl, const scene_t *scene, pm_setup_t *s, const bt_op
   ee_tracker_free(&tr);
   if (rc) {
     ee_tracker_free(&res->full);
-    free(res->all), free(res->half_a);
-    res->all = res->half_a = NULL;
+    free(res->half_a);
+    res->half_a = NULL;
   }
   return rc;
 }

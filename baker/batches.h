@@ -76,7 +76,7 @@ typedef struct bt_options {
   /* the march's fields kept from the frame before (march.h); NULL: built */
   pm_field_cache_t *fields;
   /* bt_march on a setup with sampling tables (the adaptive pipeline): */
-  int halves;             /* keep the halves' luminance sums (res.half_a, res.all) */
+  int halves;             /* keep half A's luminance sum (res.half_a) */
   double w_max;           /* the largest photon weight (0: 1), for the fixed-point scale */
   uint64_t photon_limit;  /* the most photons of all batches together (0: no limit) */
   double t_start;         /* bk_now_ms() when the bake's time budget began (0: at the march) */
@@ -116,10 +116,11 @@ typedef struct bt_result {
   /* bt_march with opts.error_grid: every voxel's statistics (the caller
    * frees them with ee_tracker_free) */
   ee_tracker_t full;
-  /* opts.halves: per voxel the luminance sum (one batch's units) of all
-   * batches and of half A (ceil(B/2) of them: the first in fixed mode, the
-   * even-numbered in the open ones); the caller frees them */
-  float *all, *half_a;
+  /* opts.halves: per voxel the luminance sum (one batch's units) of half
+   * A (ceil(B/2) of the batches: the first in fixed mode, the
+   * even-numbered in the open ones; all of them sum to B times the mean);
+   * the caller frees it */
+  float *half_a;
   int radiance_channels;   /* floats per voxel of the radiance written: 3, or 1
                             * when bt_bake allocated it for grey light */
 } bt_result_t;
