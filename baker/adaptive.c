@@ -442,8 +442,7 @@ static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
   float *half_b = r->raw; /* voxel v's mean lands at v, read from C v: in order */
   for (size_t v = 0; v < V; v++) {
     const float *x = r->raw + (size_t)C * v;
-    const float lum = C == 1 ? x[0]
-                             : x[0] * (float)EE_LUM_R + x[1] * (float)EE_LUM_G + x[2] * (float)EE_LUM_B;
+    const float lum = C == 1 ? x[0] : ad_luminance(x[0], x[1], x[2]);
     const float sum_a = res->half_a[v];
     res->half_a[v] = sum_a / na;              /* half A's mean */
     half_b[v] = (lum * to_sum - sum_a) / nb; /* half B's mean */

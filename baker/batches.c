@@ -424,9 +424,8 @@ static int check_options(const bt_run_t *x, const bt_options_t *o, bk_error_t *e
 static void finish(bt_run_t *x, pm_setup_t *s, const uint64_t *acc, bt_result_t *res,
                    const bt_options_t *o) {
   res->batches = x->done;
-  res->integrator = x->scene->integrator;
-  for (int k = 0; k < INTEGRATOR_KIND_COUNT; k++)
-    if (integrator_kinds[k].device == s->params.integrator) res->integrator = integrator_kinds[k].id;
+  const integrator_kind_t *marched = integrator_of_device(s->params.integrator);
+  res->integrator = marched ? marched->id : x->scene->integrator;
   res->step = s->params.step;
   res->step_exact = x->step_exact;
   res->batch_photons = x->batches ? ph_batch_photons(x->photons, x->batches, 0) : x->photons;

@@ -17,3 +17,9 @@ const integrator_kind_t *integrator_find(const char *name) {
 const integrator_kind_t *integrator_kind(integrator_t i) {
   return (int)i >= 0 && (int)i < INTEGRATOR_KIND_COUNT ? &integrator_kinds[i] : NULL;
 }
+
+const integrator_kind_t *integrator_of_device(unsigned device) {
+  for (int i = 0; i < INTEGRATOR_KIND_COUNT; i++)
+    if (integrator_kinds[i].device == device) return &integrator_kinds[i];
+  return NULL;
+}

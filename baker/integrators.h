@@ -29,6 +29,8 @@ extern const integrator_kind_t integrator_kinds[INTEGRATOR_KIND_COUNT];
 const integrator_kind_t *integrator_find(const char *name);
 /* The row of i; NULL outside the table. */
 const integrator_kind_t *integrator_kind(integrator_t i);
+/* The row whose device value (pm_params.integrator) is `device`, or NULL. */
+const integrator_kind_t *integrator_of_device(unsigned device);
 
 #ifdef __cplusplus
 }

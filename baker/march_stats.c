@@ -20,10 +20,8 @@ void pm_stats_add(pm_stats_t *st, const pm_result *r) {
 }
 
 uint64_t pm_work(unsigned integrator, uint64_t steps, uint64_t voxels) {
-  unsigned evals = 1;
-  for (int k = 0; k < INTEGRATOR_KIND_COUNT; k++)
-    if (integrator_kinds[k].device == integrator) evals = integrator_kinds[k].evals;
-  return steps * evals + voxels;
+  const integrator_kind_t *k = integrator_of_device(integrator);
+  return steps * (k ? k->evals : 1u) + voxels;
 }
 
 void pm_count_cell_work(const pm_setup_t *s, uint64_t slot, const pm_result *r) {
