@@ -55,6 +55,10 @@ typedef struct clh_context {
   int keep_programs;         /* set after clh_init: keep built programs (below) */
   struct { uint64_t key; cl_program program; } kept[CLH_KEPT_PROGRAMS];
   int kept_count, kept_next; /* filled; the slot replaced next when full */
+  /* two pinned staging buffers for large copies to and from a discrete
+   * device (baker/clcopy.c), made on first use, mapped while they live */
+  cl_mem stage[2];
+  void *stage_map[2];
 } clh_context_t;
 
 const char *clh_error_name(cl_int code);

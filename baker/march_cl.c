@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "clcopy.h"
 #include "field.h"
 
 /* The kernel and the buffers of one march. */
@@ -91,8 +92,9 @@ error:
 }
 
 /* Inputs and outputs on the device; inputs stay where they are on a CPU
- * device (USE_HOST_PTR), a GPU copies. Optional inputs the scene does not
- * use get a small dummy buffer. */
+ * device (USE_HOST_PTR), a GPU copies (the sums through clcopy.h: a fill
+ * when they start at zero). Optional inputs the scene does not use get a
+ * small dummy buffer. */
 static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_cl_run_t *r,
                         bk_error_t *err) {
   const cl_mem_flags host = cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;
@@ -115,7 +117,9 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
                                         s->pyramid.level, err))) ||
       ((!s->homogeneous || (coded && s->ms.sigma_grid)) &&
        !(r->sigma_t = make_buffer(cl, in, sigma_bytes, s->sigma_t, err))) ||
-      !(r->acc = make_buffer(cl, CL_MEM_READ_WRITE | host, r->acc_bytes, acc, err)) ||
+      !(r->acc = make_buffer(cl, CL_MEM_READ_WRITE | (cl->is_cpu ? host : 0), r->acc_bytes,
+                             cl->is_cpu ? acc : NULL, err)) ||
+      (!cl->is_cpu && clc_upload(cl, r->acc, r->acc_bytes, acc, err)) ||
       !(r->out = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, err)))
     return BK_ERR_RUNTIME;
   if (s->ms.params.max_bounces &&
@@ -211,10 +215,7 @@ error:
  * CPU device, where the buffer is the host memory; a read on a GPU. */
 static int read_back(clh_context_t *cl, cl_mem b, size_t bytes, void *host, bk_error_t *err) {
   cl_int cerr = CL_SUCCESS;
-  if (!cl->is_cpu) {
-    CLH_CHECK(clEnqueueReadBuffer(cl->queue, b, CL_TRUE, 0, bytes, host, 0, NULL, NULL), err, error);
-    return BK_OK;
-  }
+  if (!cl->is_cpu) return clc_read(cl, b, bytes, host, err);
   void *p = clEnqueueMapBuffer(cl->queue, b, CL_TRUE, CL_MAP_READ, 0, bytes, 0, NULL, NULL, &cerr);
   CLH_CHECK(cerr, err, error);
   CLH_CHECK(clEnqueueUnmapMemObject(cl->queue, b, p, 0, NULL, NULL), err, error);
@@ -272,9 +273,8 @@ static int call_next(clh_context_t *cl, pm_cl_run_t *r, uint64_t *acc, int done,
     p = clEnqueueMapBuffer(cl->queue, r->acc, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, r->acc_bytes,
                            0, NULL, NULL, &cerr);
     CLH_CHECK(cerr, err, error);
-  } else if (done > 0) {
-    CLH_CHECK(clEnqueueReadBuffer(cl->queue, r->acc, CL_TRUE, 0, r->acc_bytes, acc, 0, NULL, NULL),
-              err, error);
+  } else if (done > 0 && clc_read(cl, r->acc, r->acc_bytes, acc, err)) {
+    return BK_ERR_RUNTIME;
   }
   *go = next(ctx, done, acc, run, err);
   if (cl->is_cpu) {

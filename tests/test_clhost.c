@@ -1,5 +1,5 @@
 /* test_clhost.c: the OpenCL host layer on PoCL.
- * Usage: test_clhost errors|cache DIR|build_error|device_spec|no_platform */
+ * Usage: test_clhost errors|cache DIR|build_error|device_spec|no_platform|copy */
 #define _POSIX_C_SOURCE 200809L
 #include <dirent.h>
 #include <math.h>
@@ -7,6 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "clcopy.h"
 #include "clhost.h"
 #include "test_util.h"
 
@@ -268,9 +269,46 @@ static int test_no_platform(void) {
   return tu_failures;
 }
 
+/* --- copy: large copies through the pinned stages (run with BAKER_CL_DISCRETE=1) */
+
+/* One size: a patterned upload read back, then an upload of zeros (a fill)
+ * over it read back. */
+static void copy_round(clh_context_t *cl, size_t n) {
+  bk_error_t err = {0};
+  unsigned char *src = malloc(n), *dst = malloc(n);
+  cl_int cerr = CL_SUCCESS;
+  cl_mem b = clCreateBuffer(cl->context, CL_MEM_READ_WRITE, n, NULL, &cerr);
+  REQUIRE(src && dst && cerr == CL_SUCCESS, "%zu bytes: allocations", n);
+  for (size_t i = 0; i < n; i++) src[i] = (unsigned char)((i * 2654435761u) >> 13 | 1);
+  memset(dst, 0xab, n);
+  EXPECT(clc_upload(cl, b, n, src, &err) == BK_OK, "%zu: upload: %s", n, err.msg);
+  EXPECT(clc_read(cl, b, n, dst, &err) == BK_OK, "%zu: read: %s", n, err.msg);
+  EXPECT(memcmp(src, dst, n) == 0, "%zu bytes: read back differs", n);
+  memset(src, 0, n);
+  EXPECT(clc_upload(cl, b, n, src, &err) == BK_OK, "%zu: zero upload: %s", n, err.msg);
+  EXPECT(clc_read(cl, b, n, dst, &err) == BK_OK, "%zu: read: %s", n, err.msg);
+  EXPECT(memcmp(src, dst, n) == 0, "%zu bytes: zeros read back differ", n);
+  clReleaseMemObject(b);
+  free(src);
+  free(dst);
+}
+
+static int test_copy(void) {
+  clh_context_t cl;
+  memset(&cl, 0, sizeof cl);
+  if (!init_or_die(&cl, NULL)) return 1;
+  EXPECT(!cl.is_cpu, "BAKER_CL_DISCRETE=1 should make the device a discrete one");
+  /* straight; 3 stages with a byte tail (fill of 1-byte pattern); 4 with a half one */
+  const size_t sizes[] = {((size_t)1 << 20) + 8, 2 * CLC_STAGE + 13, 3 * CLC_STAGE + CLC_STAGE / 2};
+  for (int i = 0; i < 3; i++) copy_round(&cl, sizes[i]);
+  EXPECT(cl.stage_map[0] && cl.stage_map[1], "the staged copies made no stages");
+  clh_release(&cl);
+  return tu_failures;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
-    fprintf(stderr, "usage: %s errors|cache DIR|build_error|device_spec|no_platform\n",
+    fprintf(stderr, "usage: %s errors|cache DIR|build_error|device_spec|no_platform|copy\n",
             argv[0]);
     return 2;
   }
@@ -281,6 +319,7 @@ int main(int argc, char **argv) {
   else if (!strcmp(t, "build_error")) f = test_build_error();
   else if (!strcmp(t, "device_spec")) f = test_device_spec();
   else if (!strcmp(t, "no_platform")) f = test_no_platform();
+  else if (!strcmp(t, "copy")) f = test_copy();
   else {
     fprintf(stderr, "unknown test %s\n", t);
     return 2;
