@@ -6,7 +6,9 @@
 # on the device where the batch callback asks) and the host's plain C march
 # (--host). Cases: a reference bake (its twins have the sums zeroed between
 # batches), target mode whose pilot restarts (the plan has them zeroed),
-# adaptive mode (its filter's copies; no --host there).
+# adaptive mode (its filter's copies; no --host there), and a 208^3 bake
+# whose sums (72 MB) go through the pinned stages of
+# baker/clcopy.c, not straight.
 # Usage: buffer_paths.sh SOURCE_DIR BAKER WORKDIR BENCH_TOOL
 set -u
 SRC=$1 BAKER=$2 WORK=$3 TOOL=$4
@@ -39,4 +41,6 @@ grep -q "restarting with batches" "$WORK/target-copied.log" || fail "target: the
 same target copied && same target host
 for p in mapped copied; do bake adaptive $p --set photons.mode=adaptive --set photons.bounces=0; done
 same adaptive copied
+for p in mapped copied; do bake staged $p --resolution 208 --photons 4000 --set photons.bounces=0; done
+same staged copied
 echo "buffer paths: ok"
