@@ -31,5 +31,6 @@ grep -q "single scattering" "$WORK/run/bake-gpu.log" || fail "--set photons.boun
 "$G" --tool "$TOOL" --compare "$WORK/other.vdb" "$WORK/run/pocl.vdb" > "$WORK/cmp.txt"; st=$?
 [ $st = 1 ] || { cat "$WORK/cmp.txt"; fail "grids of another seed: exit $st, expected 1"; }
 grep -q "^| view |" "$WORK/gpu.md" || fail "the report lacks the view timing"
+grep -Eq "^\| bake \| .* \| [0-9.]+ \| [0-9]+ \|$" "$WORK/gpu.md" || fail "the report lacks the bakes' peak memory"
 [ -s "$WORK/run/gpu.exr" ] || fail "no view image"
 echo "gpu-check: ok"
