@@ -304,7 +304,8 @@ void clh_release(clh_context_t *cl) {
   for (int i = 0; i < cl->kept_count; i++) clReleaseProgram(cl->kept[i].program);
   cl->kept_count = cl->kept_next = 0;
   for (int i = 0; i < 2; i++) {
-    if (cl->stage_map[i]) clEnqueueUnmapMemObject(cl->queue, cl->stage[i], cl->stage_map[i], 0, NULL, NULL);
+    if (cl->stage_map[i])
+      clEnqueueUnmapMemObject(cl->queue, cl->stage[i], cl->stage_map[i], 0, NULL, NULL);
     if (cl->stage[i]) clReleaseMemObject(cl->stage[i]);
     cl->stage[i] = NULL;
     cl->stage_map[i] = NULL;
