@@ -104,9 +104,11 @@ typedef struct ee_ctx {
 static void pass_rows(void *arg, size_t lo, size_t hi) {
   ee_ctx_t *x = arg;
   ee_tracker_t *t = x->t;
-  const size_t dv = (size_t)1 << t->shift, mx = (size_t)t->mx;
+  /* a twin's sums hold the tracked lattice alone, packed (pm_deposit_lattice) */
+  const int packed = x->s->params.lattice != 0;
+  const size_t dv = packed ? 1 : (size_t)1 << t->shift, mx = (size_t)t->mx;
   for (size_t r = lo; r < hi; r++) {
-    size_t v = row_start(t, x->s, r);
+    size_t v = packed ? r * mx : row_start(t, x->s, r);
     for (size_t k = r * mx; k < (r + 1) * mx; k++, v += dv) {
       float cur = lum_at(t, x->s, x->acc, v), d;
       switch (x->pass) {

@@ -300,6 +300,15 @@ void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks) {
   s->masks = masks;
 }
 
+void pm_deposit_lattice(pm_setup_t *s) {
+  pm_params *P = &s->params;
+  P->lattice = 1;
+  P->cnx = (s->dims.nx + 1) >> 1;
+  P->cny = (s->dims.ny + 1) >> 1;
+  P->cnz = (s->dims.nz + 1) >> 1;
+  P->flux = P->camera = 0; /* no sums beside radiance's */
+}
+
 int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, uint64_t total,
                      bk_error_t *err) {
   pm_params *P = &s->params;
@@ -331,6 +340,7 @@ int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, uint64_t 
 size_t pm_acc_count(const pm_setup_t *s) {
   const pm_params *P = &s->params;
   if (P->mode == PM_MODE_ORIGINS) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
+  if (P->lattice) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
   return s->voxels *
          ((size_t)pm_acc_stride((int)P->mode, s->channels) +
           (P->flux ? PM_FLUX_SLOTS_WITH(P->camera) : 0));

@@ -187,6 +187,10 @@ int pm_derive(const pm_setup_t *base, const scene_t *scene, uint64_t photons, pm
 void pm_record_origins(pm_setup_t *s, int coarse_shift, uint64_t *masks);
 int pm_sample_tables(pm_setup_t *s, const float *tables, double w_max, uint64_t total,
                      bk_error_t *err);
+/* A reference march that keeps the radiance sums of the voxels of even
+ * (i, j, k) only, packed (pm_acc_count: 1/8 of the grid's): what the error
+ * estimate's twins read. No flux sums. */
+void pm_deposit_lattice(pm_setup_t *s);
 /* Marches only photons [first, last) (first <= last <= lights.photons). */
 /* Share `index` (1-based) of `count` of photons: [floor(photons (index-1) / count),
  * floor(photons index / count)), count < 2^17. Disjoint shares cover all. */

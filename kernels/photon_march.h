@@ -205,7 +205,8 @@ typedef struct pm_params {
   float cam_scale;            /* PM_CAMERA: 1 / P_max, of the largest |g| */
   bk_uint camera;             /* host path only: the device uses -D PM_CAMERA */
   bk_uint cam_g_grid;         /* PM_CAMERA: g per voxel, from pm_photon.gvox */
-  bk_uint pad_cam1;
+  bk_uint lattice;            /* reference: deposits only at voxels of even (i, j, k), packed
+                                 at c >> 1 in the cnx x cny x cnz lattice (error-estimate twins) */
 } pm_params;
 BK_STATIC_ASSERT(sizeof(pm_params) == 160, "pm_params layout is shared with kernels");
 
@@ -307,6 +308,14 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
     }
   }
 #endif
+  int keep = 1; /* the deposit is stored */
+#if !PH_DEVICE || PM_MODE == PM_MODE_REFERENCE
+  if (P->lattice) { /* the twins read the even lattice alone: 1/8 of the sums */
+    keep = ((c[0] | c[1] | c[2]) & 1) == 0;
+    didx = (bk_long)(c[0] >> 1) +
+           (bk_long)P->cnx * ((bk_long)(c[1] >> 1) + (bk_long)P->cny * (bk_long)(c[2] >> 1));
+  }
+#endif
 #if !PH_DEVICE || PM_MODE == PM_MODE_TABLES
   if (PM_MODE_OF(P) == PM_MODE_TABLES && idx != ph->last) {
     ph->last = idx;
@@ -332,7 +341,7 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
 #endif
     float trans;
     float r = rc_atten(st[ch] * seg, &trans);
-    pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
+    if (keep) pm_deposit(acc + stride * didx + ch, ph->power[ch] * seg * r * P->fixed_scale);
 #if PM_FLUX_COMPILED
     lum += pm_flux_weight(nch, ch) * ph->power[ch] * seg * r;
 #endif

@@ -5,9 +5,12 @@
  *   extremes host|cl: n 1.0001..4, smoothing 0.5..8 voxels, σt 0..1e4, 8^3
  *     grids, photons trapped by total internal reflection.
  *   extremes_512: a 512^3 grid with a handful of photons (host, memory
- *     permitting; exit 77 = skipped otherwise). */
+ *     permitting; exit 77 = skipped otherwise).
+ *   lattice host|cl: the error estimate twins' packed sums
+ *     (pm_deposit_lattice) are the full march's at the even lattice. */
 #include <unistd.h>
 
+#include "error_est.h"
 #include "test_march_util.h"
 #include "vox_code.h"
 #include "vox_medium.h"
@@ -266,6 +269,58 @@ static int test_extremes_512(void) {
   return 0;
 }
 
+/* A twin march that keeps only the even lattice (pm_deposit_lattice) holds
+ * the full march's sums there, bit for bit, packed; on an odd-sized grid
+ * (the lattice rounds up), refracting ball, RGB, single and multiple
+ * scattering. */
+static int test_lattice(clh_context_t *cl) {
+  volume_t v;
+  tv_alloc(&v, 33, 31, 29, 2.0f / 33, -1, -1, -1);
+  const float ss[3] = {0.5f, 0.4f, 0.3f}, sa[3] = {0.1f, 0.1f, 0.1f};
+  tv_fill(&v, 1.0f, ss, sa);
+  const float c[3] = {0.05f, -0.1f, 0.02f}, osa[3] = {0.3f, 0.2f, 0.1f}, oss[3] = {0, 0, 0};
+  tv_ball(&v, c, 0.45f, 1.5f, 2.0f, oss, osa);
+  tv_summarise(&v);
+  scene_light_t lights[1] = {tl_spot(0.1f, 1.7f, -0.2f, 0, -1, 0.1f, 30, 6, 4, 2)};
+  for (int bounces = 0; bounces <= 4; bounces += 4) {
+    scene_t s;
+    ts_init(&s, lights, 1, 20000);
+    s.bounces = bounces;
+    pm_setup_t full;
+    bk_error_t err = {0};
+    pm_stats_t st;
+    REQUIRE(pm_prepare(&s, &v, &full, NULL, NULL, &err) == BK_OK, "pm_prepare: %s", err.msg);
+    pm_setup_t packed = full; /* a shallow copy: full owns the arrays */
+    pm_deposit_lattice(&packed);
+    const size_t ch = (size_t)full.channels, lat = (size_t)17 * 16 * 15;
+    REQUIRE(pm_acc_count(&packed) == lat * ch, "packed sums: %zu, expected %zu",
+            pm_acc_count(&packed), lat * ch);
+    uint64_t *a = calloc(pm_acc_count(&full), sizeof *a), *b = calloc(lat * ch, sizeof *b);
+    REQUIRE(a && b, "out of memory");
+    for (int r = 0; r < 2; r++) {
+      memset(&st, 0, sizeof st);
+      const pm_setup_t *su = r ? &packed : &full;
+      int rc = cl ? pm_run_cl(cl, su, r ? b : a, &st, &err) : pm_run_host(su, r ? b : a, &st, &err);
+      REQUIRE(rc == BK_OK, "march: %s", err.msg);
+    }
+    size_t differ = 0, lit = 0;
+    for (size_t k = 0; k < lat; k++)
+      for (size_t j = 0; j < ch; j++) {
+        const uint64_t want = a[ee_lattice_voxel(&full.dims, k) * ch + j];
+        differ += want != b[k * ch + j];
+        lit += want != 0;
+      }
+    printf("lattice (%s, bounces %d): %zu of %zu packed sums differ, %zu lit\n",
+           cl ? "OpenCL" : "host", bounces, differ, lat * ch, lit);
+    EXPECT(differ == 0 && lit > lat * ch / 2, "packed sums differ or too few lit");
+    free(a);
+    free(b);
+    pm_setup_free(&full);
+  }
+  tv_free(&v);
+  return tu_failures;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     fprintf(stderr, "usage: test_march_robust TEST [host|cl]\n");
@@ -278,6 +333,7 @@ int main(int argc, char **argv) {
   else if (!strcmp(t, "host_vs_device")) rc = test_host_vs_device();
   else if (!strcmp(t, "extremes")) rc = test_extremes(tm_path(argc > 2 ? argv[2] : "host"));
   else if (!strcmp(t, "extremes_512")) rc = test_extremes_512();
+  else if (!strcmp(t, "lattice")) rc = test_lattice(tm_path(argc > 2 ? argv[2] : "host"));
   else fprintf(stderr, "unknown test %s\n", t);
   if (tm_cl_ready) clh_release(&tm_cl_ctx);
   return rc;
