@@ -56,7 +56,8 @@ static int direct(const clh_context_t *cl, size_t bytes) {
 
 int clc_read(clh_context_t *cl, cl_mem b, size_t bytes, void *host, bk_error_t *err) {
   if (direct(cl, bytes)) {
-    CLH_CHECK(clEnqueueReadBuffer(cl->queue, b, CL_TRUE, 0, bytes, host, 0, NULL, NULL), err, error);
+    CLH_CHECK(clEnqueueReadBuffer(cl->queue, b, CL_TRUE, 0, bytes, host, 0, NULL, NULL), err,
+              error);
     return BK_OK;
   }
   if (stage_open(cl, err)) return BK_ERR_RUNTIME;
@@ -67,8 +68,9 @@ int clc_read(clh_context_t *cl, cl_mem b, size_t bytes, void *host, bk_error_t *
   for (size_t off = 0, i = 0; off < bytes; off += CLC_STAGE, i++) {
     const int k = (int)(i & 1);
     const size_t n = bytes - off < CLC_STAGE ? bytes - off : CLC_STAGE;
-    CLH_CHECK(clEnqueueReadBuffer(cl->queue, b, CL_FALSE, off, n, cl->stage_map[k], 0, NULL, &ev[k]),
-              err, done);
+    CLH_CHECK(
+        clEnqueueReadBuffer(cl->queue, b, CL_FALSE, off, n, cl->stage_map[k], 0, NULL, &ev[k]), err,
+        done);
     if (i > 0) {
       if (wait_release(&ev[1 - k], err)) goto done;
       copy_parallel((char *)host + prev, cl->stage_map[1 - k], prev_n);
@@ -89,7 +91,8 @@ error:
 
 int clc_write(clh_context_t *cl, cl_mem b, size_t bytes, const void *host, bk_error_t *err) {
   if (direct(cl, bytes)) {
-    CLH_CHECK(clEnqueueWriteBuffer(cl->queue, b, CL_TRUE, 0, bytes, host, 0, NULL, NULL), err, error);
+    CLH_CHECK(clEnqueueWriteBuffer(cl->queue, b, CL_TRUE, 0, bytes, host, 0, NULL, NULL), err,
+              error);
     return BK_OK;
   }
   if (stage_open(cl, err)) return BK_ERR_RUNTIME;
@@ -101,8 +104,9 @@ int clc_write(clh_context_t *cl, cl_mem b, size_t bytes, const void *host, bk_er
     const size_t n = bytes - off < CLC_STAGE ? bytes - off : CLC_STAGE;
     if (wait_release(&ev[k], err)) goto done;
     copy_parallel(cl->stage_map[k], (const char *)host + off, n);
-    CLH_CHECK(clEnqueueWriteBuffer(cl->queue, b, CL_FALSE, off, n, cl->stage_map[k], 0, NULL, &ev[k]),
-              err, done);
+    CLH_CHECK(
+        clEnqueueWriteBuffer(cl->queue, b, CL_FALSE, off, n, cl->stage_map[k], 0, NULL, &ev[k]),
+        err, done);
   }
   rc = BK_OK;
 done:

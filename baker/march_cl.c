@@ -91,26 +91,28 @@ error:
   return NULL;
 }
 
-/* A grid-sized input the kernels only read: the host's memory itself on a
- * CPU device; on a GPU a copy written through clcopy.h's pinned stages.
+/* A grid-sized buffer (flags: read-only input, or read-write sums): the
+ * host's memory itself on a CPU device; on a GPU a copy written through
+ * clcopy.h's pinned stages, sums as a fill when they start at zero.
  * (While the sums were made with CL_MEM_COPY_HOST_PTR, a 1024^3 bake on
  * NVIDIA's driver peaked 8 GiB higher, the sums' size: docs/gpu.md.) */
-static cl_mem make_input(clh_context_t *cl, size_t bytes, const void *data, bk_error_t *err) {
-  if (cl->is_cpu) return make_buffer(cl, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, data, err);
-  cl_mem b = make_buffer(cl, CL_MEM_READ_ONLY, bytes, NULL, err);
-  if (b && clc_write(cl, b, bytes, data, err) != BK_OK) {
+static cl_mem make_grid_buffer(clh_context_t *cl, cl_mem_flags flags, size_t bytes,
+                               const void *data, bk_error_t *err) {
+  if (cl->is_cpu) return make_buffer(cl, flags | CL_MEM_USE_HOST_PTR, bytes, data, err);
+  cl_mem b = make_buffer(cl, flags, bytes, NULL, err);
+  if (b && ((flags & CL_MEM_READ_ONLY) ? clc_write(cl, b, bytes, data, err)
+                                        : clc_upload(cl, b, bytes, data, err)) != BK_OK) {
     clReleaseMemObject(b);
     return NULL;
   }
   return b;
 }
 
-/* Inputs and outputs on the device (make_input; the sums through
- * clcopy.h, a fill when they start at zero). Optional inputs the scene does
- * not use get a small dummy buffer. */
+/* Inputs and outputs on the device (make_grid_buffer for the grid-sized
+ * ones). Optional inputs the scene does not use get a small dummy buffer. */
 static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, pm_cl_run_t *r,
                         bk_error_t *err) {
-  const cl_mem_flags host = cl->is_cpu ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR;
+  const cl_mem_flags in = CL_MEM_READ_ONLY, sums = CL_MEM_READ_WRITE;
   const cl_mem_flags copy = CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR;
   const ph_setup_t *L = &s->lights;
   /* room for every light: batches may change the lights (pm_run_cl_batches) */
@@ -121,30 +123,29 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
   /* the volume's σ, read in place on a CPU device: σt and σs, or the one
    * coded buffer of both */
   const size_t sigma_bytes = s->sigma_floats * sizeof(float);
+  const size_t pyr_bytes = (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz;
   const int coded = (s->params.sigma_stride & PM_SIGMA_CODED_FLAG) != 0;
   if (!(r->params = make_buffer(cl, copy, sizeof(pm_params), &s->params, err)) ||
       !(r->lights = make_buffer(cl, copy, sizeof(ph_light) * nlights, all, err)) ||
       !(r->dummy = make_buffer(cl, CL_MEM_READ_WRITE, 64, NULL, err)) ||
-      (s->ng && !(r->ng = make_input(cl, field_bytes(s), s->ng, err))) ||
-      (s->ng && !(r->pyr = make_input(cl, (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz,
-                                       s->pyramid.level, err))) ||
+      (s->ng && !(r->ng = make_grid_buffer(cl, in, field_bytes(s), s->ng, err))) ||
+      (s->ng && !(r->pyr = make_grid_buffer(cl, in, pyr_bytes, s->pyramid.level, err))) ||
       ((!s->homogeneous || (coded && s->ms.sigma_grid)) &&
-       !(r->sigma_t = make_input(cl, sigma_bytes, s->sigma_t, err))) ||
-      !(r->acc = make_buffer(cl, CL_MEM_READ_WRITE | (cl->is_cpu ? host : 0), r->acc_bytes,
-                             cl->is_cpu ? acc : NULL, err)) ||
-      (!cl->is_cpu && clc_upload(cl, r->acc, r->acc_bytes, acc, err)) ||
+       !(r->sigma_t = make_grid_buffer(cl, in, sigma_bytes, s->sigma_t, err))) ||
+      !(r->acc = make_grid_buffer(cl, sums, r->acc_bytes, acc, err)) ||
       !(r->out = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(pm_result), NULL, err)))
     return BK_ERR_RUNTIME;
   if (s->ms.params.max_bounces &&
       (!(r->ms_params = make_buffer(cl, copy, sizeof(ms_params), &s->ms.params, err)) ||
-       (s->ms.g_grid && !(r->g = make_input(cl, s->voxels * sizeof(float), s->g, err))) ||
+       (s->ms.g_grid &&
+        !(r->g = make_grid_buffer(cl, in, s->voxels * sizeof(float), s->g, err))) ||
        (s->ms.sigma_grid && !coded &&
-        !(r->sigma_s = make_input(cl, sigma_bytes, s->sigma_s, err))) ||
+        !(r->sigma_s = make_grid_buffer(cl, in, sigma_bytes, s->sigma_s, err))) ||
        !(r->tally = make_buffer(cl, CL_MEM_WRITE_ONLY, PM_CHUNK * sizeof(ms_tally), NULL, err))))
     return BK_ERR_RUNTIME;
   if (s->params.mode == PM_MODE_ORIGINS) {
     if (!s->masks) return bk_fail(err, BK_ERR_RUNTIME, "march: origin recorder without masks");
-    if (!(r->masks = make_buffer(cl, CL_MEM_READ_WRITE | host, r->mask_bytes, s->masks, err)))
+    if (!(r->masks = make_grid_buffer(cl, sums, r->mask_bytes, s->masks, err)))
       return BK_ERR_RUNTIME;
   }
   if (s->params.mode == PM_MODE_TABLES) {
