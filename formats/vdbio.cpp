@@ -3,7 +3,10 @@
  * Every entry point catches openvdb and std exceptions and turns them into a
  * bk_error_t: no exception ever crosses into C. Files are read fully (no
  * delayed loading), so a truncated or corrupt file fails inside the call that
- * opened it, never later from a memory-mapped page or a worker thread.
+ * opened it, never later from a memory-mapped page or a worker thread; the
+ * one exception is the dense read of the isolated reader's child
+ * (vdbio_read_dense_direct), where a leaf's values are decoded as they are
+ * copied and freed a slab at a time.
  * Writing lives in vdbio_write.cpp. */
 #include "vdbio_internal.h"
 
@@ -82,9 +85,9 @@ public:
   }
 };
 
-/* Opens `path` fully (no delayed loading); BK_ERR_INPUT when it is missing,
- * is not a VDB file or is truncated. Exceptions are the caller's to catch. */
-int vdbio_open(vdb::io::File &file, const char *path, const char *where, bk_error_t *err) {
+/* vdbio_internal.h. Exceptions are the caller's to catch. */
+int vdbio_open(vdb::io::File &file, const char *path, const char *where, bk_error_t *err,
+               bool delayed) {
   /* io::File says only "could not open"; errno says why */
   FILE *probe = fopen(path, "rb");
   if (!probe)
@@ -106,7 +109,9 @@ int vdbio_open(vdb::io::File &file, const char *path, const char *where, bk_erro
                                                                     : e.what());
   }
   try {
-    file.open(false);
+    if (delayed)
+      file.setCopyMaxBytes(0); /* map the file itself, never a private copy of it */
+    file.open(delayed);
   } catch (const std::bad_alloc &) {
     throw;
   } catch (const std::exception &e) {
@@ -175,11 +180,11 @@ static int vdbio_read_grid(vdb::io::File &file, const char *path, const char *wh
  * reader of one grid (vdbio_internal.h). */
 int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
                     vdb::GridBase::Ptr &grid, int *found, bk_error_t *err,
-                    vdb::MetaMap::Ptr *meta) {
+                    vdb::MetaMap::Ptr *meta, bool delayed) {
   if (vdbio_is_nano_file(path))
     return nvdbio_load_grid(path, where, grid_name, grid, found, err);
   vdb::io::File file(path);
-  int rc = vdbio_open(file, path, where, err);
+  int rc = vdbio_open(file, path, where, err, delayed);
   if (rc)
     return rc;
   rc = vdbio_read_grid(file, path, where, grid_name, grid, found, err);
@@ -321,21 +326,53 @@ static void vdbio_fill_any(const vdb::GridBase::Ptr &g, const vdb::Coord &min,
     vdbio_fill(*vdb::gridConstPtrCast<vdb::Vec3DGrid>(g), min, like, d);
 }
 
+static const int VDBIO_COPY_SLAB = 64; /* z slices: a multiple of the leaves' 8 */
+
+/* grid over `box` into data (x fastest), a slab of VDBIO_COPY_SLAB z slices
+ * (leaf-aligned, so each leaf is in one) at a time (tools::copyToDense, leaf
+ * by leaf), each slab's leaves inside the box emptied once copied: read with
+ * delayed loading, the tree then holds one slab's values beside the copy,
+ * not a second copy of the grid (at 512^3 a Vec3f grid's 1.6 GB of fresh
+ * pages). Leaves reaching outside the box stay for the checksum's test of
+ * what lies there (ck_outside_is_background); nothing else reads the tree. */
+template <typename GridT>
+static void vdbio_copy_release(GridT &grid, const vdb::CoordBBox &box,
+                               typename GridT::ValueType *data) {
+  using LeafT = typename GridT::TreeType::LeafNodeType;
+  const int z0 = box.min().z(), base = z0 & ~7; /* floor to the leaves' 8 */
+  const size_t slabs = (size_t)((box.max().z() - base) / VDBIO_COPY_SLAB) + 1;
+  const size_t slice = (size_t)box.dim().x() * (size_t)box.dim().y();
+  std::vector<std::vector<LeafT *>> leaves(slabs);
+  for (auto it = grid.tree().beginLeaf(); it; ++it)
+    if (box.isInside(it->getNodeBoundingBox()))
+      leaves[(size_t)((it->origin().z() - base) / VDBIO_COPY_SLAB)].push_back(&*it);
+  for (size_t s = 0; s < slabs; s++) {
+    const int a = std::max(base + (int)s * VDBIO_COPY_SLAB, z0);
+    const int b = std::min(base + ((int)s + 1) * VDBIO_COPY_SLAB - 1, box.max().z());
+    vdb::tools::Dense<typename GridT::ValueType, vdb::tools::LayoutXYZ> dense(
+        vdb::CoordBBox(vdb::Coord(box.min().x(), box.min().y(), a),
+                       vdb::Coord(box.max().x(), box.max().y(), b)),
+        data + (size_t)(a - z0) * slice);
+    vdb::tools::copyToDense(grid, dense);
+    for (LeafT *leaf : leaves[s]) {
+      typename LeafT::Buffer empty(vdb::PartialCreate(), grid.background());
+      leaf->swap(empty); /* the values go with `empty` */
+    }
+  }
+}
+
 /* d->data over `box` at the grid's own indices: leaf by leaf
- * (tools::copyToDense) for float and Vec3f grids, through an accessor for
+ * (vdbio_copy_release) for float and Vec3f grids, through an accessor for
  * the double ones, which need a conversion. */
 static void vdbio_copy_any(const vdb::GridBase::Ptr &g, const vdb::CoordBBox &box,
                            vdbio_dense_t *d) {
-  if (g->isType<vdb::FloatGrid>()) {
-    vdb::tools::Dense<float, vdb::tools::LayoutXYZ> dense(box, d->data);
-    vdb::tools::copyToDense(*vdb::gridConstPtrCast<vdb::FloatGrid>(g), dense);
-  } else if (g->isType<vdb::Vec3SGrid>()) {
-    vdb::tools::Dense<vdb::Vec3s, vdb::tools::LayoutXYZ> dense(
-        box, reinterpret_cast<vdb::Vec3s *>(d->data));
-    vdb::tools::copyToDense(*vdb::gridConstPtrCast<vdb::Vec3SGrid>(g), dense);
-  } else {
+  if (g->isType<vdb::FloatGrid>())
+    vdbio_copy_release(*vdb::gridPtrCast<vdb::FloatGrid>(g), box, d->data);
+  else if (g->isType<vdb::Vec3SGrid>())
+    vdbio_copy_release(*vdb::gridPtrCast<vdb::Vec3SGrid>(g), box,
+                       reinterpret_cast<vdb::Vec3s *>(d->data));
+  else
     vdbio_fill_any(g, box.min(), NULL, d);
-  }
 }
 
 /* The grid's checksum against the file's record: *checked = 1 when there is
@@ -420,7 +457,8 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
   try {
     vdb::GridBase::Ptr g;
     vdb::MetaMap::Ptr meta;
-    if ((rc = vdbio_load_grid(path, NULL, grid_name, g, NULL, err, &meta)))
+    /* delayed: leaf values are decoded as vdbio_copy_any copies them */
+    if ((rc = vdbio_load_grid(path, NULL, grid_name, g, NULL, err, &meta, true)))
       return rc;
     const int ch = vdbio_channels(g, path, grid_name, err);
     if (!ch)

@@ -43,9 +43,13 @@ void vdbio_trees_next(void);
  * parent then maps (vdbio_isolate.cpp). */
 extern float *(*vdbio_dense_room)(size_t bytes);
 
-/* Opens `path` fully (no delayed loading) after checking its layout;
- * BK_ERR_INPUT when it is missing, not a VDB file or truncated. */
-int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_error_t *err);
+/* Opens `path` after checking its layout; BK_ERR_INPUT when it is missing,
+ * not a VDB file or truncated. Fully (no delayed loading) unless `delayed`:
+ * then leaf values are read from the mapped file when first used, which
+ * only an isolated reader may do (a page of a file cut short meanwhile is
+ * a SIGBUS, which the child's status reports). */
+int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_error_t *err,
+               bool delayed = false);
 
 /* Opens `path` (VDB or NanoVDB), reads grid `grid_name` and closes the
  * file; found NULL: a missing grid is BK_ERR_INPUT naming the grids there
@@ -53,7 +57,7 @@ int vdbio_open(openvdb::io::File &file, const char *path, const char *where, bk_
  * Exceptions are the caller's to catch. */
 int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
                     openvdb::GridBase::Ptr &grid, int *found, bk_error_t *err,
-                    openvdb::MetaMap::Ptr *meta = nullptr);
+                    openvdb::MetaMap::Ptr *meta = nullptr, bool delayed = false);
 
 /* Voxels of z slices [z0, z0 + nz) of a grid to write (x fastest, type
  * floats each): the dense array's own, or made by its fill into buf (in

@@ -266,10 +266,11 @@ static int iso_parent(iso_job &job, int fd, pid_t pid, const char *path, const i
                  (double)l.memory / 1048576.0, l.seconds);
 }
 
-/* A child at work: its pid and the read end of its pipe. */
+/* A child at work: its pid, the read end of its pipe and its limits. */
 struct iso_started {
   pid_t pid = -1;
   int fd = -1;
+  iso_limits limits = {};
 };
 
 /* Starts the child of `job`. */
@@ -509,14 +510,18 @@ static int iso_ready(const std::vector<iso_started> &st, int limit) {
  * one at a time. */
 static int iso_run_all(iso_job *const *jobs, int count, int width, const char *path,
                        void (*meanwhile)(void *), void *ctx, bk_error_t *err) {
-  const iso_limits l = iso_limits_for(path);
   std::vector<iso_started> st((size_t)count);
   std::vector<char> done((size_t)count, 0);
   int limit = count, running = 0, rc = BK_OK;
   for (;;) {
     for (int j = 0; j < limit && running < width && !rc; j++)
-      if (!done[(size_t)j] && st[(size_t)j].pid <= 0)
-        rc = iso_start(*jobs[j], path, l, &st[(size_t)j], err), running += !rc;
+      if (!done[(size_t)j] && st[(size_t)j].pid <= 0) {
+        /* each child's own: the address space it starts with holds the
+         * grids mapped since the last one started */
+        st[(size_t)j].limits = iso_limits_for(path);
+        rc = iso_start(*jobs[j], path, st[(size_t)j].limits, &st[(size_t)j], err);
+        running += !rc;
+      }
     if (rc || !running)
       break;
     if (meanwhile) /* once, while the first readers work; no fork during it */
@@ -526,7 +531,8 @@ static int iso_run_all(iso_job *const *jobs, int count, int width, const char *p
     e.code = BK_OK;
     e.msg[0] = 0;
     bool died = false;
-    const int r = iso_parent(*jobs[i], st[(size_t)i].fd, st[(size_t)i].pid, path, l, &e, &died);
+    const int r = iso_parent(*jobs[i], st[(size_t)i].fd, st[(size_t)i].pid, path,
+                             st[(size_t)i].limits, &e, &died);
     close(st[(size_t)i].fd);
     st[(size_t)i] = iso_started();
     running--;

@@ -9,6 +9,11 @@
  * a box that is not a whole number of 8^3 leaves, exact zeros and -0 and NaN
  * (inactive by OpenVDB's !(|v| > 0)), constant active blocks (tiles) next to
  * varying ones, a zero channel in a Vec3, a background other than 0.
+ * And the dense read (vdbio_read_dense), which copies a grid a slab of z
+ * slices at a time and frees each slab's leaves, must give every voxel of
+ * grids deeper than one slab: baker's own (checksum on the copy, leaves
+ * reaching outside the box kept for its test) and OpenVDB's (negative,
+ * unaligned z, tiles, a background that is not 0).
  * Usage: test_vdbio_tree DIR */
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/ChangeBackground.h>
@@ -196,6 +201,78 @@ static void test_sparse_windows(const std::string &dir) {
   file.close();
 }
 
+/* vdbio_read_dense of `name` in path equals want (nx x ny x nz, ch floats
+ * per voxel, x fastest) everywhere. */
+static void compare_dense(const char *label, const std::string &path, const char *name,
+                          const std::vector<float> &want, int nx, int ny, int nz, int ch) {
+  vdbio_dense_t d = {};
+  bk_error_t err = {};
+  if (vdbio_read_dense(path.c_str(), name, 0, &d, &err) != BK_OK) {
+    CHECK(false, "%s: vdbio_read_dense: %s", label, err.msg);
+    return;
+  }
+  CHECK(d.nx == nx && d.ny == ny && d.nz == nz && d.channels == ch, "%s: %dx%dx%d x %d", label,
+        d.nx, d.ny, d.nz, d.channels);
+  size_t bad = 0, n = (size_t)nx * ny * nz * ch;
+  for (size_t at = 0; d.nx == nx && d.ny == ny && d.nz == nz && at < n; at++)
+    bad += !same_value(d.data[at], want[at]);
+  CHECK(bad == 0, "%s: %zu of %zu values differ", label, bad, n);
+  vdbio_dense_free(&d);
+}
+
+static void test_dense_slabs(const std::string &dir) {
+  /* baker's own file, 150 slices deep (three slabs), its x and y edges in
+   * leaves that reach outside the box; corners set so the box is the array */
+  const int nx = 21, ny = 18, nz = 150;
+  const size_t n = (size_t)nx * ny * nz;
+  std::vector<float> f(n), v(3 * n);
+  for (size_t at = 0; at < n; at++) {
+    const int i = (int)(at % nx), j = (int)(at / nx % ny), k = (int)(at / nx / ny);
+    const float x = (i / 8 + j / 8 + k / 8) % 3 == 0 ? 0.0f : 1.0f + 0.001f * (float)(i + 7 * j + 31 * k);
+    f[at] = at == 0 || at == n - 1 ? 2.0f : x;
+    for (int c = 0; c < 3; c++) v[3 * at + c] = f[at] + 0.5f * (float)c;
+  }
+  const vdbio_grid_t grids[] = {{"f", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
+                                {"v", VDBIO_VEC3, v.data(), 1, 0.0f, NULL, NULL}};
+  grid_dims_t d = {};
+  d.nx = nx, d.ny = ny, d.nz = nz;
+  d.voxel_size = 0.1f;
+  vdbio_write_opts_t opts = {};
+  opts.compression = VDBIO_COMPRESS_BLOSC;
+  bk_error_t err = {};
+  const std::string own = dir + "/slabs.vdb";
+  if (vdbio_write(own.c_str(), &d, grids, 2, NULL, 0, &opts, &err) != BK_OK) {
+    CHECK(false, "vdbio_write (slabs): %s", err.msg);
+    return;
+  }
+  compare_dense("slabs float", own, "f", f, nx, ny, nz, 1);
+  compare_dense("slabs Vec3", own, "v", v, nx, ny, nz, 3);
+
+  /* OpenVDB's: z from -13 to 150, x from -5, background 0.5, an 8^3 tile */
+  vdb::FloatGrid::Ptr g = vdb::FloatGrid::create(0.5f);
+  g->setName("g");
+  auto acc = g->getAccessor();
+  const vdb::Coord lo(-5, 3, -13), hi(30, 20, 150);
+  for (int k = lo.z(); k <= hi.z(); k += 3)
+    for (int j = lo.y(); j <= hi.y(); j += 2)
+      for (int i = lo.x(); i <= hi.x(); i += 5) acc.setValue(vdb::Coord(i, j, k), 0.01f * (float)(i + j + k));
+  acc.setValue(lo, 7.0f);
+  acc.setValue(hi, 8.0f);
+  g->tree().fill(vdb::CoordBBox(vdb::Coord(8, 8, 64), vdb::Coord(15, 15, 71)), 3.0f, true);
+  const std::string other = dir + "/slabs_openvdb.vdb";
+  vdb::io::File out(other);
+  out.write({g});
+  out.close();
+  const vdb::Coord dim = hi - lo + vdb::Coord(1);
+  std::vector<float> want((size_t)dim.x() * dim.y() * dim.z());
+  for (int k = 0; k < dim.z(); k++)
+    for (int j = 0; j < dim.y(); j++)
+      for (int i = 0; i < dim.x(); i++)
+        want[(size_t)i + (size_t)dim.x() * ((size_t)j + (size_t)dim.y() * k)] =
+            acc.getValue(lo.offsetBy(i, j, k));
+  compare_dense("slabs OpenVDB's", other, "g", want, dim.x(), dim.y(), dim.z(), 1);
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: test_vdbio_tree DIR\n");
@@ -235,6 +312,7 @@ int main(int argc, char **argv) {
   file.close();
   test_leaf_bytes();
   test_sparse_windows(argv[1]);
+  test_dense_slabs(argv[1]);
   if (failures) std::fprintf(stderr, "test_vdbio_tree: %d check(s) failed\n", failures);
   else std::printf("test_vdbio_tree: ok\n");
   return failures ? 1 : 0;
