@@ -1,10 +1,13 @@
 /* view_volume.c: a VDB file's grids on one dense box (view_volume.h):
  * which grids, each over its own box, their union, every grid moved onto it
  * (copied when aligned, else resampled), checked, and packed for the kernel. */
+#define _DEFAULT_SOURCE /* madvise */
 #define _POSIX_C_SOURCE 200809L
 #include "view_volume.h"
 
 #include <math.h>
+#include <stdint.h>
+#include <sys/mman.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,15 +22,32 @@
 
 static void zero_bytes(void *p, size_t lo, size_t hi) { memset((char *)p + lo, 0, hi - lo); }
 
-void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err) {
+void *view_alloc_unset(size_t count, size_t size, const char *what, bk_error_t *err) {
   size_t bytes;
   void *p = NULL;
   if (!bk_mul_size(count, size, &bytes) || posix_memalign(&p, VIEW_ALIGN, bytes ? bytes : 1)) {
     bk_fail(err, BK_ERR_RUNTIME, "%s: cannot allocate %zu x %zu bytes", what, count, size);
     return NULL;
   }
-  bk_parallel(bytes, (size_t)1 << 20, zero_bytes, p); /* first touches on every core */
   return p;
+}
+
+void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err) {
+  void *p = view_alloc_unset(count, size, what, err);
+  if (p) bk_parallel(count * size, (size_t)1 << 20, zero_bytes, p); /* first touches on every core */
+  return p;
+}
+
+/* Gives the memory of the whole pages in bytes [lo, hi) of a back to the
+ * system: an input array whose values there have been used. A grid mapped
+ * from the reader's memfd (vdbio_array_free) gives its pages back with
+ * MADV_REMOVE, a heap array with MADV_DONTNEED; the array is not read
+ * there again. */
+static void release_bytes(const void *a, size_t lo, size_t hi) {
+  const uintptr_t page = VIEW_ALIGN, p0 = ((uintptr_t)a + lo + page - 1) & ~(page - 1);
+  const uintptr_t p1 = ((uintptr_t)a + hi) & ~(page - 1);
+  if (p1 <= p0) return;
+  if (madvise((void *)p0, p1 - p0, MADV_REMOVE) != 0) madvise((void *)p0, p1 - p0, MADV_DONTNEED);
 }
 
 void view_volume_free(view_volume_t *v) {
@@ -552,12 +572,15 @@ static int load_coefficients(view_load_t *L, view_volume_t *v, size_t nvox, bk_e
   return BK_OK;
 }
 
+#define VIEW_PACK_SLAB 8 /* z slices packed before their inputs are given back */
+
 typedef struct pack_ctx {
   const float *ext, *sca, *rad;
   int sc; /* channels of ext and sca */
   float scale;
   int nx, ny;
   float *medium, *sigma_t4; /* padded (field.h): the kernel's layout */
+  size_t row0;              /* pack_source: the first row of its range */
 } pack_ctx_t;
 
 /* The padded entry (field.h) of the first voxel of row j + ny k. */
@@ -567,16 +590,16 @@ static size_t padded_row(const pack_ctx_t *x, size_t row) {
 }
 
 /* {S = σs L̄, σt (grey; 0 for RGB, whose σt goes to sigma_t4)} of the rows
- * [lo, hi) (row j + ny k), written straight into the padded layout. */
+ * row0 + [lo, hi) (row j + ny k), written straight into the padded layout. */
 static void pack_source(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
   const int sc = x->sc;
-  for (size_t row = lo; row < hi; row++) {
+  for (size_t row = x->row0 + lo; row < x->row0 + hi; row++) {
     float *m = x->medium + 4 * padded_row(x, row);
     for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, m += 4) {
       for (int c = 0; c < 3; c++)
         m[c] = x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] * x->rad[3 * i + c] : 0.0f;
-      if (sc == 1 && x->ext) m[3] = x->scale * x->ext[i];
+      m[3] = sc == 1 && x->ext ? x->scale * x->ext[i] : 0.0f; /* the array is not zeroed */
     }
   }
 }
@@ -600,10 +623,22 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   const double scale = L->scale;
   const size_t padded = fld_padded_count(v->nx, v->ny, v->nz), rows = (size_t)v->ny * v->nz;
   const size_t grain = BK_GRAIN / (size_t)v->nx + 1;
-  v->medium = view_alloc(padded, 4 * sizeof(float), "view: medium", err);
+  /* every entry written by pack_source and fld_pad4_faces: no zeroing */
+  v->medium = view_alloc_unset(padded, 4 * sizeof(float), "view: medium", err);
   if (!v->medium) return BK_ERR_RUNTIME;
-  pack_ctx_t x = {ext, sca, rad, sc, (float)scale, v->nx, v->ny, v->medium, NULL};
-  bk_parallel(rows, grain, pack_source, &x);
+  pack_ctx_t x = {ext, sca, rad, sc, (float)scale, v->nx, v->ny, v->medium, NULL, 0};
+  /* VIEW_PACK_SLAB z slices at a time, each slab's radiance (and σs, read
+   * nowhere else) given back once packed: the medium's pages come as the
+   * inputs' go (at 512^3, 40 -> about 24 B per voxel at the peak) */
+  const size_t slice = (size_t)v->nx * v->ny;
+  for (size_t k0 = 0; k0 < (size_t)v->nz; k0 += VIEW_PACK_SLAB) {
+    const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;
+    x.row0 = k0 * (size_t)v->ny;
+    bk_parallel((k1 - k0) * (size_t)v->ny, grain, pack_source, &x);
+    if (rad) release_bytes(rad, 3 * sizeof(float) * k0 * slice, 3 * sizeof(float) * k1 * slice);
+    if (sca && sca != ext && L->arr[G_SCA] == sca)
+      release_bytes(sca, sc * sizeof(float) * k0 * slice, sc * sizeof(float) * k1 * slice);
+  }
   fld_pad4_faces(v->nx, v->ny, v->nz, v->medium);
   if (sc == 1) return BK_OK;
   v->homogeneous = is_constant(ext, nvox, 3, v->st_const);

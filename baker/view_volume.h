@@ -61,4 +61,8 @@ void view_volume_world_box(const view_volume_t *v, double bmin[3], double bmax[3
  * buffer instead of copying tens of MB; freed with free(). */
 void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err);
 
+/* view_alloc's array without the zeroing (nor its first touch): for an
+ * array whose every entry is written before it is read. */
+void *view_alloc_unset(size_t count, size_t size, const char *what, bk_error_t *err);
+
 #endif
