@@ -1,13 +1,10 @@
 /* view_volume.c: a VDB file's grids on one dense box (view_volume.h):
  * which grids, each over its own box, their union, every grid moved onto it
  * (copied when aligned, else resampled), checked, and packed for the kernel. */
-#define _DEFAULT_SOURCE /* madvise */
 #define _POSIX_C_SOURCE 200809L
 #include "view_volume.h"
 
 #include <math.h>
-#include <stdint.h>
-#include <sys/mman.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,38 +14,9 @@
 #include "field.h"
 #include "kernels/view_march.h"
 #include "vdbio.h"
+#include "view_arrays.h"
 #include "view_camera.h"
 #include "view_fields.h"
-
-static void zero_bytes(void *p, size_t lo, size_t hi) { memset((char *)p + lo, 0, hi - lo); }
-
-void *view_alloc_unset(size_t count, size_t size, const char *what, bk_error_t *err) {
-  size_t bytes;
-  void *p = NULL;
-  if (!bk_mul_size(count, size, &bytes) || posix_memalign(&p, VIEW_ALIGN, bytes ? bytes : 1)) {
-    bk_fail(err, BK_ERR_RUNTIME, "%s: cannot allocate %zu x %zu bytes", what, count, size);
-    return NULL;
-  }
-  return p;
-}
-
-void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err) {
-  void *p = view_alloc_unset(count, size, what, err);
-  if (p) bk_parallel(count * size, (size_t)1 << 20, zero_bytes, p); /* first touches on every core */
-  return p;
-}
-
-/* Gives the memory of the whole pages in bytes [lo, hi) of a back to the
- * system: an input array whose values there have been used. A grid mapped
- * from the reader's memfd (vdbio_array_free) gives its pages back with
- * MADV_REMOVE, a heap array with MADV_DONTNEED; the array is not read
- * there again. */
-static void release_bytes(const void *a, size_t lo, size_t hi) {
-  const uintptr_t page = VIEW_ALIGN, p0 = ((uintptr_t)a + lo + page - 1) & ~(page - 1);
-  const uintptr_t p1 = ((uintptr_t)a + hi) & ~(page - 1);
-  if (p1 <= p0) return;
-  if (madvise((void *)p0, p1 - p0, MADV_REMOVE) != 0) madvise((void *)p0, p1 - p0, MADV_DONTNEED);
-}
 
 void view_volume_free(view_volume_t *v) {
   free(v->medium);
@@ -151,73 +119,6 @@ static int place_aligned(vdbio_dense_t *d, const vdbio_dense_t *like, float **ou
   }
   *out = a;
   return BK_OK;
-}
-
-/* check_values in chunks side by side (counts and a minimum: the same in
- * any order). */
-#define VIEW_CHUNKS 64
-typedef struct check_ctx {
-  const float *a;
-  int nonneg;
-  size_t bad[VIEW_CHUNKS], neg[VIEW_CHUNKS];
-  float most_neg[VIEW_CHUNKS];
-} check_ctx_t;
-
-static void check_chunk(void *arg, size_t k, size_t lo, size_t hi) {
-  check_ctx_t *x = arg;
-  size_t bad = 0, neg = 0;
-  float most_neg = 0.0f;
-  for (size_t i = lo; i < hi; i++) {
-    const float a = x->a[i];
-    if (!isfinite(a)) bad++;
-    else if (x->nonneg && a < 0.0f) {
-      neg++;
-      most_neg = a < most_neg ? a : most_neg;
-    }
-  }
-  x->bad[k] = bad, x->neg[k] = neg, x->most_neg[k] = most_neg;
-}
-
-/* Refuses NaN/inf anywhere and negative coefficients. */
-static int check_values(const char *path, const char *name, const float *a, size_t n,
-                        int nonneg, bk_error_t *err) {
-  check_ctx_t x;
-  memset(&x, 0, sizeof x);
-  x.a = a, x.nonneg = nonneg;
-  bk_parallel_chunks(n, VIEW_CHUNKS, check_chunk, &x);
-  size_t bad = 0, neg = 0;
-  float most_neg = 0.0f;
-  for (int k = 0; k < VIEW_CHUNKS; k++) {
-    bad += x.bad[k], neg += x.neg[k];
-    most_neg = x.most_neg[k] < most_neg ? x.most_neg[k] : most_neg;
-  }
-  if (bad)
-    return bk_fail(err, BK_ERR_INPUT, "%s: grid \"%s\" holds %zu NaN or infinite values",
-                   path, name, bad);
-  if (neg)
-    return bk_fail(err, BK_ERR_INPUT,
-                   "%s: grid \"%s\" holds %zu negative values (down to %g); expected "
-                   "coefficients >= 0", path, name, neg, most_neg);
-  return BK_OK;
-}
-
-/* Expands a 1-channel array to 3 (replacing it). */
-static int expand_to_rgb(float **a, size_t n, bk_error_t *err) {
-  float *o = bk_calloc(n, 3 * sizeof(float), "view: coefficients", err);
-  if (!o) return BK_ERR_RUNTIME;
-  for (size_t i = 0; i < n; i++) o[3 * i] = o[3 * i + 1] = o[3 * i + 2] = (*a)[i];
-  vdbio_array_free(*a);
-  *a = o;
-  return BK_OK;
-}
-
-/* All entries of a (n voxels x ch) equal: fills c[3]. */
-static int is_constant(const float *a, size_t n, int ch, float c[3]) {
-  for (int k = 0; k < 3; k++) c[k] = a[ch == 1 ? 0 : k];
-  for (size_t i = 0; i < n; i++)
-    for (int k = 0; k < ch; k++)
-      if (a[i * ch + k] != c[k]) return 0;
-  return 1;
 }
 
 enum { G_RAD = 0, G_IOR, G_EXT, G_SCA, G_IOR_RGB, G_FLUX, G_PHG, G_UNC, G_FUNC, G_CAM, G_COUNT };
@@ -565,7 +466,7 @@ static int load_coefficients(view_load_t *L, view_volume_t *v, size_t nvox, bk_e
             "image shows only the background", L->path);
   if (arr[G_EXT] && arr[G_SCA] && ch[G_SCA] != ch[G_EXT]) {
     int g = ch[G_SCA] == 1 ? G_SCA : G_EXT;
-    if ((rc = expand_to_rgb(&arr[g], nvox, err))) return rc;
+    if ((rc = view_expand_to_rgb(&arr[g], nvox, err))) return rc;
     ch[g] = 3;
   }
   v->sigma_ch = arr[G_EXT] ? ch[G_EXT] : 1;
@@ -635,13 +536,13 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
     const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;
     x.row0 = k0 * (size_t)v->ny;
     bk_parallel((k1 - k0) * (size_t)v->ny, grain, pack_source, &x);
-    if (rad) release_bytes(rad, 3 * sizeof(float) * k0 * slice, 3 * sizeof(float) * k1 * slice);
+    if (rad) view_release_bytes(rad, 3 * sizeof(float) * k0 * slice, 3 * sizeof(float) * k1 * slice);
     if (sca && sca != ext && L->arr[G_SCA] == sca)
-      release_bytes(sca, sc * sizeof(float) * k0 * slice, sc * sizeof(float) * k1 * slice);
+      view_release_bytes(sca, sc * sizeof(float) * k0 * slice, sc * sizeof(float) * k1 * slice);
   }
   fld_pad4_faces(v->nx, v->ny, v->nz, v->medium);
   if (sc == 1) return BK_OK;
-  v->homogeneous = is_constant(ext, nvox, 3, v->st_const);
+  v->homogeneous = view_is_constant(ext, nvox, 3, v->st_const);
   for (int c = 0; c < 3; c++) v->st_const[c] *= (float)scale;
   if (v->homogeneous) return BK_OK;
   v->sigma_t4 = view_alloc(padded, 4 * sizeof(float), "view: extinction", err);
@@ -679,7 +580,7 @@ int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void 
 
   size_t nvox = (size_t)v->nx * v->ny * v->nz;
   for (int g = 0; g < G_COUNT; g++)
-    if (L.arr[g] && (rc = check_values(path, L.gname[g], L.arr[g], nvox * (size_t)L.ch[g],
+    if (L.arr[g] && (rc = view_check_values(path, L.gname[g], L.arr[g], nvox * (size_t)L.ch[g],
                                        g == G_EXT || g == G_SCA, err)))
       goto error;
   if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_ior_rgb(&L, v, nvox, err)) ||

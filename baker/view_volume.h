@@ -16,10 +16,9 @@
 
 #include "base/common.h"
 #include "octree.h"
+#include "view_arrays.h"
 
 #define VIEW_N_EPS 1e-6f         /* n differences below this bend nothing */
-/* view_alloc's alignment: PoCL uses such arrays in place (CL_MEM_USE_HOST_PTR) */
-#define VIEW_ALIGN 4096
 
 typedef struct view_volume {
   int nx, ny, nz;
@@ -56,13 +55,5 @@ int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void 
 void view_volume_free(view_volume_t *v);
 /* World bounding box of the volume's cells. */
 void view_volume_world_box(const view_volume_t *v, double bmin[3], double bmax[3]);
-
-/* Zeroed and VIEW_ALIGN-aligned, so PoCL can use the array in place as a
- * buffer instead of copying tens of MB; freed with free(). */
-void *view_alloc(size_t count, size_t size, const char *what, bk_error_t *err);
-
-/* view_alloc's array without the zeroing (nor its first touch): for an
- * array whose every entry is written before it is read. */
-void *view_alloc_unset(size_t count, size_t size, const char *what, bk_error_t *err);
 
 #endif
