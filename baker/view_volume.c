@@ -537,7 +537,7 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
     x.row0 = k0 * (size_t)v->ny;
     bk_parallel((k1 - k0) * (size_t)v->ny, grain, pack_source, &x);
     if (rad) view_release_bytes(rad, 3 * sizeof(float) * k0 * slice, 3 * sizeof(float) * k1 * slice);
-    if (sca && sca != ext && L->arr[G_SCA] == sca)
+    if (L->arr[G_SCA]) /* σs's own grid, not σt standing in for it */
       view_release_bytes(sca, sc * sizeof(float) * k0 * slice, sc * sizeof(float) * k1 * slice);
   }
   fld_pad4_faces(v->nx, v->ny, v->nz, v->medium);

@@ -42,17 +42,18 @@ PY
 else
   echo "rgb: uniform fog (/usr/bin/python3 has no pyopenvdb to write a density VDB)"
 fi
-peak() { # kind resolution: the peak RSS in bytes
-  local extra=()
-  [ "$1" = rgb ] && extra=("${rgb_set[@]}")
-  /usr/bin/time -f "peak_kb %M" "$baker" bake "$scenes/sphere.json" -o "m_$1_$2.vdb" --force -q \
-    --photons 20000 --resolution "$2" "${extra[@]}" 2> err.txt || { cat err.txt; return 1; }
+peak_of() { # command...: its peak RSS in bytes
+  /usr/bin/time -f "peak_kb %M" "$@" 2> err.txt || { cat err.txt; return 1; }
   echo $(( $(sed -n 's/^peak_kb //p' err.txt) * 1024 ))
 }
+peak() { # kind resolution: the peak RSS in bytes of its bake
+  local extra=()
+  [ "$1" = rgb ] && extra=("${rgb_set[@]}")
+  peak_of "$baker" bake "$scenes/sphere.json" -o "m_$1_$2.vdb" --force -q \
+    --photons 20000 --resolution "$2" "${extra[@]}"
+}
 view_peak() { # file: the peak RSS in bytes of its view
-  /usr/bin/time -f "peak_kb %M" "$baker" view "$1" -o v.exr --scene "$scenes/sphere.json" -q \
-    --resolution 64x48 2> err.txt || { cat err.txt; return 1; }
-  echo $(( $(sed -n 's/^peak_kb //p' err.txt) * 1024 ))
+  peak_of "$baker" view "$1" -o v.exr --scene "$scenes/sphere.json" -q --resolution 64x48
 }
 slope_at_most() { # label lo hi limit
   python3 - "$@" <<'PY'
