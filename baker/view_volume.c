@@ -178,14 +178,19 @@ static int load_select(view_load_t *L, bk_error_t *err) {
  * records one (a corrupt grid is refused, naming it; a file without
  * checksums is warned about once); the radiance transform sets the voxel. */
 static int load_read_own(view_load_t *L, bk_error_t *err) {
-  int rc, unchecked = 0, count = 0, which[G_COUNT], checked[G_COUNT];
+  int rc, unchecked = 0, count = 0, which[G_COUNT], checked[G_COUNT], grey[G_COUNT];
   const char *names[G_COUNT];
   vdbio_dense_t own[G_COUNT];
   for (int g = 0; g < G_COUNT; g++)
-    if (L->present[g]) which[count] = g, names[count++] = L->gname[g];
+    if (L->present[g]) {
+      /* grey light's radiance as one channel, unless the phase lobes read
+       * its colour (load_aniso, load_camera) */
+      grey[count] = g == G_RAD && !L->present[G_FLUX] && !L->present[G_CAM];
+      which[count] = g, names[count++] = L->gname[g];
+    }
   /* the grids side by side, one reader per core */
-  if ((rc = vdbio_read_dense_verified_all(L->path, count, names, own, checked, L->meanwhile,
-                                          L->ctx, err)))
+  if ((rc = vdbio_read_dense_verified_all(L->path, count, names, grey, own, checked,
+                                          L->meanwhile, L->ctx, err)))
     return rc;
   for (int i = 0; i < count; i++) {
     const int g = which[i];
@@ -477,7 +482,7 @@ static int load_coefficients(view_load_t *L, view_volume_t *v, size_t nvox, bk_e
 
 typedef struct pack_ctx {
   const float *ext, *sca, *rad;
-  int sc; /* channels of ext and sca */
+  int sc, radc; /* channels of ext and sca, of rad */
   float scale;
   int nx, ny;
   float *medium, *sigma_t4; /* padded (field.h): the kernel's layout */
@@ -494,12 +499,14 @@ static size_t padded_row(const pack_ctx_t *x, size_t row) {
  * row0 + [lo, hi) (row j + ny k), written straight into the padded layout. */
 static void pack_source(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
-  const int sc = x->sc;
+  const int sc = x->sc, radc = x->radc;
   for (size_t row = x->row0 + lo; row < x->row0 + hi; row++) {
     float *m = x->medium + 4 * padded_row(x, row);
     for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, m += 4) {
       for (int c = 0; c < 3; c++)
-        m[c] = x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] * x->rad[3 * i + c] : 0.0f;
+        m[c] = x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] *
+                            x->rad[i * radc + (radc == 3 ? c : 0)]
+                      : 0.0f;
       m[3] = sc == 1 && x->ext ? x->scale * x->ext[i] : 0.0f; /* the array is not zeroed */
     }
   }
@@ -514,31 +521,39 @@ static void pack_sigma_t(void *arg, size_t lo, size_t hi) {
   }
 }
 
+/* Gives back z slices [k0, k1) of an input array (NULL: none) of ch floats
+ * per voxel, slice voxels per slice, once they are packed. */
+static void release_slices(const float *a, int ch, size_t slice, size_t k0, size_t k1) {
+  if (a) view_release_bytes(a, ch * sizeof(float) * k0 * slice, ch * sizeof(float) * k1 * slice);
+}
+
 /* Packs {S = σs L̄, σt (grey)} and, for RGB, {σt}; σ per voxel length. */
 static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
   int rc = load_coefficients(L, v, nvox, err);
   if (rc) return rc;
   const float *ext = L->arr[G_EXT], *sca = L->arr[G_SCA] ? L->arr[G_SCA] : L->arr[G_EXT];
   const float *rad = L->arr[G_RAD];
-  const int sc = v->sigma_ch;
+  const int sc = v->sigma_ch, radc = L->ch[G_RAD];
   const double scale = L->scale;
   const size_t padded = fld_padded_count(v->nx, v->ny, v->nz), rows = (size_t)v->ny * v->nz;
   const size_t grain = BK_GRAIN / (size_t)v->nx + 1;
   /* every entry written by pack_source and fld_pad4_faces: no zeroing */
   v->medium = view_alloc_unset(padded, 4 * sizeof(float), "view: medium", err);
   if (!v->medium) return BK_ERR_RUNTIME;
-  pack_ctx_t x = {ext, sca, rad, sc, (float)scale, v->nx, v->ny, v->medium, NULL, 0};
-  /* VIEW_PACK_SLAB z slices at a time, each slab's radiance (and σs, read
-   * nowhere else) given back once packed: the medium's pages come as the
-   * inputs' go (at 512^3, 40 -> about 24 B per voxel at the peak) */
+  pack_ctx_t x = {ext, sca, rad, sc, radc, (float)scale, v->nx, v->ny, v->medium, NULL, 0};
+  /* VIEW_PACK_SLAB z slices at a time, each slab's radiance, σs and grey
+   * σt (read nowhere else) given back once packed: the medium's pages come
+   * as the inputs' go (at 512^3, 40 -> about 20 B per voxel at the peak) */
   const size_t slice = (size_t)v->nx * v->ny;
   for (size_t k0 = 0; k0 < (size_t)v->nz; k0 += VIEW_PACK_SLAB) {
     const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;
     x.row0 = k0 * (size_t)v->ny;
     bk_parallel((k1 - k0) * (size_t)v->ny, grain, pack_source, &x);
-    if (rad) view_release_bytes(rad, 3 * sizeof(float) * k0 * slice, 3 * sizeof(float) * k1 * slice);
+    release_slices(rad, radc, slice, k0, k1);
     if (L->arr[G_SCA]) /* σs's own grid, not σt standing in for it */
-      view_release_bytes(sca, sc * sizeof(float) * k0 * slice, sc * sizeof(float) * k1 * slice);
+      release_slices(sca, sc, slice, k0, k1);
+    if (sc == 1) /* grey σt lives on in the medium's 4th float; RGB's is packed below */
+      release_slices(ext, 1, slice, k0, k1);
   }
   fld_pad4_faces(v->nx, v->ny, v->nz, v->medium);
   if (sc == 1) return BK_OK;

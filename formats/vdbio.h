@@ -115,11 +115,14 @@ int vdbio_read_dense_verified(const char *path, const char *grid_name, int pad,
 /* vdbio_read_dense_verified of `count` grids over their own boxes (pad 0),
  * read side by side (one reader per core) into outs[i], checked[i]; the
  * first failure in list order is the answer, and then no outs are kept.
+ * grey (NULL: none): where grey[i] is set, a Vec3f grid whose three
+ * channels hold the same bits in every voxel (grey light) comes back as one
+ * channel, outs[i].channels 1 (a third of the memory); any other, as usual.
  * meanwhile (NULL: none) runs once in this process while the first readers
  * work, e.g. the view's OpenCL start-up; no reader is started while it runs,
  * so it may load libraries (a fork during a dlopen is not safe). */
 int vdbio_read_dense_verified_all(const char *path, int count, const char *const *names,
-                                  vdbio_dense_t *outs, int *checked,
+                                  const int *grey, vdbio_dense_t *outs, int *checked,
                                   void (*meanwhile)(void *ctx), void *ctx, bk_error_t *err);
 /* Reads `grid_name` resampled into the index space of `like` (same box and
  * transform), through its own transform. *found = 0 when the file has no such

@@ -105,17 +105,6 @@ static bool ck_outside_is_background(const GridT &grid, int nx, int ny, int nz) 
   return true;
 }
 
-/* The hash of a grid already copied to `dense` over exactly the box (the
- * same values ck_grid_hash copies slice by slice). */
-template <typename GridT>
-static uint64_t ck_dense_hash(const GridT &grid, const float *dense, size_t voxels, int ch,
-                              bool lanes) {
-  const typename GridT::ValueType b = grid.background();
-  ck_hasher h(lanes);
-  h.add(dense, voxels, ch, false);
-  return h.finish(reinterpret_cast<const float *>(&b), ch);
-}
-
 static std::string ck_meta(const vdb::MetaMap &meta, const std::string &key) {
   vdb::Metadata::ConstPtr m = meta[key];
   return m ? m->str() : std::string();
@@ -128,6 +117,10 @@ static std::string ck_recorded(const vdb::MetaMap &meta, const std::string &grid
   return lanes ? h : ck_meta(meta, ck_key(grid, false));
 }
 
+bool vdbio_checksum_recorded(const vdb::MetaMap *meta, const std::string &name, bool *lanes) {
+  return meta && !ck_recorded(*meta, name, *lanes).empty();
+}
+
 bool vdbio_is_checksum_box(const vdb::MetaMap *meta, const vdb::CoordBBox &box) {
   int n[3] = {0, 0, 0};
   if (!meta || std::sscanf(ck_meta(*meta, "checksum_box").c_str(), "%d %d %d", &n[0], &n[1],
@@ -138,7 +131,7 @@ bool vdbio_is_checksum_box(const vdb::MetaMap *meta, const vdb::CoordBBox &box) 
 
 vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMap *meta,
                                        const std::string &name, std::string &detail,
-                                       const float *dense, const vdb::CoordBBox *dense_box) {
+                                       const ck_hasher *fed) {
   bool lanes = false;
   const std::string want = meta ? ck_recorded(*meta, name, lanes) : std::string();
   int box[3] = {0, 0, 0};
@@ -151,18 +144,14 @@ vdbio_verify_status_t vdbio_check_grid(const vdb::GridBase &g, const vdb::MetaMa
   }
   uint64_t h = 0;
   bool outside_ok = true;
-  /* the caller's copy, when it covers exactly the box: no second copy */
-  const bool use_dense =
-      dense && dense_box &&
-      *dense_box == vdb::CoordBBox(vdb::Coord(0, 0, 0), vdb::Coord(box[0] - 1, box[1] - 1, box[2] - 1));
-  const size_t voxels = (size_t)box[0] * (size_t)box[1] * (size_t)box[2];
+  /* the caller's copy hashed as it was made: no second copy */
   if (const vdb::FloatGrid *f = dynamic_cast<const vdb::FloatGrid *>(&g)) {
-    h = use_dense ? ck_dense_hash(*f, dense, voxels, 1, lanes)
-                  : ck_grid_hash(*f, box[0], box[1], box[2], 1, lanes);
+    const float bg = f->background();
+    h = fed ? fed->finish(&bg, 1) : ck_grid_hash(*f, box[0], box[1], box[2], 1, lanes);
     outside_ok = ck_outside_is_background(*f, box[0], box[1], box[2]);
   } else if (const vdb::Vec3SGrid *v = dynamic_cast<const vdb::Vec3SGrid *>(&g)) {
-    h = use_dense ? ck_dense_hash(*v, dense, voxels, 3, lanes)
-                  : ck_grid_hash(*v, box[0], box[1], box[2], 3, lanes);
+    const vdb::Vec3s bg = v->background();
+    h = fed ? fed->finish(bg.asPointer(), 3) : ck_grid_hash(*v, box[0], box[1], box[2], 3, lanes);
     outside_ok = ck_outside_is_background(*v, box[0], box[1], box[2]);
   } else {
     detail = "unexpected type " + g.valueType();

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+class ck_hasher; /* vdbio_hash.h */
+
 /* openvdb::initialize, once per process, before any grid is made or read. */
 void vdbio_init(void);
 
@@ -42,6 +44,27 @@ void vdbio_trees_next(void);
  * The isolated reader's child sets it so that the values land in memory its
  * parent then maps (vdbio_isolate.cpp). */
 extern float *(*vdbio_dense_room)(size_t bytes);
+/* Shortens the room vdbio_dense_room gave to its first `bytes` (a Vec3f
+ * grid that came out grey: one channel of the three it was given). */
+extern void (*vdbio_dense_room_trim)(size_t bytes);
+
+/* "where: path" or just "path", the prefix of every read error. */
+std::string vdbio_prefix(const char *path, const char *where);
+
+/* The catch block every reader ends with. */
+#define VDBIO_CATCH_READ(path, where)                                                              \
+  catch (const std::bad_alloc &) {                                                                 \
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: out of memory while reading the VDB file (corrupt "       \
+                 "sizes, or more than this machine can hold)", vdbio_prefix(path, where).c_str());  \
+  }                                                                                                \
+  catch (const std::exception &e) {                                                                \
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: %s",                                \
+                 vdbio_prefix(path, where).c_str(), e.what());                                     \
+  }                                                                                                \
+  catch (...) {                                                                                    \
+    rc = bk_fail(err, BK_ERR_INPUT, "%s: cannot read VDB file: unknown error",                     \
+                 vdbio_prefix(path, where).c_str());                                               \
+  }
 
 /* Opens `path` after checking its layout; BK_ERR_INPUT when it is missing,
  * not a VDB file or truncated. Fully (no delayed loading) unless `delayed`:
@@ -79,14 +102,19 @@ uint64_t vdbio_checksum_key(void);
 /* Whether `box` is the box the file's checksums were taken over. */
 bool vdbio_is_checksum_box(const openvdb::MetaMap *meta, const openvdb::CoordBBox &box);
 
+/* Whether the file records a checksum for grid `name` (*lanes: under the
+ * eight-lane rule, else the serial one), so that a reader copying exactly
+ * the checksum box can feed a ck_hasher (vdbio_hash.h) of that rule. */
+bool vdbio_checksum_recorded(const openvdb::MetaMap *meta, const std::string &name, bool *lanes);
+
 /* One grid against the checksum the file metadata records for it (the rule
  * is in vdbio.h); `detail` says why CORRUPT or UNCHECKED (meta NULL: no
- * file metadata, UNCHECKED). `dense`: the grid's values already copied over
- * `dense_box` (x fastest), hashed directly when that is the checksum box. */
+ * file metadata, UNCHECKED). `fed`: a hasher of the recorded rule already
+ * fed the grid's values over the checksum box, in box order (a reader's
+ * copy); NULL: the values are copied from the grid again. */
 vdbio_verify_status_t vdbio_check_grid(const openvdb::GridBase &grid, const openvdb::MetaMap *meta,
                                        const std::string &name, std::string &detail,
-                                       const float *dense = nullptr,
-                                       const openvdb::CoordBBox *dense_box = nullptr);
+                                       const ck_hasher *fed = nullptr);
 
 /* The readers themselves (vdbio.cpp), in this process. The functions of
  * vdbio.h run them in an isolated child (vdbio_isolate.cpp). checked ==
@@ -94,7 +122,7 @@ vdbio_verify_status_t vdbio_check_grid(const openvdb::GridBase &grid, const open
 int vdbio_resample_float_direct(const char *path, const char *grid_name, const grid_dims_t *dims,
                                 float *out, const char *where, bk_error_t *err);
 int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
-                            int *checked, bk_error_t *err);
+                            int *checked, int grey, bk_error_t *err);
 int vdbio_read_dense_like_direct(const char *path, const char *grid_name,
                                  const vdbio_dense_t *like, vdbio_dense_t *out, int *found,
                                  bk_error_t *err);

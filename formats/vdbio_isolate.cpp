@@ -344,7 +344,13 @@ static float *iso_room(size_t bytes) {
   return iso_room_at = p == MAP_FAILED ? nullptr : static_cast<float *>(p);
 }
 
+static void iso_room_trim(size_t bytes) {
+  if (ftruncate(iso_room_fd, (off_t)bytes) != 0)
+    iso_room_at = nullptr; /* not sent as in the room: the parent would find another size */
+}
+
 float *(*vdbio_dense_room)(size_t bytes) = nullptr;
+void (*vdbio_dense_room_trim)(size_t bytes) = nullptr;
 
 /* The parent's mappings, for vdbio_array_free. */
 static std::mutex iso_maps_lock;
@@ -391,6 +397,7 @@ struct iso_dense_job : iso_job {
   const vdbio_dense_t *like; /* NULL: read over its own box */
   vdbio_dense_t *out;
   int want_check, checked = 0, found = 0;
+  int grey = 0; /* a Vec3f grid may come back as one channel (vdbio.h) */
   int room = -1; /* the memfd the values travel in, or -1: the pipe */
 
   ~iso_dense_job() override {
@@ -404,11 +411,11 @@ struct iso_dense_job : iso_job {
   }
   int work(bk_error_t *err) override {
     if (room >= 0)
-      iso_room_fd = room, vdbio_dense_room = iso_room;
+      iso_room_fd = room, vdbio_dense_room = iso_room, vdbio_dense_room_trim = iso_room_trim;
     if (like)
       return vdbio_read_dense_like_direct(path, name, like, out, &found, err);
     found = 1;
-    return vdbio_read_dense_direct(path, name, pad, out, want_check ? &checked : NULL, err);
+    return vdbio_read_dense_direct(path, name, pad, out, want_check ? &checked : NULL, grey, err);
   }
   bool send(int fd) override {
     const int32_t in_room = found && out->data && out->data == iso_room_at;
@@ -558,7 +565,7 @@ static int iso_run_all(iso_job *const *jobs, int count, int width, const char *p
 }
 
 int vdbio_read_dense_verified_all(const char *path, int count, const char *const *names,
-                                  vdbio_dense_t *outs, int *checked,
+                                  const int *grey, vdbio_dense_t *outs, int *checked,
                                   void (*meanwhile)(void *ctx), void *ctx, bk_error_t *err) {
   if (!path || count < 0 || (count && (!names || !outs || !checked)))
     return bk_fail(err, BK_ERR_RUNTIME, "vdbio_read_dense_verified_all: invalid arguments");
@@ -572,6 +579,7 @@ int vdbio_read_dense_verified_all(const char *path, int count, const char *const
     j.pad = 0;
     j.like = NULL;
     j.want_check = 1;
+    j.grey = grey && grey[i];
     j.out = &outs[i];
     ptr[(size_t)i] = &j;
   }

@@ -273,7 +273,7 @@ static void check_read_all(const char *path) {
   const char *names[3] = {"radiance", "density", "radiance"};
   vdbio_dense_t all[3], one;
   int checked[3] = {0, 0, 0};
-  int rc = vdbio_read_dense_verified_all(path, 3, names, all, checked, NULL, NULL, &err);
+  int rc = vdbio_read_dense_verified_all(path, 3, names, NULL, all, checked, NULL, NULL, &err);
   EXPECT(rc == BK_OK, "read_dense_verified_all: %s", err.msg);
   for (int i = 0; rc == BK_OK && i < 3; i++) {
     int ck = 0;
@@ -289,7 +289,7 @@ static void check_read_all(const char *path) {
     vdbio_dense_free(&all[i]);
   }
   const char *missing[3] = {"density", "no_such_grid", "radiance"};
-  rc = vdbio_read_dense_verified_all(path, 3, missing, all, checked, NULL, NULL, &err);
+  rc = vdbio_read_dense_verified_all(path, 3, missing, NULL, all, checked, NULL, NULL, &err);
   EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "no_such_grid"), "missing grid: rc %d %s", rc,
          err.msg);
   for (int i = 0; i < 3; i++)
@@ -299,13 +299,13 @@ static void check_read_all(const char *path) {
   const char *two[4] = {"radiance", "no_such_a", "density", "no_such_b"};
   vdbio_dense_t four[4];
   int checked4[4];
-  rc = vdbio_read_dense_verified_all(path, 4, two, four, checked4, NULL, NULL, &err);
+  rc = vdbio_read_dense_verified_all(path, 4, two, NULL, four, checked4, NULL, NULL, &err);
   EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "no_such_a") && !strstr(err.msg, "no_such_b"),
          "two missing grids: rc %d %s", rc, err.msg);
   for (int i = 0; i < 4; i++)
     EXPECT(four[i].data == NULL, "grid %d kept after the failure", i);
   const char *late[3] = {"no_such_c", "radiance", "no_such_d"};
-  rc = vdbio_read_dense_verified_all(path, 3, late, all, checked, NULL, NULL, &err);
+  rc = vdbio_read_dense_verified_all(path, 3, late, NULL, all, checked, NULL, NULL, &err);
   EXPECT(rc == BK_ERR_INPUT && strstr(err.msg, "no_such_c"), "first grid missing: rc %d %s", rc,
          err.msg);
 }
