@@ -117,7 +117,8 @@ bool iso_read_string(int fd, std::string &s, uint32_t max) {
 
 /* struct iso_job: vdbio_iso.h */
 
-static uint64_t iso_mem_available(void) {
+/* [[maybe_unused]]: under ASan the children get no memory limits */
+[[maybe_unused]] static uint64_t iso_mem_available(void) {
   FILE *f = fopen("/proc/meminfo", "r");
   unsigned long long kb = 0;
   char line[256];
@@ -135,7 +136,7 @@ static uint64_t iso_file_size(const char *path) {
 }
 
 /* This process's address space now (VmSize), which the child starts with. */
-static uint64_t iso_address_space(void) {
+[[maybe_unused]] static uint64_t iso_address_space(void) {
   FILE *f = fopen("/proc/self/statm", "r");
   unsigned long long pages = 0;
   if (f) {
