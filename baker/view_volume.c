@@ -543,7 +543,7 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   pack_ctx_t x = {ext, sca, rad, sc, radc, (float)scale, v->nx, v->ny, v->medium, NULL, 0};
   /* VIEW_PACK_SLAB z slices at a time, each slab's radiance, σs and grey
    * σt (read nowhere else) given back once packed: the medium's pages come
-   * as the inputs' go (at 512^3, 40 -> about 20 B per voxel at the peak) */
+   * as the inputs' go (at 512^3, 40 -> about 22 B per voxel at the peak) */
   const size_t slice = (size_t)v->nx * v->ny;
   for (size_t k0 = 0; k0 < (size_t)v->nz; k0 += VIEW_PACK_SLAB) {
     const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;

@@ -1,4 +1,5 @@
-/* vdbio_internal.h: what vdbio.cpp (reading) and vdbio_write.cpp share.
+/* vdbio_internal.h: what vdbio.cpp and vdbio_dense.cpp (reading) and
+ * vdbio_write.cpp share.
  * C++ only; the C interface is vdbio.h. */
 #ifndef BAKER_VDBIO_INTERNAL_H
 #define BAKER_VDBIO_INTERNAL_H
@@ -116,9 +117,10 @@ vdbio_verify_status_t vdbio_check_grid(const openvdb::GridBase &grid, const open
                                        const std::string &name, std::string &detail,
                                        const ck_hasher *fed = nullptr);
 
-/* The readers themselves (vdbio.cpp), in this process. The functions of
- * vdbio.h run them in an isolated child (vdbio_isolate.cpp). checked ==
- * NULL: no checksum check. */
+/* The readers themselves (vdbio.cpp, vdbio_dense.cpp), in this process.
+ * The functions of vdbio.h run them in an isolated child
+ * (vdbio_isolate.cpp). checked == NULL: no checksum check; grey: as in
+ * vdbio_read_dense_verified_all. */
 int vdbio_resample_float_direct(const char *path, const char *grid_name, const grid_dims_t *dims,
                                 float *out, const char *where, bk_error_t *err);
 int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
