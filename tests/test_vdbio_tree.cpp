@@ -220,6 +220,21 @@ static void compare_dense(const char *label, const std::string &path, const char
   vdbio_dense_free(&d);
 }
 
+/* baker's own file of `count` grids over nx x ny x nz, blosc as `bake`
+ * writes it; false (a failed check) when it cannot be written. */
+static bool write_blosc(const std::string &path, const vdbio_grid_t *grids, int count, int nx,
+                        int ny, int nz) {
+  grid_dims_t d = {};
+  d.nx = nx, d.ny = ny, d.nz = nz;
+  d.voxel_size = 0.1f;
+  vdbio_write_opts_t opts = {};
+  opts.compression = VDBIO_COMPRESS_BLOSC;
+  bk_error_t err = {};
+  const int rc = vdbio_write(path.c_str(), &d, grids, count, NULL, 0, &opts, &err);
+  CHECK(rc == BK_OK, "vdbio_write %s: %s", path.c_str(), err.msg);
+  return rc == BK_OK;
+}
+
 static void test_dense_slabs(const std::string &dir) {
   /* baker's own file, 150 slices deep (three slabs), its x and y edges in
    * leaves that reach outside the box; corners set so the box is the array */
@@ -234,17 +249,9 @@ static void test_dense_slabs(const std::string &dir) {
   }
   const vdbio_grid_t grids[] = {{"f", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
                                 {"v", VDBIO_VEC3, v.data(), 1, 0.0f, NULL, NULL}};
-  grid_dims_t d = {};
-  d.nx = nx, d.ny = ny, d.nz = nz;
-  d.voxel_size = 0.1f;
-  vdbio_write_opts_t opts = {};
-  opts.compression = VDBIO_COMPRESS_BLOSC;
-  bk_error_t err = {};
   const std::string own = dir + "/slabs.vdb";
-  if (vdbio_write(own.c_str(), &d, grids, 2, NULL, 0, &opts, &err) != BK_OK) {
-    CHECK(false, "vdbio_write (slabs): %s", err.msg);
+  if (!write_blosc(own, grids, 2, nx, ny, nz))
     return;
-  }
   compare_dense("slabs float", own, "f", f, nx, ny, nz, 1);
   compare_dense("slabs Vec3", own, "v", v, nx, ny, nz, 3);
 
@@ -290,17 +297,10 @@ static void test_dense_grey(const std::string &dir) {
   const vdbio_grid_t grids[] = {{"grey", VDBIO_VEC3, grey.data(), 1, 0.0f, NULL, NULL},
                                 {"first", VDBIO_VEC3, first.data(), 1, 0.0f, NULL, NULL},
                                 {"last", VDBIO_VEC3, last.data(), 1, 0.0f, NULL, NULL}};
-  grid_dims_t d = {};
-  d.nx = nx, d.ny = ny, d.nz = nz;
-  d.voxel_size = 0.1f;
-  vdbio_write_opts_t opts = {};
-  opts.compression = VDBIO_COMPRESS_BLOSC;
-  bk_error_t err = {};
   const std::string path = dir + "/grey.vdb";
-  if (vdbio_write(path.c_str(), &d, grids, 3, NULL, 0, &opts, &err) != BK_OK) {
-    CHECK(false, "vdbio_write (grey): %s", err.msg);
+  if (!write_blosc(path, grids, 3, nx, ny, nz))
     return;
-  }
+  bk_error_t err = {};
   const char *names[3] = {"grey", "first", "last"};
   const int want_ch[3] = {1, 3, 3}, ask[3] = {1, 1, 1};
   const std::vector<float> *want[3] = {&grey, &first, &last};
