@@ -145,6 +145,21 @@ static void test_leaf_bytes() {
     }
 }
 
+/* baker's own file of `count` grids over nx x ny x nz; false (a failed
+ * check) when it cannot be written. */
+static bool write_grids(const std::string &path, const vdbio_grid_t *grids, int count, int nx,
+                        int ny, int nz, vdbio_compression_t compression) {
+  grid_dims_t d = {};
+  d.nx = nx, d.ny = ny, d.nz = nz;
+  d.voxel_size = 0.1f;
+  vdbio_write_opts_t opts = {};
+  opts.compression = compression;
+  bk_error_t err = {};
+  const int rc = vdbio_write(path.c_str(), &d, grids, count, NULL, 0, &opts, &err);
+  CHECK(rc == BK_OK, "vdbio_write %s: %s", path.c_str(), err.msg);
+  return rc == BK_OK;
+}
+
 /* Sparse leaves: 3 in 7 of the 8^3 blocks of a box that is not a whole
  * number of them hold varying values, the rest background, so the leaves
  * of a write window fill less than half the box of their cells and are
@@ -176,17 +191,9 @@ static void test_sparse_windows(const std::string &dir) {
   const vdbio_grid_t grids[] = {{"data", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
                                 {"fill", VDBIO_FLOAT, NULL, 0, 0.0f, sparse_fill, &one},
                                 {"fill3", VDBIO_VEC3, NULL, 1, 0.0f, sparse_fill, &three}};
-  grid_dims_t d = {};
-  d.nx = SX, d.ny = SY, d.nz = SZ;
-  d.voxel_size = 0.1f;
-  vdbio_write_opts_t opts = {};
-  opts.compression = VDBIO_COMPRESS_ZIP;
-  bk_error_t err = {};
   const std::string path = dir + "/sparse.vdb";
-  if (vdbio_write(path.c_str(), &d, grids, 3, NULL, 0, &opts, &err) != BK_OK) {
-    CHECK(false, "vdbio_write (sparse): %s", err.msg);
+  if (!write_grids(path, grids, 3, SX, SY, SZ, VDBIO_COMPRESS_ZIP))
     return;
-  }
   vdb::io::File file(path);
   file.open();
   auto want = reference<vdb::FloatGrid>(f, 0.0f, SX, SY, SZ);
@@ -220,21 +227,6 @@ static void compare_dense(const char *label, const std::string &path, const char
   vdbio_dense_free(&d);
 }
 
-/* baker's own file of `count` grids over nx x ny x nz, blosc as `bake`
- * writes it; false (a failed check) when it cannot be written. */
-static bool write_blosc(const std::string &path, const vdbio_grid_t *grids, int count, int nx,
-                        int ny, int nz) {
-  grid_dims_t d = {};
-  d.nx = nx, d.ny = ny, d.nz = nz;
-  d.voxel_size = 0.1f;
-  vdbio_write_opts_t opts = {};
-  opts.compression = VDBIO_COMPRESS_BLOSC;
-  bk_error_t err = {};
-  const int rc = vdbio_write(path.c_str(), &d, grids, count, NULL, 0, &opts, &err);
-  CHECK(rc == BK_OK, "vdbio_write %s: %s", path.c_str(), err.msg);
-  return rc == BK_OK;
-}
-
 static void test_dense_slabs(const std::string &dir) {
   /* baker's own file, 150 slices deep (three slabs), its x and y edges in
    * leaves that reach outside the box; corners set so the box is the array */
@@ -250,7 +242,7 @@ static void test_dense_slabs(const std::string &dir) {
   const vdbio_grid_t grids[] = {{"f", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
                                 {"v", VDBIO_VEC3, v.data(), 1, 0.0f, NULL, NULL}};
   const std::string own = dir + "/slabs.vdb";
-  if (!write_blosc(own, grids, 2, nx, ny, nz))
+  if (!write_grids(own, grids, 2, nx, ny, nz, VDBIO_COMPRESS_BLOSC))
     return;
   compare_dense("slabs float", own, "f", f, nx, ny, nz, 1);
   compare_dense("slabs Vec3", own, "v", v, nx, ny, nz, 3);
@@ -298,7 +290,7 @@ static void test_dense_grey(const std::string &dir) {
                                 {"first", VDBIO_VEC3, first.data(), 1, 0.0f, NULL, NULL},
                                 {"last", VDBIO_VEC3, last.data(), 1, 0.0f, NULL, NULL}};
   const std::string path = dir + "/grey.vdb";
-  if (!write_blosc(path, grids, 3, nx, ny, nz))
+  if (!write_grids(path, grids, 3, nx, ny, nz, VDBIO_COMPRESS_BLOSC))
     return;
   bk_error_t err = {};
   const char *names[3] = {"grey", "first", "last"};
