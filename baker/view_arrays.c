@@ -39,6 +39,15 @@ void view_release_bytes(const void *a, size_t lo, size_t hi) {
   if (madvise((void *)p0, p1 - p0, MADV_REMOVE) != 0) madvise((void *)p0, p1 - p0, MADV_DONTNEED);
 }
 
+void view_release_slices(const float *a, int ch, size_t slice, size_t k0, size_t k1) {
+  if (a) view_release_bytes(a, ch * sizeof(float) * k0 * slice, ch * sizeof(float) * k1 * slice);
+}
+
+size_t view_padded_row(int nx, int ny, size_t row) {
+  const size_t j = row % (size_t)ny, k = row / (size_t)ny;
+  return 1 + ((size_t)nx + 2) * (j + 1 + ((size_t)ny + 2) * (k + 1));
+}
+
 /* view_check_values in chunks side by side (counts and a minimum: the same
  * in any order). */
 typedef struct check_ctx {

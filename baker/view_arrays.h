@@ -25,6 +25,18 @@ void *view_alloc_unset(size_t count, size_t size, const char *what, bk_error_t *
  * again. */
 void view_release_bytes(const void *a, size_t lo, size_t hi);
 
+/* Inputs are turned into the kernel's arrays this many z slices at a
+ * time, each slab of an input given back once used (view_release_slices),
+ * so that the outputs' pages come as the inputs' go. */
+#define VIEW_PACK_SLAB 8
+
+/* Gives back z slices [k0, k1) of an input array (NULL: none) of ch floats
+ * per voxel, slice voxels per slice. */
+void view_release_slices(const float *a, int ch, size_t slice, size_t k0, size_t k1);
+
+/* The padded entry (field.h) of the first voxel of row j + ny k. */
+size_t view_padded_row(int nx, int ny, size_t row);
+
 /* Refuses NaN/inf anywhere in grid `name` of path, and negative values when
  * nonneg (coefficients). */
 int view_check_values(const char *path, const char *name, const float *a, size_t n, int nonneg,

@@ -12,6 +12,7 @@
 #include <strings.h>
 #include <unistd.h>
 
+#include "budget.h"
 #include "clhost.h"
 #include "cmdline.h"
 #include "base/frames.h"
@@ -26,6 +27,7 @@ typedef struct view_opts {
   float bg[3], exposure, step;
   int integrator;
   frames_range_t frames;
+  uint64_t max_memory; /* --max-memory; 0: what the machine has available */
 } view_opts_t;
 
 void view_usage(FILE *out) {
@@ -58,6 +60,8 @@ void view_usage(FILE *out) {
           "                           $F4 (Houdini, padded to 4) or $F (unpadded); IN holds\n"
           "                           one too, or is one file seen by a keyframed --scene\n"
           "                           camera (read once: docs/animation.md)\n"
+          "  --max-memory SIZE        refuse a file whose estimated peak memory exceeds\n"
+          "                           SIZE (e.g. 8G; default: the memory available)\n"
           "  --device SPEC            OpenCL device: `P:D` indices or a name substring;\n"
           "                           `list` prints the devices (default PoCL); `host`\n"
           "                           runs the same ray code in plain C, one thread\n"
@@ -111,7 +115,8 @@ static int parse_res(const char *s, int *w, int *h) {
 /* values of the long-only options */
 enum {
   OPT_PNG = CMD_FIRST_OWN, OPT_SCENE, OPT_CAMERA_POS, OPT_LOOK_AT, OPT_UP, OPT_FOV, OPT_RESOLUTION,
-  OPT_BACKGROUND, OPT_EXPOSURE, OPT_INTEGRATOR, OPT_STEP, OPT_FRAMES, OPT_DEVICE
+  OPT_BACKGROUND, OPT_EXPOSURE, OPT_INTEGRATOR, OPT_STEP, OPT_FRAMES, OPT_DEVICE,
+  OPT_MAX_MEMORY
 };
 
 static const struct option view_longopts[] = {
@@ -130,6 +135,7 @@ static const struct option view_longopts[] = {
     {"step", required_argument, NULL, OPT_STEP},
     {"frames", required_argument, NULL, OPT_FRAMES},
     {"device", required_argument, NULL, OPT_DEVICE},
+    {"max-memory", required_argument, NULL, OPT_MAX_MEMORY},
     CMD_COMMON_LONGOPTS,
     {NULL, 0, NULL, 0}};
 
@@ -195,6 +201,8 @@ static int view_option(view_opts_t *o, int c, const char *name, const char *val,
     o->has_frames = 1;
   } else if (c == OPT_DEVICE) {
     o->device = val;
+  } else if (c == OPT_MAX_MEMORY) {
+    if (!budget_parse_size(val, &o->max_memory)) want = "a size such as 8G or 500M";
   }
   if (want) return bk_fail(err, BK_ERR_INPUT, "%s: expected %s, got '%s'", name, want, val);
   return BK_OK;
@@ -383,7 +391,7 @@ static int view_frame_volume(view_job_t *j, const char *in, int frame, bk_error_
   }
   view_volume_free(&j->vol);
   j->vol_key = 0;
-  int rc = view_volume_load(in, &j->vol, view_start_gpu, j, err);
+  int rc = view_volume_load(in, &j->vol, j->o.max_memory, view_start_gpu, j, err);
   j->tot.read_ms += bk_now_ms() - t0;
   if (rc) return rc;
   j->vol_key = key, j->vol_frame = frame;

@@ -6,18 +6,6 @@
 #include "field.h"
 #include "octree.h"
 
-/* Replaces an unpadded 4-float field by its padded copy. */
-static int pad_field(const view_volume_t *v, float **a, bk_error_t *err) {
-  if (!*a) return BK_OK;
-  float *o = view_alloc(fld_padded_count(v->nx, v->ny, v->nz), 4 * sizeof(float),
-                        "view: padded field", err);
-  if (!o) return BK_ERR_RUNTIME;
-  fld_pad4(v->nx, v->ny, v->nz, *a, o);
-  free(*a);
-  *a = o;
-  return BK_OK;
-}
-
 /* n and its constant blocks, exactly as the photon march sees them. */
 static int build_refraction(view_volume_t *v, bk_error_t *err) {
   const size_t count = (size_t)v->nx * v->ny * v->nz;
@@ -33,17 +21,15 @@ int view_fields_build(view_volume_t *v, bk_error_t *err) {
   int rc;
   if (v->refraction && (rc = build_refraction(v, err))) return rc;
   /* S and σt constant over a block and the voxel around it that trilinear
-   * sampling reads: S and σt packed padded already (view_volume.c), the
-   * phase lobes padded after */
-  oct_source_t medium[4] = {{v->medium, 4, 4, 1}, {v->sigma_t4, 4, 3, 1}, {v->aniso, 4, 4, 0},
-                            {v->aniso_s, 4, v->camera_phase ? 4 : 3, 0}};
+   * sampling reads: S, σt and the phase lobes packed padded already
+   * (view_volume.c) */
+  oct_source_t medium[4] = {{v->medium, 4, 4, 1}, {v->sigma_t4, 4, 3, 1}, {v->aniso, 4, 4, 1},
+                            {v->aniso_s, 4, v->camera_phase ? 4 : 3, 1}};
   int nsrc = 1;
   if (v->sigma_t4) medium[nsrc++] = medium[1];
   if (v->aniso) { /* the phase lobes: part of the source */
     medium[nsrc++] = medium[2];
     medium[nsrc++] = medium[3];
   }
-  if ((rc = oct_build_fields(v->nx, v->ny, v->nz, medium, nsrc, 1, &v->mpyr, err))) return rc;
-  if ((rc = pad_field(v, &v->aniso, err)) || (rc = pad_field(v, &v->aniso_s, err))) return rc;
-  return BK_OK;
+  return oct_build_fields(v->nx, v->ny, v->nz, medium, nsrc, 1, &v->mpyr, err);
 }

@@ -14,7 +14,9 @@
 #include "field.h"
 #include "kernels/view_march.h"
 #include "vdbio.h"
+#include "view_aniso.h"
 #include "view_arrays.h"
+#include "view_budget.h"
 #include "view_camera.h"
 #include "view_fields.h"
 
@@ -135,6 +137,7 @@ typedef struct view_load {
   double scale;
   void (*meanwhile)(void *ctx); /* while the readers work (view_volume_load) */
   void *ctx;
+  uint64_t max_bytes; /* --max-memory; 0: what the machine has available */
 } view_load_t;
 
 /* Which grids the file has, and of which types. */
@@ -184,7 +187,7 @@ static int load_read_own(view_load_t *L, bk_error_t *err) {
   for (int g = 0; g < G_COUNT; g++)
     if (L->present[g]) {
       /* grey light's radiance as one channel, unless the phase lobes read
-       * its colour (load_aniso, load_camera) */
+       * its colour (load_aniso) */
       grey[count] = g == G_RAD && !L->present[G_FLUX] && !L->present[G_CAM];
       which[count] = g, names[count++] = L->gname[g];
     }
@@ -203,6 +206,13 @@ static int load_read_own(view_load_t *L, bk_error_t *err) {
     bk_warn("%s: the file records no checksums for %d of its grids (written by another tool or "
             "an older baker): corruption cannot be detected", L->path, unchecked);
   return check_similarity(L->own[G_RAD].index_to_world, L->path, &L->scale, err);
+}
+
+/* The budget's view of the grids' channels (0: absent). */
+static view_budget_grids_t budget_grids(const int ch[G_COUNT]) {
+  const view_budget_grids_t b = {ch[G_RAD],  ch[G_IOR], ch[G_EXT], ch[G_SCA],  ch[G_IOR_RGB],
+                                 ch[G_FLUX], ch[G_PHG], ch[G_UNC], ch[G_FUNC], ch[G_CAM]};
+  return b;
 }
 
 /* L->like: the union of the non-empty boxes, in radiance index space
@@ -255,10 +265,37 @@ static int load_box(view_load_t *L, view_volume_t *v, bk_error_t *err) {
     like->ny = n[1];
     like->nz = n[2];
   }
-  grid_dims_t gd = {like->nx, like->ny, like->nz, (float)L->scale, {0, 0, 0}};
-  /* peak: the grids as read (up to 10 floats), ng, medium, σt and a padded copy;
-   * dispersion: ior_rgb as read, two planes of n and two more fields */
-  return grid_check_memory(&gd, (L->present[G_IOR_RGB] ? 37 : 24) * sizeof(float), L->path, err);
+  /* the estimate again with the channels as read (grey radiance: one), the
+   * grids read counting in what this process may use */
+  int ch[G_COUNT];
+  double held = 0.0;
+  for (int g = 0; g < G_COUNT; g++) {
+    ch[g] = L->present[g] ? L->ch[g] : 0;
+    held += 4.0 * ch[g] * (double)L->own[g].nx * (double)L->own[g].ny * L->own[g].nz;
+  }
+  const view_budget_grids_t bg = budget_grids(ch);
+  const int n[3] = {like->nx, like->ny, like->nz};
+  return view_budget_check(L->path, n, &bg, held, L->max_bytes, err);
+}
+
+/* Before any grid is read: the estimate over the box a baker file records
+ * (checksum_box, which holds every active voxel), each grid's channels
+ * from its type, radiance's three (its grey read is not known yet). Files
+ * of other tools record no box; their check comes after the read. */
+static int load_budget(const view_load_t *L, bk_error_t *err) {
+  char text[96];
+  int n[3];
+  bk_error_t e = {0, ""};
+  if (vdbio_read_meta(L->path, "checksum_box", text, sizeof text, &e) != BK_OK ||
+      sscanf(text, "%d %d %d", &n[0], &n[1], &n[2]) != 3 || n[0] < 1 || n[1] < 1 || n[2] < 1)
+    return BK_OK;
+  int ch[G_COUNT];
+  for (int g = 0; g < G_COUNT; g++) {
+    const int i = L->present[g] ? find_name(L->names, L->count, L->gname[g]) : -1;
+    ch[g] = i < 0 ? 0 : is_vec3_type(L->types[i]) ? 3 : 1;
+  }
+  const view_budget_grids_t bg = budget_grids(ch);
+  return view_budget_check(L->path, n, &bg, 0.0, L->max_bytes, err);
 }
 
 /* Every grid onto the like box: copied when aligned, else resampled. */
@@ -358,103 +395,12 @@ static int load_ior_rgb(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_
   return BK_OK;
 }
 
-/* g·v/y in index space (m: world -> index, a similarity), its length at
- * most |g| (VIEW_ANISO_MAX): the HG lobe of the light whose flux is v and
- * luminance y, scattered once more by g; zero where y is. */
-static void aniso_lobe(const double m[3][3], const double *v, double y, double g, float *out) {
-  double d[3], len = 0.0;
-  for (int r = 0; r < 3; r++) {
-    d[r] = m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2];
-    len += d[r] * d[r];
-  }
-  len = sqrt(len);
-  if (!(y > 0.0) || !(len > 0.0)) return; /* zeroed: isotropic */
-  double k = fmin(len / y, 1.0) * fmax(fmin(g, VIEW_ANISO_MAX), -VIEW_ANISO_MAX) / len;
-  for (int r = 0; r < 3; r++) out[r] = (float)(k * d[r]);
-}
-
-/* The phase lobes per voxel (view_march.h), in index space: the
- * uncollided light, share u = Y0 / Y(L̄), as an HG lobe of its own flux F0
- * (a beam along it for one light: |F0| = Y0), aniso = {g F0 / Y0, u}; the
- * scattered rest as an HG lobe of its flux F − F0, aniso_s =
- * {g (F − F0) / (Y(L̄) − Y0), 0}; each |g·mean| at most VIEW_ANISO_MAX.
- * Only with radiance_flux and phase_g (without radiance_uncollided: u = 0;
- * without radiance_flux_uncollided, files of before it: F0 = Y0 F̂, one
- * direction for both, which misplaces the lobes in thick fog). */
-static void aniso_voxel(const float *F, float g, const float *l, const float *y0, const float *f0,
-                        const double m[3][3], float *a, float *as) {
-  double y = 0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2], len = 0.0;
-  for (int r = 0; r < 3; r++) len += (double)F[r] * F[r];
-  len = sqrt(len);
-  if (!(y > 0.0)) return; /* zeroed: isotropic */
-  double u = y0 ? fmin(fmax(*y0 / y, 0.0), 1.0) : 0.0, beam[3], rest[3];
-  for (int r = 0; r < 3; r++) {
-    beam[r] = f0 ? f0[r] : len > 0.0 ? u * y * F[r] / len : 0.0;
-    rest[r] = F[r] - beam[r];
-  }
-  aniso_lobe(m, beam, u * y, g, a);
-  if (u < 1.0) aniso_lobe(m, rest, (1.0 - u) * y, g, as);
-  a[3] = (float)u;
-}
-
-/* `radiance_camera`'s point (bake.h bake_camera_meta); 0 when the file
- * names none, which leaves the lobes alone. */
-static int camera_point(const char *path, double out[3]) {
-  char text[128];
-  bk_error_t e = {0, ""};
-  if (vdbio_read_meta(path, "radiance_camera_position", text, sizeof text, &e) != BK_OK ||
-      sscanf(text, "[%lf, %lf, %lf]", &out[0], &out[1], &out[2]) != 3 ||
-      !(isfinite(out[0]) && isfinite(out[1]) && isfinite(out[2]))) {
-    bk_warn("%s: grid \"radiance_camera\" without a readable radiance_camera_position: "
-            "the phase towards the camera comes from the flux's lobes", path);
-    return 0;
-  }
-  return 1;
-}
-
-/* The camera's factor C / Y(L̄) per voxel into aniso_s's 4th float: what
- * the voxel scatters towards the bake's camera per unit σs L̄, in place of
- * the lobes for the rays that come straight from that point. */
-static void load_camera(view_load_t *L, view_volume_t *v, size_t nvox) {
-  const float *C = L->arr[G_CAM], *rad = L->arr[G_RAD];
-  if (!C || !(v->camera_phase = camera_point(L->path, v->camera_world))) return;
-  for (size_t i = 0; i < nvox; i++) {
-    const float *l = rad + 3 * i;
-    double y = 0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2];
-    v->aniso_s[4 * i + 3] = y > 0.0 && C[i] > 0.0f ? (float)(C[i] / y) : 0.0f;
-  }
-}
-
-static int load_aniso(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t *err) {
-  const float *F = L->arr[G_FLUX], *g = L->arr[G_PHG], *rad = L->arr[G_RAD];
-  const float *unc = L->arr[G_UNC], *func = L->arr[G_FUNC];
-  if (!F || !g) {
-    if (F) bk_warn("%s: grid \"radiance_flux\" without \"phase_g\": in-scattering is shown "
-                   "isotropic", L->path);
-    return BK_OK;
-  }
-  double m[3][3]; /* world -> index, scaled back to unit length (a similarity) */
-  for (int r = 0; r < 3; r++)
-    for (int c = 0; c < 3; c++) m[r][c] = L->like.world_to_index[r][c] * L->scale;
-  v->aniso = view_alloc(nvox, 4 * sizeof(float), "view: anisotropy", err);
-  v->aniso_s = view_alloc(nvox, 4 * sizeof(float), "view: anisotropy", err);
-  if (!v->aniso || !v->aniso_s) return BK_ERR_RUNTIME;
-  for (size_t i = 0; i < nvox; i++) {
-    if (!(g[i] > -1.0f && g[i] < 1.0f))
-      return bk_fail(err, BK_ERR_INPUT, "%s: grid \"phase_g\" holds %g; expected -1 < g < 1",
-                     L->path, (double)g[i]);
-    aniso_voxel(F + 3 * i, g[i], rad + 3 * i, unc ? unc + i : NULL,
-                unc && func ? func + 3 * i : NULL, m, v->aniso + 4 * i, v->aniso_s + 4 * i);
-    for (int k = 0; k < 3; k++)
-      v->anisotropic |= v->aniso[4 * i + k] != 0.0f || v->aniso_s[4 * i + k] != 0.0f;
-  }
-  load_camera(L, v, nvox);
-  v->anisotropic |= v->camera_phase;
-  if (!v->anisotropic) {
-    free(v->aniso), v->aniso = NULL;
-    free(v->aniso_s), v->aniso_s = NULL;
-  }
-  return BK_OK;
+/* The phase lobes (view_aniso.h) from the grids as read. */
+static int load_aniso(view_load_t *L, view_volume_t *v, bk_error_t *err) {
+  view_aniso_grids_t g = {L->path, L->arr[G_FLUX], L->arr[G_PHG], L->arr[G_RAD], L->arr[G_UNC],
+                          L->arr[G_FUNC], L->arr[G_CAM], L->scale, {{0}}};
+  memcpy(g.world_to_index, L->like.world_to_index, sizeof g.world_to_index);
+  return view_aniso_build(&g, v, err);
 }
 
 /* Coefficients: σs absent -> σt; σt absent -> σs; both absent -> 0. */
@@ -478,8 +424,6 @@ static int load_coefficients(view_load_t *L, view_volume_t *v, size_t nvox, bk_e
   return BK_OK;
 }
 
-#define VIEW_PACK_SLAB 8 /* z slices packed before their inputs are given back */
-
 typedef struct pack_ctx {
   const float *ext, *sca, *rad;
   int sc, radc; /* channels of ext and sca, of rad */
@@ -489,19 +433,13 @@ typedef struct pack_ctx {
   size_t row0;              /* pack_source: the first row of its range */
 } pack_ctx_t;
 
-/* The padded entry (field.h) of the first voxel of row j + ny k. */
-static size_t padded_row(const pack_ctx_t *x, size_t row) {
-  const size_t j = row % (size_t)x->ny, k = row / (size_t)x->ny;
-  return 1 + ((size_t)x->nx + 2) * (j + 1 + ((size_t)x->ny + 2) * (k + 1));
-}
-
 /* {S = σs L̄, σt (grey; 0 for RGB, whose σt goes to sigma_t4)} of the rows
  * row0 + [lo, hi) (row j + ny k), written straight into the padded layout. */
 static void pack_source(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
   const int sc = x->sc, radc = x->radc;
   for (size_t row = x->row0 + lo; row < x->row0 + hi; row++) {
-    float *m = x->medium + 4 * padded_row(x, row);
+    float *m = x->medium + 4 * view_padded_row(x->nx, x->ny, row);
     for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, m += 4) {
       for (int c = 0; c < 3; c++)
         m[c] = x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] *
@@ -514,17 +452,13 @@ static void pack_source(void *arg, size_t lo, size_t hi) {
 
 static void pack_sigma_t(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
-  for (size_t row = lo; row < hi; row++) {
-    float *s = x->sigma_t4 + 4 * padded_row(x, row);
-    for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, s += 4)
+  for (size_t row = x->row0 + lo; row < x->row0 + hi; row++) {
+    float *s = x->sigma_t4 + 4 * view_padded_row(x->nx, x->ny, row);
+    for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, s += 4) {
       for (int c = 0; c < 3; c++) s[c] = x->scale * x->ext[3 * i + c];
+      s[3] = 0.0f; /* the array is not zeroed */
+    }
   }
-}
-
-/* Gives back z slices [k0, k1) of an input array (NULL: none) of ch floats
- * per voxel, slice voxels per slice, once they are packed. */
-static void release_slices(const float *a, int ch, size_t slice, size_t k0, size_t k1) {
-  if (a) view_release_bytes(a, ch * sizeof(float) * k0 * slice, ch * sizeof(float) * k1 * slice);
 }
 
 /* Packs {S = σs L̄, σt (grey)} and, for RGB, {σt}; σ per voxel length. */
@@ -535,7 +469,7 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   const float *rad = L->arr[G_RAD];
   const int sc = v->sigma_ch, radc = L->ch[G_RAD];
   const double scale = L->scale;
-  const size_t padded = fld_padded_count(v->nx, v->ny, v->nz), rows = (size_t)v->ny * v->nz;
+  const size_t padded = fld_padded_count(v->nx, v->ny, v->nz);
   const size_t grain = BK_GRAIN / (size_t)v->nx + 1;
   /* every entry written by pack_source and fld_pad4_faces: no zeroing */
   v->medium = view_alloc_unset(padded, 4 * sizeof(float), "view: medium", err);
@@ -549,32 +483,45 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
     const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;
     x.row0 = k0 * (size_t)v->ny;
     bk_parallel((k1 - k0) * (size_t)v->ny, grain, pack_source, &x);
-    release_slices(rad, radc, slice, k0, k1);
+    view_release_slices(rad, radc, slice, k0, k1);
     if (L->arr[G_SCA]) /* σs's own grid, not σt standing in for it */
-      release_slices(sca, sc, slice, k0, k1);
+      view_release_slices(sca, sc, slice, k0, k1);
     if (sc == 1) /* grey σt lives on in the medium's 4th float; RGB's is packed below */
-      release_slices(ext, 1, slice, k0, k1);
+      view_release_slices(ext, 1, slice, k0, k1);
   }
   fld_pad4_faces(v->nx, v->ny, v->nz, v->medium);
   if (sc == 1) return BK_OK;
   v->homogeneous = view_is_constant(ext, nvox, 3, v->st_const);
   for (int c = 0; c < 3; c++) v->st_const[c] *= (float)scale;
   if (v->homogeneous) return BK_OK;
-  v->sigma_t4 = view_alloc(padded, 4 * sizeof(float), "view: extinction", err);
+  /* every entry written by pack_sigma_t and fld_pad4_faces; RGB σt given
+   * back a slab at a time as its pages come */
+  v->sigma_t4 = view_alloc_unset(padded, 4 * sizeof(float), "view: extinction", err);
   if (!v->sigma_t4) return BK_ERR_RUNTIME;
   x.sigma_t4 = v->sigma_t4;
-  bk_parallel(rows, grain, pack_sigma_t, &x);
+  for (size_t k0 = 0; k0 < (size_t)v->nz; k0 += VIEW_PACK_SLAB) {
+    const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;
+    x.row0 = k0 * (size_t)v->ny;
+    bk_parallel((k1 - k0) * (size_t)v->ny, grain, pack_sigma_t, &x);
+    view_release_slices(ext, 3, slice, k0, k1);
+  }
   fld_pad4_faces(v->nx, v->ny, v->nz, v->sigma_t4);
   return BK_OK;
 }
 
-int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void *ctx), void *ctx,
-                     bk_error_t *err) {
+/* The grids as read that nothing reads any more, given back. */
+static void load_free(view_load_t *L, const int *grids, int count) {
+  for (int i = 0; i < count; i++) vdbio_array_free(L->arr[grids[i]]), L->arr[grids[i]] = NULL;
+}
+
+int view_volume_load(const char *path, view_volume_t *v, uint64_t max_bytes,
+                     void (*meanwhile)(void *ctx), void *ctx, bk_error_t *err) {
   view_load_t L;
   memset(&L, 0, sizeof L);
   memset(v, 0, sizeof *v);
   L.path = path;
   L.meanwhile = meanwhile, L.ctx = ctx;
+  L.max_bytes = max_bytes;
   L.scale = 1.0;
   const char *gname[G_COUNT] = {"radiance",      "ior",     "extinction",         "scattering",
                                 "ior_rgb",       "radiance_flux", "phase_g",
@@ -586,7 +533,7 @@ int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void 
   int rc = vdbio_list_grids(path, &L.names, &L.types, &L.count, err);
   if (rc) return rc;
   t1 = bk_now_ms();
-  if ((rc = load_select(&L, err)) || (rc = load_read_own(&L, err)) ||
+  if ((rc = load_select(&L, err)) || (rc = load_budget(&L, err)) || (rc = load_read_own(&L, err)) ||
       (rc = load_box(&L, v, err)) || (rc = load_place(&L, v, err)))
     goto error;
   t2 = bk_now_ms();
@@ -598,10 +545,14 @@ int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void 
     if (L.arr[g] && (rc = view_check_values(path, L.gname[g], L.arr[g], nvox * (size_t)L.ch[g],
                                        g == G_EXT || g == G_SCA, err)))
       goto error;
-  if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_ior_rgb(&L, v, nvox, err)) ||
-      (rc = load_aniso(&L, v, nvox, err)) ||
-      (rc = load_medium(&L, v, nvox, err)))
-    goto error;
+  /* each grid freed once the arrays made from it are (peak memory) */
+  static const int after_ior_rgb[] = {G_IOR_RGB}, after_aniso[] = {G_FLUX, G_PHG, G_UNC, G_FUNC,
+                                                                   G_CAM};
+  if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_ior_rgb(&L, v, nvox, err))) goto error;
+  load_free(&L, after_ior_rgb, 1);
+  if ((rc = load_aniso(&L, v, err))) goto error;
+  load_free(&L, after_aniso, 5);
+  if ((rc = load_medium(&L, v, nvox, err))) goto error;
   /* the grids as read are packed now: free them before padding (peak memory) */
   for (int g = 0; g < G_COUNT; g++) vdbio_array_free(L.arr[g]), L.arr[g] = NULL;
   double t3 = bk_now_ms();

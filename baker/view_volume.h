@@ -13,6 +13,7 @@
 #define BAKER_VIEW_VOLUME_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "base/common.h"
 #include "octree.h"
@@ -29,7 +30,7 @@ typedef struct view_volume {
                                   padded (field.h), packed so by the read */
   float *sigma_t4;             /* 4 per voxel: σt (RGB) when RGB and not homogeneous; padded */
   float *aniso, *aniso_s;      /* 4 per voxel: the phase lobes (view_march.h), index space;
-                                  aniso_s's 4th: the camera's factor (camera_phase) */
+                                  aniso_s's 4th: the camera's factor (camera_phase); padded */
   int anisotropic;             /* some lobe is not isotropic (radiance_flux and phase_g) */
   int camera_phase;            /* `radiance_camera`: its factor C / Y(L̄) per voxel in aniso_s */
   double camera_world[3];      /* ... for a camera at this point (its metadata) */
@@ -47,11 +48,14 @@ typedef struct view_volume {
   char desc[512];              /* what was read, for -v */
 } view_volume_t;
 
-/* Reads path into v (zeroed first); on failure v is freed. meanwhile(ctx)
- * (NULL: none) runs while the grids are decoded in their reader processes
+/* Reads path into v (zeroed first); on failure v is freed. A file whose
+ * estimated peak (view_budget.h) exceeds the memory available, or
+ * max_bytes when > 0, is refused (BK_ERR_INPUT): before any grid is read
+ * when the file records its box, else after. meanwhile(ctx) (NULL: none)
+ * runs while the grids are decoded in their reader processes
  * (vdbio_read_dense_verified_all): the view starts OpenCL there. */
-int view_volume_load(const char *path, view_volume_t *v, void (*meanwhile)(void *ctx), void *ctx,
-                     bk_error_t *err);
+int view_volume_load(const char *path, view_volume_t *v, uint64_t max_bytes,
+                     void (*meanwhile)(void *ctx), void *ctx, bk_error_t *err);
 void view_volume_free(view_volume_t *v);
 /* World bounding box of the volume's cells. */
 void view_volume_world_box(const view_volume_t *v, double bmin[3], double bmax[3]);

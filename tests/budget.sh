@@ -2,6 +2,7 @@
 # The memory budget (baker/budget.h): a bake that will not fit is refused at
 # once, before any work, with the estimate and the largest resolution that
 # fits; --max-memory caps it; and the estimate is not below the real peak.
+# The same for `baker view` (baker/view_budget.h).
 # Usage: budget.sh BAKER WORKDIR SCENES CASE
 set -u
 # Each case works in a directory of its own: ctest -j runs them side by side.
@@ -66,6 +67,51 @@ frames_fallback)
     --photons 5000 -q || fail "batch without a cap failed"
   for f in 0001 0002; do # past the header's UUID
     cmp <(tail -c +60 c_$f.vdb) <(tail -c +60 k_$f.vdb) || fail "frame $f differs"
+  done ;;
+view_refuse)
+  # `baker view` checks its estimate before reading a grid (the box a baker
+  # file records): refused at once under --max-memory, exit 2, no image
+  "$baker" bake "$scenes/sphere.json" -o small.vdb --photons 2000 --resolution 48 -q ||
+    fail "bake failed"
+  "$baker" view small.vdb -o v.exr --resolution 32x24 --max-memory 200M 2> err.txt
+  rc=$?; cat err.txt
+  [ $rc = 2 ] || fail "exit $rc, want 2"
+  grep -q "its grids span 48x48x48 voxels" err.txt || fail "no box in the message"
+  grep -q -- "--max-memory allows 200.0 MiB" err.txt || fail "no limit in the message"
+  [ ! -e v.exr ] || fail "image written"
+  "$baker" view small.vdb -o v.exr --resolution 32x24 --max-memory=2G -q || fail "2G refused"
+  "$baker" view small.vdb -o w.exr --max-memory lots 2> err.txt
+  [ $? = 2 ] && grep -q "expected a size" err.txt || fail "bad size accepted" ;;
+view_honest)
+  # the view's estimate per voxel (view_budget.h, after the read) against
+  # the slope of GNU time's peak from 128^3 to 192^3, for each kind of file:
+  # never below it, at most twice it
+  [ -x /usr/bin/time ] || { echo "SKIP: GNU time (/usr/bin/time) is not installed"; exit 77; }
+  for kind in grey "rgb --set medium.sigma_s=[0.5,0.3,0.1]" "aniso --set medium.g=0.5" \
+              "dispersion --set objects[0].abbe=30"; do
+    name=${kind%% *} sets=${kind#"$name"}
+    for r in 128 192; do
+      # shellcheck disable=SC2086 # $sets: the --set options
+      "$baker" bake "$scenes/sphere.json" -o $name$r.vdb --photons 20000 --resolution $r $sets \
+        -q || fail "bake $name $r failed"
+    done
+    # the first view builds the kernel (LLVM's memory): not measured
+    "$baker" view ${name}128.vdb -o v.exr --resolution 64x48 -q || fail "view $name failed"
+    for r in 128 192; do
+      /usr/bin/time -f "peak_kb %M" "$baker" view $name$r.vdb -o v.exr --resolution 64x48 -v \
+        --scene "$scenes/sphere.json" 2> err$r.txt || fail "view $name $r failed"
+    done
+    python3 - "$name" err128.txt err192.txt <<'PY' || fail "the view's estimate for $name"
+import re, sys
+def read(path):
+    text = open(path).read()
+    est = re.findall(r"view: memory: estimated peak .* \(([0-9.]+) B per voxel\)", text)
+    return float(est[-1]), float(re.search(r"peak_kb (\d+)", text).group(1)) * 1024
+(_, lo), (est, hi) = read(sys.argv[2]), read(sys.argv[3])
+slope = (hi - lo) / (192**3 - 128**3)
+print(f"{sys.argv[1]}: estimated {est:.0f} B per voxel, measured slope {slope:.1f}")
+sys.exit(0 if slope <= est <= 2.0 * slope else 1)
+PY
   done ;;
 *) fail "unknown case $case" ;;
 esac
