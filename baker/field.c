@@ -11,16 +11,16 @@ size_t fld_padded_count(int nx, int ny, int nz) {
   return ((size_t)nx + 2) * ((size_t)ny + 2) * ((size_t)nz + 2);
 }
 
-/* Fills the outer layer of a padded float4 field from its edge voxels: x
- * faces per row, then whole y rows, then whole z planes, so edges and
- * corners copy what the previous pass put there. */
-void fld_pad4_faces(int nx, int ny, int nz, float *f) {
-  const size_t px = (size_t)nx + 2, py = (size_t)ny + 2, row = 4 * px, plane = row * py;
+/* Fills the outer layer of a padded field of w floats per voxel from its
+ * edge voxels: x faces per row, then whole y rows, then whole z planes, so
+ * edges and corners copy what the previous pass put there. */
+void fld_pad_faces(int nx, int ny, int nz, int w, float *f) {
+  const size_t px = (size_t)nx + 2, py = (size_t)ny + 2, row = (size_t)w * px, plane = row * py;
   for (size_t K = 1; K <= (size_t)nz; K++)
     for (size_t J = 1; J <= (size_t)ny; J++) {
       float *r = f + K * plane + J * row;
-      memcpy(r, r + 4, 4 * sizeof(float));
-      memcpy(r + 4 * (px - 1), r + 4 * (px - 2), 4 * sizeof(float));
+      memcpy(r, r + w, (size_t)w * sizeof(float));
+      memcpy(r + (size_t)w * (px - 1), r + (size_t)w * (px - 2), (size_t)w * sizeof(float));
     }
   for (size_t K = 1; K <= (size_t)nz; K++) {
     float *p = f + K * plane;
@@ -30,6 +30,8 @@ void fld_pad4_faces(int nx, int ny, int nz, float *f) {
   memcpy(f, f + plane, plane * sizeof(float));
   memcpy(f + ((size_t)nz + 1) * plane, f + (size_t)nz * plane, plane * sizeof(float));
 }
+
+void fld_pad4_faces(int nx, int ny, int nz, float *f) { fld_pad_faces(nx, ny, nz, 4, f); }
 
 /* The sparse field of one n (kernels/ray_core.h rc_field_gather): brick
  * by brick, each brick's (RC_BRICK + 1)³ corners computed, kept when any

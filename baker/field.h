@@ -52,6 +52,8 @@ void fld_pad4(int nx, int ny, int nz, const float *src, float *dst);
 /* The outer layer of a padded float4 field whose voxels are filled: each
  * edge voxel's value copied outwards (what fld_pad4 does after the copy). */
 void fld_pad4_faces(int nx, int ny, int nz, float *f);
+/* The same for w floats per voxel. */
+void fld_pad_faces(int nx, int ny, int nz, int w, float *f);
 
 #ifdef __cplusplus
 }

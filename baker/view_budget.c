@@ -22,10 +22,11 @@ double view_budget_bytes(const view_budget_grids_t *g) {
     held -= rgbn;
   }
   /* each phase's output takes the pages of its inputs slab by slab: the
-   * lobes (32 B) those of theirs, the medium (16 B) radiance's, σs's and
-   * grey σt's, RGB σt (16 B) the 12 of σt as read */
+   * lobes (32 B) those of theirs, the medium (16 B, 8 under grey light)
+   * radiance's, σs's and grey σt's, RGB σt (16 B) the 12 of σt as read */
   const double given = rad + sca + (rgb_sigma ? 0.0 : ext);
-  const double made[3] = {lobes ? 32.0 : 0.0, 16.0, rgb_sigma ? 16.0 : 0.0};
+  const double medium = g->radiance == 1 && !rgb_sigma ? 8.0 : 16.0; /* grey light: {S, σt} */
+  const double made[3] = {lobes ? 32.0 : 0.0, medium, rgb_sigma ? 16.0 : 0.0};
   const double used[3] = {lobes_in, given, rgb_sigma ? ext : 0.0};
   for (int p = 0; p < 3; p++) {
     peak = fmax(peak, held + fmax(0.0, made[p] - used[p]));

@@ -4,13 +4,13 @@
  *
  * Model (docs/memory.md, "baker view's memory"): per voxel of the box, the
  * grids as read (4 bytes per channel), then each phase of the load as
- * baker/view_volume.c runs it: the phase lobes (32 B) and the packed medium
- * (16 B), and RGB σt (16 B) take the pages of the grids they are made from
- * slab by slab; dispersion's planes of n (8-12 B) come beside `ior_rgb`;
- * the {∇n, n} field and the pyramids last (a few B where n varies in few
- * bricks, up to 23 B per field where it varies everywhere: not counted).
- * The peak is the largest phase; calibrated against GNU time's peak of
- * real views (tests/memory_per_voxel.sh). */
+ * baker/view_volume.c runs it: the phase lobes (32 B), the packed medium
+ * (16 B; 8 under grey light) and RGB σt (16 B) take the pages of the
+ * grids they are made from slab by slab; dispersion's planes of n (8-12 B)
+ * come beside `ior_rgb`; the {∇n, n} field and the pyramids last (a few B
+ * where n varies in few bricks, up to 23 B per field where it varies
+ * everywhere: not counted). The peak is the largest phase; checked against
+ * GNU time's peak of real views (tests/budget.sh, case view_honest). */
 #ifndef BAKER_VIEW_BUDGET_H
 #define BAKER_VIEW_BUDGET_H
 

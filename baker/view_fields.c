@@ -23,7 +23,8 @@ int view_fields_build(view_volume_t *v, bk_error_t *err) {
   /* S and σt constant over a block and the voxel around it that trilinear
    * sampling reads: S, σt and the phase lobes packed padded already
    * (view_volume.c) */
-  oct_source_t medium[4] = {{v->medium, 4, 4, 1}, {v->sigma_t4, 4, 3, 1}, {v->aniso, 4, 4, 1},
+  const int mf = v->medium_floats;
+  oct_source_t medium[4] = {{v->medium, mf, mf, 1}, {v->sigma_t4, 4, 3, 1}, {v->aniso, 4, 4, 1},
                             {v->aniso_s, 4, v->camera_phase ? 4 : 3, 1}};
   int nsrc = 1;
   if (v->sigma_t4) medium[nsrc++] = medium[1];

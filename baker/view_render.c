@@ -144,8 +144,9 @@ static int render_host(const view_volume_t *v, const view_params_t *p, int integ
                        float *rgba, view_totals_t *tot) {
   const view_fields f = {v->medium,     v->sigma_t4, v->ng,     v->npyr.level,
                          v->mpyr.level, v->aniso,    v->aniso_s};
-  const view_flags fl = {v->refraction, v->sigma_ch == 1, integrator, v->homogeneous,
-                         v->ior_rb != NULL, v->aniso != NULL};
+  const view_flags fl = {v->refraction,     v->sigma_ch == 1, integrator,
+                         v->homogeneous,    v->ior_rb != NULL, v->aniso != NULL,
+                         v->medium_floats == 2};
   double t0 = bk_now_ms(), c0 = cpu_ms();
   bk_progress_t prog;
   bk_progress_begin(&prog, "view: marching (host)", (uint64_t)p->height);
@@ -173,9 +174,9 @@ static int build_kernel(view_gpu_t *g, const view_volume_t *v, int integrator,
   int rc;
   char opts[256];
   snprintf(opts, sizeof opts,
-           "-DHAS_REFRACTION=%d -DINTEGRATOR=%d -DGREY=%d -DHOMOGENEOUS=%d%s%s", v->refraction,
+           "-DHAS_REFRACTION=%d -DINTEGRATOR=%d -DGREY=%d -DHOMOGENEOUS=%d%s%s%s", v->refraction,
            integrator, v->sigma_ch == 1, v->homogeneous, v->ior_rb ? " -DDISPERSION=1" : "",
-           v->aniso ? " -DANISO=1" : "");
+           v->aniso ? " -DANISO=1" : "", v->medium_floats == 2 ? " -DGREY_LIGHT=1" : "");
   if (!g->kernel || strcmp(opts, g->options) != 0) {
     if (g->kernel) clReleaseKernel(g->kernel), g->kernel = NULL;
     if (g->program) clReleaseProgram(g->program), g->program = NULL;
@@ -200,7 +201,8 @@ static int upload(view_gpu_t *g, const view_volume_t *v, const view_params_t *p,
                                       : 16;
   const size_t npad = fld_padded_count(v->nx, v->ny, v->nz);
   const cl_mem_flags ro = CL_MEM_READ_ONLY;
-  if (!(b[0] = make_buffer(g, v->medium, npad * 4 * sizeof(float), ro, "medium", err)) ||
+  if (!(b[0] = make_buffer(g, v->medium, npad * (size_t)v->medium_floats * sizeof(float), ro,
+                           "medium", err)) ||
       !(b[1] = make_buffer(g, v->sigma_t4, v->sigma_t4 ? npad * 4 * sizeof(float) : 16, ro,
                            "extinction", err)) ||
       !(b[2] = make_buffer(g, v->ng,

@@ -429,23 +429,25 @@ typedef struct pack_ctx {
   int sc, radc; /* channels of ext and sca, of rad */
   float scale;
   int nx, ny;
+  int mf;                   /* floats per voxel of medium: 4, or 2 under grey light */
   float *medium, *sigma_t4; /* padded (field.h): the kernel's layout */
   size_t row0;              /* pack_source: the first row of its range */
 } pack_ctx_t;
 
-/* {S = σs L̄, σt (grey; 0 for RGB, whose σt goes to sigma_t4)} of the rows
- * row0 + [lo, hi) (row j + ny k), written straight into the padded layout. */
+/* {S = σs L̄ (RGB, or one channel under grey light), σt (grey; 0 for RGB,
+ * whose σt goes to sigma_t4)} of the rows row0 + [lo, hi) (row j + ny k),
+ * written straight into the padded layout. */
 static void pack_source(void *arg, size_t lo, size_t hi) {
   const pack_ctx_t *x = arg;
-  const int sc = x->sc, radc = x->radc;
+  const int sc = x->sc, radc = x->radc, mf = x->mf, sn = mf == 2 ? 1 : 3;
   for (size_t row = x->row0 + lo; row < x->row0 + hi; row++) {
-    float *m = x->medium + 4 * view_padded_row(x->nx, x->ny, row);
-    for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, m += 4) {
-      for (int c = 0; c < 3; c++)
+    float *m = x->medium + (size_t)mf * view_padded_row(x->nx, x->ny, row);
+    for (size_t i = row * (size_t)x->nx; i < (row + 1) * (size_t)x->nx; i++, m += mf) {
+      for (int c = 0; c < sn; c++)
         m[c] = x->sca ? x->scale * x->sca[i * sc + (sc == 3 ? c : 0)] *
                             x->rad[i * radc + (radc == 3 ? c : 0)]
                       : 0.0f;
-      m[3] = sc == 1 && x->ext ? x->scale * x->ext[i] : 0.0f; /* the array is not zeroed */
+      m[mf - 1] = sc == 1 && x->ext ? x->scale * x->ext[i] : 0.0f; /* the array is not zeroed */
     }
   }
 }
@@ -471,10 +473,14 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   const double scale = L->scale;
   const size_t padded = fld_padded_count(v->nx, v->ny, v->nz);
   const size_t grain = BK_GRAIN / (size_t)v->nx + 1;
-  /* every entry written by pack_source and fld_pad4_faces: no zeroing */
-  v->medium = view_alloc_unset(padded, 4 * sizeof(float), "view: medium", err);
+  /* grey σ under grey light: {S, σt}, half the bytes (view_march.h) */
+  v->medium_floats = sc == 1 && radc == 1 ? 2 : 4;
+  /* every entry written by pack_source and fld_pad_faces: no zeroing */
+  v->medium = view_alloc_unset(padded, (size_t)v->medium_floats * sizeof(float), "view: medium",
+                               err);
   if (!v->medium) return BK_ERR_RUNTIME;
-  pack_ctx_t x = {ext, sca, rad, sc, radc, (float)scale, v->nx, v->ny, v->medium, NULL, 0};
+  pack_ctx_t x = {ext,   sca,   rad,   sc, radc, (float)scale, v->nx, v->ny, v->medium_floats,
+                  v->medium, NULL, 0};
   /* VIEW_PACK_SLAB z slices at a time, each slab's radiance, σs and grey
    * σt (read nowhere else) given back once packed: the medium's pages come
    * as the inputs' go (at 512^3, 40 -> about 22 B per voxel at the peak) */
@@ -489,7 +495,7 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
     if (sc == 1) /* grey σt lives on in the medium's 4th float; RGB's is packed below */
       view_release_slices(ext, 1, slice, k0, k1);
   }
-  fld_pad4_faces(v->nx, v->ny, v->nz, v->medium);
+  fld_pad_faces(v->nx, v->ny, v->nz, v->medium_floats, v->medium);
   if (sc == 1) return BK_OK;
   v->homogeneous = view_is_constant(ext, nvox, 3, v->st_const);
   for (int c = 0; c < 3; c++) v->st_const[c] *= (float)scale;

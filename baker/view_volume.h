@@ -28,6 +28,7 @@ typedef struct view_volume {
   int empty;                   /* no grid has active voxels: the image is the background */
   float *medium;               /* 4 per voxel: S = σs L̄ (RGB), σt when grey; per voxel length;
                                   padded (field.h), packed so by the read */
+  int medium_floats;           /* 4, or 2 under grey light with grey σ: {S, σt} */
   float *sigma_t4;             /* 4 per voxel: σt (RGB) when RGB and not homogeneous; padded */
   float *aniso, *aniso_s;      /* 4 per voxel: the phase lobes (view_march.h), index space;
                                   aniso_s's 4th: the camera's factor (camera_phase); padded */

@@ -222,6 +222,46 @@ BK_INLINE rc_f4 rc_gather4(rc_dims n, BK_GLOBAL const float *f, const rc_tri *t)
   return rc_trilinear4(f, t->base, rc_pad_sy(n), rc_pad_sz(n), t);
 }
 
+/* The same for a padded float2 field (the view's medium under grey light:
+ * {S, σt}); each lane gets the operations rc_trilinear4 gives it. */
+typedef struct rc_f2 {
+  float x, y;
+} rc_f2;
+
+#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
+typedef float2 rc_vec2;
+#define RC_LOAD2(f, i) vload2((size_t)(i), (f))
+#else
+typedef rc_f2 rc_vec2;
+BK_INLINE rc_vec2 rc_load2_host(const float *f, bk_long i) {
+  rc_vec2 r = {f[2 * i], f[2 * i + 1]};
+  return r;
+}
+BK_INLINE rc_vec2 rc_lerp2_host(rc_vec2 a, rc_vec2 b, float t) {
+  rc_vec2 r = {a.x + t * (b.x - a.x), a.y + t * (b.y - a.y)};
+  return r;
+}
+#define RC_LOAD2(f, i) rc_load2_host((f), (i))
+#endif
+
+BK_INLINE rc_f2 rc_gather2(rc_dims n, BK_GLOBAL const float *f, const rc_tri *t) {
+  const bk_long b = t->base, dy = rc_pad_sy(n), dz = rc_pad_sz(n);
+#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
+#define RC_LERP2(a, b, t) ((a) + (t) * ((b) - (a)))
+#else
+#define RC_LERP2(a, b, t) rc_lerp2_host((a), (b), (t))
+#endif
+  rc_vec2 c00 = RC_LERP2(RC_LOAD2(f, b), RC_LOAD2(f, b + 1), t->tx);
+  rc_vec2 c10 = RC_LERP2(RC_LOAD2(f, b + dy), RC_LOAD2(f, b + dy + 1), t->tx);
+  rc_vec2 c01 = RC_LERP2(RC_LOAD2(f, b + dz), RC_LOAD2(f, b + dz + 1), t->tx);
+  rc_vec2 c11 = RC_LERP2(RC_LOAD2(f, b + dz + dy), RC_LOAD2(f, b + dz + dy + 1), t->tx);
+  rc_vec2 c0 = RC_LERP2(c00, c10, t->ty), c1 = RC_LERP2(c01, c11, t->ty);
+  rc_vec2 r = RC_LERP2(c0, c1, t->tz);
+#undef RC_LERP2
+  rc_f2 o = {r.x, r.y};
+  return o;
+}
+
 /* The {∇n, n} field is stored sparse (baker/field.h builds it): the
  * padded grid in bricks of RC_BRICK³ stencil corners, each brick stored
  * with the RC_BRICK + 1 corners per axis its stencils read, or not at all

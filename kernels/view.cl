@@ -5,7 +5,8 @@
  * INTEGRATOR (0 Euler, 1 RK4), GREY (grey σt, packed with S = σs L̄ in one
  * float4), HOMOGENEOUS (RGB σt constant, passed in the parameters),
  * DISPERSION (n per channel: three rays per pixel, one per field), ANISO
- * (an anisotropic phase: the `aniso` and `aniso_s` fields, absent otherwise). The
+ * (an anisotropic phase: the `aniso` and `aniso_s` fields, absent otherwise),
+ * GREY_LIGHT (GREY, and grey light: the medium is {S, σt}, a float2). The
  * defaults below only serve the device-less compile check. */
 #include "kernels/view_march.h"
 
@@ -26,6 +27,9 @@
 #endif
 #ifndef ANISO
 #define ANISO 0
+#endif
+#ifndef GREY_LIGHT
+#define GREY_LIGHT 0
 #endif
 
 __kernel void view_render(const view_params_t p, __global const float *medium,
@@ -50,6 +54,7 @@ __kernel void view_render(const view_params_t p, __global const float *medium,
   fl.homogeneous = HOMOGENEOUS;
   fl.dispersion = DISPERSION;
   fl.aniso = ANISO;
+  fl.grey_light = GREY_LIGHT;
   float out[4];
   uint n;
   view_march_pixel(&p, f, fl, px, py, out, &n);

@@ -104,10 +104,12 @@ typedef struct view_flags {
   int homogeneous;    /* RGB σt constant: params.sigma_t, no `sigma_t` lookups */
   int dispersion;     /* n per channel: ng holds R's, G's and B's fields in turn */
   int aniso;          /* the `aniso` field shapes the source by the camera direction */
+  int grey_light;     /* grey too, and S the same in R, G, B: `medium` is {S, σt}, 2 floats */
 } view_flags;
 
 typedef struct view_fields {
-  BK_GLOBAL const float *medium;          /* 4 per voxel: S = σs L̄ (RGB), σt if grey */
+  BK_GLOBAL const float *medium;          /* 4 per voxel: S = σs L̄ (RGB), σt if grey;
+                                           * grey_light: 2, {S, σt} */
   BK_GLOBAL const float *sigma_t;         /* 4 per voxel: σt (RGB), when not grey */
   BK_GLOBAL const float *ng;              /* 4 per voxel: ∇n (per voxel length), n >= 1 */
   BK_GLOBAL const bk_uchar *npyr;         /* refraction: constant-block pyramid of n */
@@ -222,7 +224,14 @@ BK_INLINE void view_segment(const view_params_t *p, view_fields f, view_flags fl
                             bk_v3 *T) {
   const rc_dims n = view_dims(p);
   rc_tri t = rc_tri_at(n, um);
-  rc_f4 m = rc_gather4(n, f.medium, &t);
+  rc_f4 m;
+  if (fl.grey_light) { /* half the bytes; each lane the same operations */
+    rc_f2 q = rc_gather2(n, f.medium, &t);
+    m.x = m.y = m.z = q.x;
+    m.w = q.y;
+  } else {
+    m = rc_gather4(n, f.medium, &t);
+  }
   bk_v3 src = v3(m.x, m.y, m.z);
   if (fl.aniso) {
     rc_f4 b = rc_gather4(n, f.aniso_s, &t);

@@ -143,22 +143,27 @@ static void test_march(void) {
   p.background = v3(0.2f, 0.1f, 0.0f);
   p.sigma_t = v3(rgb_t[0], rgb_t[1], rgb_t[2]);
   enum { CHECKER = 0x80 }; /* the levels alternate brick by brick */
-  /* refraction, grey, integrator, homogeneous, dispersion, aniso; n level, medium level */
+  /* refraction, grey, integrator, homogeneous, dispersion, aniso, grey light;
+   * n level, medium level */
   const struct { view_flags fl; int nlev, mlev; } var[] = {
-      {{0, 0, VIEW_EULER, 0, 0, 0}, 0, 0},
-      {{0, 0, VIEW_EULER, 1, 0, 0}, 0, 2},
-      {{0, 1, VIEW_EULER, 0, 0, 0}, 0, 0},
-      {{1, 0, VIEW_EULER, 0, 0, 0}, 2, 0},
-      {{1, 1, VIEW_RK4, 0, 0, 0}, 0, 0},
-      {{1, 0, VIEW_EULER, 1, 0, 0}, 2, 2},
-      {{1, 1, VIEW_EULER, 0, 0, 0}, 1, 0},
-      {{1, 0, VIEW_RK4, 1, 0, 0}, 1, 2},
+      {{0, 0, VIEW_EULER, 0, 0, 0, 0}, 0, 0},
+      {{0, 0, VIEW_EULER, 1, 0, 0, 0}, 0, 2},
+      {{0, 1, VIEW_EULER, 0, 0, 0, 0}, 0, 0},
+      {{1, 0, VIEW_EULER, 0, 0, 0, 0}, 2, 0},
+      {{1, 1, VIEW_RK4, 0, 0, 0, 0}, 0, 0},
+      {{1, 0, VIEW_EULER, 1, 0, 0, 0}, 2, 2},
+      {{1, 1, VIEW_EULER, 0, 0, 0, 0}, 1, 0},
+      {{1, 0, VIEW_RK4, 1, 0, 0, 0}, 1, 2},
       /* CHECKER: chords of varying bricks, single-step bricks, straight fine
        * blocks and curved steps follow one another along a ray */
-      {{0, 1, VIEW_EULER, 0, 0, 0}, 0, CHECKER | 2},
-      {{1, 1, VIEW_EULER, 0, 0, 0}, CHECKER | 2, CHECKER | 2},
-      {{1, 0, VIEW_RK4, 0, 0, 0}, CHECKER | 2, 0},
-      {{1, 1, VIEW_EULER, 0, 0, 0}, CHECKER | 1, 0},
+      {{0, 1, VIEW_EULER, 0, 0, 0, 0}, 0, CHECKER | 2},
+      {{1, 1, VIEW_EULER, 0, 0, 0, 0}, CHECKER | 2, CHECKER | 2},
+      {{1, 0, VIEW_RK4, 0, 0, 0, 0}, CHECKER | 2, 0},
+      {{1, 1, VIEW_EULER, 0, 0, 0, 0}, CHECKER | 1, 0},
+      /* grey light: the medium as {S, σt}, two floats */
+      {{0, 1, VIEW_EULER, 0, 0, 0, 1}, 0, 0},
+      {{1, 1, VIEW_RK4, 0, 0, 0, 1}, 0, 0},
+      {{1, 1, VIEW_EULER, 0, 0, 0, 1}, CHECKER | 2, CHECKER | 2},
   };
   bk_error_t err = {0};
   for (int i = 0; i < N * N * N; i++) ior[i] = 1.0f;
@@ -166,10 +171,13 @@ static void test_march(void) {
   REQUIRE(ng, "%s", err.msg);
   for (size_t vi = 0; vi < sizeof var / sizeof var[0]; vi++) {
     const view_flags fl = var[vi].fl;
-    float sigt[3];
-    for (int c = 0; c < 3; c++) sigt[c] = fl.grey ? grey_t : rgb_t[c];
+    float sigt[3], src[3]; /* σt and S = σs L̄ per channel */
+    for (int c = 0; c < 3; c++) {
+      sigt[c] = fl.grey ? grey_t : rgb_t[c];
+      src[c] = fl.grey_light ? sigs[0] * Lb[0] : sigs[c] * Lb[c];
+    }
     for (int i = 0; i < N * N * N; i++) {
-      for (int c = 0; c < 3; c++) medium[4 * i + c] = sigs[c] * Lb[c], st4[4 * i + c] = rgb_t[c];
+      for (int c = 0; c < 3; c++) medium[4 * i + c] = src[c], st4[4 * i + c] = rgb_t[c];
       medium[4 * i + 3] = fl.grey ? grey_t : 0.0f;
     }
     unsigned char nb[8], mb[8];
@@ -182,6 +190,11 @@ static void test_march(void) {
     fill_pyramid(mpyr, mb);
     fld_pad4(N, N, N, medium, medium_p);
     fld_pad4(N, N, N, st4, st4_p);
+    if (fl.grey_light) /* {S, σt}: lanes x and w, in place (the reads run ahead) */
+      for (int i = 0; i < NP; i++) {
+        medium_p[2 * i] = medium_p[4 * i];
+        medium_p[2 * i + 1] = medium_p[4 * i + 3];
+      }
     view_fields f = {medium_p, st4_p, ng, npyr, mpyr, NULL, NULL};
     const int px[3] = {16, 25, 0}, py[3] = {16, 9, 32};
     for (int k = 0; k < 3; k++) {
@@ -192,7 +205,7 @@ static void test_march(void) {
       float bg[3] = {p.background.x, p.background.y, p.background.z};
       for (int c = 0; c < 3; c++) {
         float T = expf(-sigt[c] * D);
-        float want = sigs[c] * Lb[c] * (1.0f - T) / sigt[c] + T * bg[c];
+        float want = src[c] * (1.0f - T) / sigt[c] + T * bg[c];
         EXPECT(fabsf(rgba[c] - want) <= 1e-4f * fabsf(want) + 1e-6f,
                "variant %zu pixel (%d,%d) ch %d: %g want %g (D %g voxels, %u steps)", vi, px[k],
                py[k], c, rgba[c], want, D, steps);
@@ -214,7 +227,7 @@ static void test_march(void) {
     float D = box_path(q.cam_pos, view_camera_dir(&q, 16.5f, 16.5f), N);
     for (int c = 0; c < 3; c++) {
       float T = expf(-sigt[c] * D);
-      float want = sigs[c] * Lb[c] * (1.0f - T) / sigt[c] + T * p.background.x * (c == 0) +
+      float want = src[c] * (1.0f - T) / sigt[c] + T * p.background.x * (c == 0) +
                    T * p.background.y * (c == 1);
       EXPECT(fabsf(rgba[c] - want) <= 1e-4f * want + 1e-6f && steps < 60,
              "variant %zu grazing ray ch %d: %g want %g (D %g, %u steps)", vi, c, rgba[c], want, D,
