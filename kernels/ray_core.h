@@ -202,17 +202,25 @@ BK_INLINE rc_vec4 rc_lerp4_host(rc_vec4 a, rc_vec4 b, float t) {
 #define RC_LERP4(a, b, t) rc_lerp4_host((a), (b), (t))
 #endif
 
-/* Trilinear value at stencil t's fractions of a float4 array whose lower
- * corner is entry b and whose y and z strides are dy and dz entries (x,
- * then y, then z). */
+/* The trilinear mix at stencil t's fractions of an array of VEC entries
+ * (LOAD, LERP of that width) whose lower corner is entry b and whose y and
+ * z strides are dy and dz entries: x, then y, then z, into r. One order of
+ * operations for every width, so a lane's value does not depend on it. */
+#define RC_TRILINEAR(VEC, LOAD, LERP, f, b, dy, dz, t, r)                                     \
+  do {                                                                                        \
+    VEC c00_ = LERP(LOAD(f, b), LOAD(f, b + 1), (t)->tx);                                     \
+    VEC c10_ = LERP(LOAD(f, b + dy), LOAD(f, b + dy + 1), (t)->tx);                           \
+    VEC c01_ = LERP(LOAD(f, b + dz), LOAD(f, b + dz + 1), (t)->tx);                           \
+    VEC c11_ = LERP(LOAD(f, b + dz + dy), LOAD(f, b + dz + dy + 1), (t)->tx);                 \
+    VEC c0_ = LERP(c00_, c10_, (t)->ty), c1_ = LERP(c01_, c11_, (t)->ty);                     \
+    r = LERP(c0_, c1_, (t)->tz);                                                              \
+  } while (0)
+
+/* Trilinear value of a float4 array (RC_TRILINEAR). */
 BK_INLINE rc_f4 rc_trilinear4(BK_GLOBAL const float *f, bk_long b, bk_long dy, bk_long dz,
                               const rc_tri *t) {
-  rc_vec4 c00 = RC_LERP4(RC_LOAD4(f, b), RC_LOAD4(f, b + 1), t->tx);
-  rc_vec4 c10 = RC_LERP4(RC_LOAD4(f, b + dy), RC_LOAD4(f, b + dy + 1), t->tx);
-  rc_vec4 c01 = RC_LERP4(RC_LOAD4(f, b + dz), RC_LOAD4(f, b + dz + 1), t->tx);
-  rc_vec4 c11 = RC_LERP4(RC_LOAD4(f, b + dz + dy), RC_LOAD4(f, b + dz + dy + 1), t->tx);
-  rc_vec4 c0 = RC_LERP4(c00, c10, t->ty), c1 = RC_LERP4(c01, c11, t->ty);
-  rc_vec4 r = RC_LERP4(c0, c1, t->tz);
+  rc_vec4 r;
+  RC_TRILINEAR(rc_vec4, RC_LOAD4, RC_LERP4, f, b, dy, dz, t, r);
   rc_f4 o = {r.x, r.y, r.z, r.w};
   return o;
 }
@@ -223,7 +231,7 @@ BK_INLINE rc_f4 rc_gather4(rc_dims n, BK_GLOBAL const float *f, const rc_tri *t)
 }
 
 /* The same for a padded float2 field (the view's medium under grey light:
- * {S, σt}); each lane gets the operations rc_trilinear4 gives it. */
+ * {S, σt}). */
 typedef struct rc_f2 {
   float x, y;
 } rc_f2;
@@ -231,6 +239,7 @@ typedef struct rc_f2 {
 #if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
 typedef float2 rc_vec2;
 #define RC_LOAD2(f, i) vload2((size_t)(i), (f))
+#define RC_LERP2(a, b, t) ((a) + (t) * ((b) - (a)))
 #else
 typedef rc_f2 rc_vec2;
 BK_INLINE rc_vec2 rc_load2_host(const float *f, bk_long i) {
@@ -242,22 +251,12 @@ BK_INLINE rc_vec2 rc_lerp2_host(rc_vec2 a, rc_vec2 b, float t) {
   return r;
 }
 #define RC_LOAD2(f, i) rc_load2_host((f), (i))
+#define RC_LERP2(a, b, t) rc_lerp2_host((a), (b), (t))
 #endif
 
 BK_INLINE rc_f2 rc_gather2(rc_dims n, BK_GLOBAL const float *f, const rc_tri *t) {
-  const bk_long b = t->base, dy = rc_pad_sy(n), dz = rc_pad_sz(n);
-#if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
-#define RC_LERP2(a, b, t) ((a) + (t) * ((b) - (a)))
-#else
-#define RC_LERP2(a, b, t) rc_lerp2_host((a), (b), (t))
-#endif
-  rc_vec2 c00 = RC_LERP2(RC_LOAD2(f, b), RC_LOAD2(f, b + 1), t->tx);
-  rc_vec2 c10 = RC_LERP2(RC_LOAD2(f, b + dy), RC_LOAD2(f, b + dy + 1), t->tx);
-  rc_vec2 c01 = RC_LERP2(RC_LOAD2(f, b + dz), RC_LOAD2(f, b + dz + 1), t->tx);
-  rc_vec2 c11 = RC_LERP2(RC_LOAD2(f, b + dz + dy), RC_LOAD2(f, b + dz + dy + 1), t->tx);
-  rc_vec2 c0 = RC_LERP2(c00, c10, t->ty), c1 = RC_LERP2(c01, c11, t->ty);
-  rc_vec2 r = RC_LERP2(c0, c1, t->tz);
-#undef RC_LERP2
+  rc_vec2 r;
+  RC_TRILINEAR(rc_vec2, RC_LOAD2, RC_LERP2, f, t->base, rc_pad_sy(n), rc_pad_sz(n), t, r);
   rc_f2 o = {r.x, r.y};
   return o;
 }
