@@ -32,9 +32,10 @@ export BAKER_CACHE_DIR=$root/build-asan/kernel-cache
 #   bundle                copies the binary with its libraries and patchelf's
 #                         it; an ASan binary drags libasan into the bundle
 #   gpu_check             skipped without a GPU in any case
-#   cli_budget_honest     compares the bake's peak RSS with its memory estimate;
-#                         ASan's shadow memory, redzones and quarantine make
-#                         the RSS meaningless (it fails, 0.64 of the estimate)
+#   cli_budget_honest, cli_budget_view_honest  compare the bake's and the
+#                         view's peak RSS with their memory estimates; ASan's
+#                         shadow memory, redzones and quarantine make the RSS
+#                         meaningless (the bake's fails, 0.64 of the estimate)
 #   cli_memory_per_voxel  asserts the peak RSS per voxel: the same
 #   reliability_verify_absurd  asserts the reader's memory limit, which is off
 #                         under ASan (its shadow needs terabytes of address
@@ -47,4 +48,4 @@ export BAKER_CACHE_DIR=$root/build-asan/kernel-cache
 # (to 2026-11-28), each rerun passing. A test is retried once; a second
 # failure fails the run, and ctest lists retries.
 exec ctest --test-dir build-asan --output-on-failure -j"$(nproc)" -LE slow --repeat until-pass:2 \
-  -E '^(interop_blender|farm_slurm|farm_parallel|bundle|gpu_check|cli_budget_honest|cli_memory_per_voxel|reliability_verify_absurd)$' "$@"
+  -E '^(interop_blender|farm_slurm|farm_parallel|bundle|gpu_check|cli_budget_honest|cli_budget_view_honest|cli_memory_per_voxel|reliability_verify_absurd)$' "$@"
