@@ -134,7 +134,7 @@ int view_aniso_build(const view_aniso_grids_t *in, view_volume_t *v, bk_error_t 
   for (int k = 0; k < VIEW_CHUNKS; k++) x.bad[k] = SIZE_MAX;
   const size_t slice = (size_t)v->nx * v->ny;
   for (size_t k0 = 0; k0 < (size_t)v->nz; k0 += VIEW_PACK_SLAB) {
-    const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;
+    const size_t k1 = view_slab_end(k0, v->nz);
     x.row0 = k0 * (size_t)v->ny;
     bk_parallel_chunks((k1 - k0) * (size_t)v->ny, VIEW_CHUNKS, aniso_chunk, &x);
     size_t bad = SIZE_MAX;

@@ -30,6 +30,11 @@ void view_release_bytes(const void *a, size_t lo, size_t hi);
  * so that the outputs' pages come as the inputs' go. */
 #define VIEW_PACK_SLAB 8
 
+/* The end of the slab of z slices that starts at k0, in a grid of nz. */
+static inline size_t view_slab_end(size_t k0, int nz) {
+  return k0 + VIEW_PACK_SLAB < (size_t)nz ? k0 + VIEW_PACK_SLAB : (size_t)nz;
+}
+
 /* Gives back z slices [k0, k1) of an input array (NULL: none) of ch floats
  * per voxel, slice voxels per slice. */
 void view_release_slices(const float *a, int ch, size_t slice, size_t k0, size_t k1);

@@ -483,10 +483,10 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
                   v->medium, NULL, 0};
   /* VIEW_PACK_SLAB z slices at a time, each slab's radiance, σs and grey
    * σt (read nowhere else) given back once packed: the medium's pages come
-   * as the inputs' go (at 512^3, 40 -> about 22 B per voxel at the peak) */
+   * as the inputs' go (docs/memory.md, "baker view's memory") */
   const size_t slice = (size_t)v->nx * v->ny;
   for (size_t k0 = 0; k0 < (size_t)v->nz; k0 += VIEW_PACK_SLAB) {
-    const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;
+    const size_t k1 = view_slab_end(k0, v->nz);
     x.row0 = k0 * (size_t)v->ny;
     bk_parallel((k1 - k0) * (size_t)v->ny, grain, pack_source, &x);
     view_release_slices(rad, radc, slice, k0, k1);
@@ -506,7 +506,7 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   if (!v->sigma_t4) return BK_ERR_RUNTIME;
   x.sigma_t4 = v->sigma_t4;
   for (size_t k0 = 0; k0 < (size_t)v->nz; k0 += VIEW_PACK_SLAB) {
-    const size_t k1 = k0 + VIEW_PACK_SLAB < (size_t)v->nz ? k0 + VIEW_PACK_SLAB : (size_t)v->nz;
+    const size_t k1 = view_slab_end(k0, v->nz);
     x.row0 = k0 * (size_t)v->ny;
     bk_parallel((k1 - k0) * (size_t)v->ny, grain, pack_sigma_t, &x);
     view_release_slices(ext, 3, slice, k0, k1);
@@ -515,9 +515,10 @@ static int load_medium(view_load_t *L, view_volume_t *v, size_t nvox, bk_error_t
   return BK_OK;
 }
 
-/* The grids as read that nothing reads any more, given back. */
-static void load_free(view_load_t *L, const int *grids, int count) {
-  for (int i = 0; i < count; i++) vdbio_array_free(L->arr[grids[i]]), L->arr[grids[i]] = NULL;
+/* The grids as read that nothing reads any more (a list ending in -1),
+ * given back. */
+static void load_free(view_load_t *L, const int *grids) {
+  for (; *grids >= 0; grids++) vdbio_array_free(L->arr[*grids]), L->arr[*grids] = NULL;
 }
 
 int view_volume_load(const char *path, view_volume_t *v, uint64_t max_bytes,
@@ -552,12 +553,12 @@ int view_volume_load(const char *path, view_volume_t *v, uint64_t max_bytes,
                                        g == G_EXT || g == G_SCA, err)))
       goto error;
   /* each grid freed once the arrays made from it are (peak memory) */
-  static const int after_ior_rgb[] = {G_IOR_RGB}, after_aniso[] = {G_FLUX, G_PHG, G_UNC, G_FUNC,
-                                                                   G_CAM};
+  static const int after_ior_rgb[] = {G_IOR_RGB, -1},
+                   after_aniso[] = {G_FLUX, G_PHG, G_UNC, G_FUNC, G_CAM, -1};
   if ((rc = load_ior(&L, v, nvox, err)) || (rc = load_ior_rgb(&L, v, nvox, err))) goto error;
-  load_free(&L, after_ior_rgb, 1);
+  load_free(&L, after_ior_rgb);
   if ((rc = load_aniso(&L, v, err))) goto error;
-  load_free(&L, after_aniso, 5);
+  load_free(&L, after_aniso);
   if ((rc = load_medium(&L, v, nvox, err))) goto error;
   /* the grids as read are packed now: free them before padding (peak memory) */
   for (int g = 0; g < G_COUNT; g++) vdbio_array_free(L.arr[g]), L.arr[g] = NULL;
