@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "march.h"
 #include "vdbio.h"
 #include "vox_crop.h"
 
@@ -41,13 +42,20 @@ double budget_output_bytes(const scene_t *s, const char *out_path) {
   return vdbio_is_nano_path(out_path) && budget_grey(s) ? BUDGET_NANOVDB_GREY_BYTES : 0.0;
 }
 
-/* The estimate for the grid the bake allocates: the scene's, or its crop
- * around the objects' world box (vox_crop.h). */
+/* The grid the bake allocates: the scene's, or its crop around the
+ * objects' world box (vox_crop.h). */
+static int grid_in(const scene_t *s, int resolution, const float box[2][3], grid_dims_t *d,
+                   bk_error_t *err) {
+  grid_dims_t whole;
+  int off[3], cropped;
+  return vox_grid_for(s, resolution, box[0], box[1], &whole, d, off, &cropped, err);
+}
+
+/* The estimate for that grid. */
 static int estimate_in(const scene_t *s, int resolution, const float box[2][3], budget_t *b,
                        bk_error_t *err) {
-  grid_dims_t *d = &b->dims, whole;
-  int off[3], cropped;
-  int rc = vox_grid_for(s, resolution, box[0], box[1], &whole, d, off, &cropped, err);
+  const grid_dims_t *d = &b->dims;
+  int rc = grid_in(s, resolution, box, &b->dims, err);
   if (rc) return rc;
   b->voxels = (double)d->nx * (double)d->ny * (double)d->nz;
   const int grey = budget_grey(s), adaptive = s->mode == MODE_ADAPTIVE;
@@ -85,15 +93,34 @@ static int estimate_kept(const scene_t *s, int resolution, const float box[2][3]
   return rc;
 }
 
-/* The largest resolution <= hi whose estimate fits in limit; 0 if none. */
-static int largest_fitting(const scene_t *s, int hi, const float box[2][3], double kept,
-                           double limit) {
+/* Bytes a grid of the given resolution needs of one kind (`arg`: that
+ * kind's parameter); negative when no such grid can be made. */
+typedef double (*bytes_at_fn)(const scene_t *s, int resolution, const float box[2][3],
+                              double arg);
+
+/* The bake's peak, `arg` bytes per voxel kept from frame to frame. */
+static double peak_at(const scene_t *s, int resolution, const float box[2][3], double arg) {
+  budget_t b;
+  bk_error_t e = {0};
+  return estimate_kept(s, resolution, box, arg, &b, &e) == BK_OK ? b.peak : -1.0;
+}
+
+/* The march's sums, `arg` 64-bit counters per voxel. */
+static double sums_at(const scene_t *s, int resolution, const float box[2][3], double arg) {
+  grid_dims_t d;
+  bk_error_t e = {0};
+  if (grid_in(s, resolution, box, &d, &e) != BK_OK) return -1.0;
+  return (double)d.nx * (double)d.ny * (double)d.nz * arg * sizeof(uint64_t);
+}
+
+/* The largest resolution <= hi whose bytes fit in limit; 0 if none. */
+static int largest_fitting(const scene_t *s, int hi, const float box[2][3], double arg,
+                           double limit, bytes_at_fn bytes_at) {
   int lo = 0;
   while (lo < hi) {
     int mid = lo + (hi - lo + 1) / 2;
-    budget_t b;
-    bk_error_t e = {0};
-    if (estimate_kept(s, mid, box, kept, &b, &e) == BK_OK && b.peak <= limit) lo = mid;
+    const double bytes = bytes_at(s, mid, box, arg);
+    if (bytes >= 0.0 && bytes <= limit) lo = mid;
     else hi = mid - 1;
   }
   return lo;
@@ -112,7 +139,7 @@ int budget_check(const scene_t *s, const float (*given)[3], uint64_t max_bytes, 
          bk_format_bytes(b.peak, need, sizeof need), b.dims.nx, b.dims.ny, b.dims.nz,
          bk_format_bytes((double)limit, have, sizeof have));
   if (!limit || b.peak <= (double)limit) return BK_OK;
-  int fit = largest_fitting(s, s->resolution, box, kept, (double)limit);
+  int fit = largest_fitting(s, s->resolution, box, kept, (double)limit, peak_at);
   bk_format_bytes(b.peak, need, sizeof need);
   bk_format_bytes((double)limit, have, sizeof have);
   if (fit < 1)
@@ -126,6 +153,41 @@ int budget_check(const scene_t *s, const float (*given)[3], uint64_t max_bytes, 
                  "largest grid.resolution that fits is %d",
                  s->path, s->resolution, b.dims.nx, b.dims.ny, b.dims.nz, need, b.per_voxel,
                  max_bytes ? "--max-memory allows" : "this machine has", have, fit);
+}
+
+/* Counters per voxel the march's sums have at least: one channel where
+ * the volume is grey (three when the lights differ in colour, march.c),
+ * three where it is not or n disperses; one more with the adaptive mode's
+ * sampling tables. The flux of an anisotropic medium is not counted. */
+static double sums_slots(const scene_t *s) {
+  const int channels = budget_grey(s) && !scene_has_dispersion(s) ? 1 : 3;
+  return (double)pm_sum_slots(s->mode == MODE_ADAPTIVE ? PM_MODE_TABLES : PM_MODE_REFERENCE,
+                              channels, 0, 0);
+}
+
+double budget_sums_bytes(const scene_t *s, const float (*given)[3]) {
+  float box[2][3] = {{0}};
+  if (given) memcpy(box, given, sizeof box);
+  return sums_at(s, s->resolution, box, sums_slots(s));
+}
+
+int budget_device_check(const scene_t *s, const float (*given)[3], uint64_t max_alloc,
+                        const char *device, bk_error_t *err) {
+  float box[2][3] = {{0}};
+  if (given) memcpy(box, given, sizeof box);
+  const double slots = sums_slots(s), bytes = sums_at(s, s->resolution, box, slots);
+  if (!max_alloc || bytes <= (double)max_alloc) return BK_OK;
+  grid_dims_t d;
+  int rc = grid_in(s, s->resolution, box, &d, err);
+  if (rc) return rc;
+  const double mib = 1024.0 * 1024.0; /* MiB: GiB's one decimal would show 1.0 against 1.0 */
+  return bk_fail(err, BK_ERR_INPUT,
+                 "%s: grid.resolution %d (%dx%dx%d voxels): the photon march's sums need %.0f "
+                 "MiB in one buffer, and OpenCL device %s allows %.0f MiB per buffer. The "
+                 "largest grid.resolution that fits is %d; or march on the host with --host",
+                 s->path, s->resolution, d.nx, d.ny, d.nz, bytes / mib, device,
+                 (double)max_alloc / mib,
+                 largest_fitting(s, s->resolution, box, slots, (double)max_alloc, sums_at));
 }
 
 int budget_parse_size(const char *text, uint64_t *bytes) {

@@ -93,6 +93,24 @@ uint64_t budget_available(uint64_t max_bytes);
 int budget_check(const scene_t *s, const float (*box)[3], uint64_t max_bytes, double kept,
                  bk_error_t *err);
 
+/* Sums above this many bytes are checked against the device's largest
+ * buffer before the voxels are made (budget_device_check): OpenCL
+ * promises 128 MiB per buffer at least, the devices met so far 1 GiB and
+ * more, and at that size the wait for the device is a small part of the
+ * voxelization it would otherwise overlap. */
+#define BUDGET_DEVICE_CHECK_BYTES (1024.0 * 1024 * 1024)
+
+/* Bytes of the photon march's sums for the scene's grid (its largest
+ * device buffer), counted low: the channels a grey volume's lights may
+ * add, and an anisotropic medium's flux, are left out. box: as below. */
+double budget_sums_bytes(const scene_t *s, const float (*box)[3]);
+
+/* Refuses (BK_ERR_INPUT) a grid whose sums (budget_sums_bytes) exceed
+ * max_alloc, the largest buffer `device` allows, naming the largest
+ * resolution that fits. The march checks every buffer again (march_cl.c). */
+int budget_device_check(const scene_t *s, const float (*box)[3], uint64_t max_alloc,
+                        const char *device, bk_error_t *err);
+
 /* Parses a size for --max-memory: a number with an optional K, M, G or T
  * (powers of 1024, an optional "iB" or "B"). Returns 0 when invalid. */
 int budget_parse_size(const char *text, uint64_t *bytes);

@@ -141,12 +141,32 @@ static int fr_opencl_join(bake_reuse_t *r) {
   return 1;
 }
 
+/* A grid whose sums the device cannot hold in one buffer is refused before
+ * its voxels are made: for sums over BUDGET_DEVICE_CHECK_BYTES the opening
+ * context is waited for (a context opened later, without the early start,
+ * is checked by the march). */
+static int fr_device_check(bake_reuse_t *r, const scene_t *s, const float (*box)[3],
+                           bk_error_t *err) {
+  if (budget_sums_bytes(s, box) <= BUDGET_DEVICE_CHECK_BYTES) return BK_OK;
+  const double t0 = bk_now_ms();
+  const int joined = fr_opencl_join(r);
+  if (joined < 0) {
+    *err = r->cl_err;
+    return err->code;
+  }
+  r->cl_unreported = joined;
+  r->cl_waited_ms = bk_now_ms() - t0;
+  if (!r->has_cl) return BK_OK;
+  return budget_device_check(s, box, r->cl.max_alloc, r->cl.device_name, err);
+}
+
 void fr_opencl_settle(bake_reuse_t *r) { (void)fr_opencl_join(r); }
 
 int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char *cl_device,
               bk_timings_t *t, bk_error_t *err) {
   double t0 = bk_now_ms();
   uint64_t key = fr_volume_key(s);
+  r->cl_unreported = 0; /* a context from an earlier frame is reported as reused */
   if (r->has_volume && r->volume.key == key) {
     bk_timings_add(t, "voxelize", bk_now_ms() - t0, "reused from frame %d (inputs unchanged)",
                    r->volume_frame);
@@ -179,8 +199,10 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
     r->keep_fields = 0;
     rc = BK_OK;
   }
-  if (!rc && cl_device && !s->density_vdb.present && !s->ior_vdb.present)
+  if (!rc && cl_device && !s->density_vdb.present && !s->ior_vdb.present) {
     fr_opencl_begin(r, cl_device, s->frame);
+    rc = fr_device_check(r, s, box, err);
+  }
   if (!rc && !crops) rc = vox_meshes_load(s, &meshes, err); /* the budget needed none */
   if (!rc) rc = vox_build_meshes(s, &meshes, &r->volume, t, err);
   vox_meshes_free(&meshes);
@@ -199,9 +221,15 @@ int fr_opencl(bake_reuse_t *r, const char *device, int frame, bk_timings_t *t, b
     *err = r->cl_err;
     return err->code;
   }
-  if (early && r->cl_key == key) {
-    bk_timings_add(t, "OpenCL init", bk_now_ms() - t0, "%s, opened while the voxels were made "
-                   "(%.0f ms on its own thread)", r->cl.device_name, r->cl_ms);
+  if ((early || r->cl_unreported) && r->cl_key == key) {
+    if (r->cl_unreported)
+      bk_timings_add(t, "OpenCL init", r->cl_waited_ms, "%s, opened before the voxels were made, "
+                     "for its buffer limit (%.0f ms on its own thread)", r->cl.device_name,
+                     r->cl_ms);
+    else
+      bk_timings_add(t, "OpenCL init", bk_now_ms() - t0, "%s, opened while the voxels were "
+                     "made (%.0f ms on its own thread)", r->cl.device_name, r->cl_ms);
+    r->cl_unreported = 0;
     return BK_OK;
   }
   if (r->has_cl && r->cl_key == key) {
@@ -230,7 +258,7 @@ void fr_drop_opencl(bake_reuse_t *r) {
   fr_opencl_join(r);
   if (r->has_cl) clh_release(&r->cl);
   memset(&r->cl, 0, sizeof r->cl);
-  r->has_cl = 0;
+  r->has_cl = r->cl_unreported = 0;
 }
 
 void fr_free(bake_reuse_t *r) {

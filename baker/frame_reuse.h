@@ -54,6 +54,8 @@ typedef struct bake_reuse {
   int cl_rc;
   bk_error_t cl_err;
   double cl_ms;
+  int cl_unreported;            /* opened so, its stage row not yet added (fr_opencl) */
+  double cl_waited_ms;          /* the wait for it before the voxels (fr_volume's device check) */
 } bake_reuse_t;
 
 /* A file's contents, hashed (one that cannot be read hashes its error);

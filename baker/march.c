@@ -341,9 +341,11 @@ size_t pm_acc_count(const pm_setup_t *s) {
   const pm_params *P = &s->params;
   if (P->mode == PM_MODE_ORIGINS) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
   if (P->lattice) return (size_t)P->cnx * P->cny * P->cnz * (size_t)s->channels;
-  return s->voxels *
-         ((size_t)pm_acc_stride((int)P->mode, s->channels) +
-          (P->flux ? PM_FLUX_SLOTS_WITH(P->camera) : 0));
+  return s->voxels * pm_sum_slots((int)P->mode, s->channels, (int)P->flux, (int)P->camera);
+}
+
+size_t pm_sum_slots(int mode, int channels, int flux, int camera) {
+  return (size_t)pm_acc_stride(mode, channels) + (flux ? PM_FLUX_SLOTS_WITH(camera) : 0);
 }
 
 size_t pm_mask_count(const pm_setup_t *s) {

@@ -204,6 +204,10 @@ void pm_set_range(pm_setup_t *s, uint64_t first, uint64_t last);
  * the origin masks of a recorder (0 in other modes). */
 size_t pm_acc_count(const pm_setup_t *s);
 size_t pm_mask_count(const pm_setup_t *s);
+/* 64-bit sums per voxel of a full-grid march: the channels, one more with
+ * sampling tables (PM_MODE_TABLES), the flux counters (flux; camera: its
+ * own). The memory budget sizes the device's largest buffer by it. */
+size_t pm_sum_slots(int mode, int channels, int flux, int camera);
 
 /* Counts one photon's outcome into st; and its energy accounting. */
 void pm_stats_add(pm_stats_t *st, const pm_result *r);

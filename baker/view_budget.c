@@ -4,6 +4,7 @@
 #include <math.h>
 
 #include "budget.h"
+#include "field.h"
 
 /* the {∇n, n} field where n varies in few bricks, the pyramids and the
  * readers' buffers: above the slopes measured (docs/memory.md) */
@@ -53,4 +54,19 @@ int view_budget_check(const char *path, const int n[3], const view_budget_grids_
                  "memory for at its peak (%.0f bytes per voxel and the OpenCL runtime); %s %s",
                  path, n[0], n[1], n[2], need, per_voxel,
                  max_bytes ? "--max-memory allows" : "this machine has", have);
+}
+
+double view_budget_least_buffer(const int n[3]) {
+  return 2.0 * sizeof(float) * (double)fld_padded_count(n[0], n[1], n[2]);
+}
+
+int view_budget_device_check(const char *path, const int n[3], uint64_t max_alloc,
+                             const char *device, bk_error_t *err) {
+  const double bytes = view_budget_least_buffer(n), mib = 1024.0 * 1024.0;
+  if (!max_alloc || bytes <= (double)max_alloc) return BK_OK;
+  return bk_fail(err, BK_ERR_INPUT,
+                 "%s: its grids span %dx%dx%d voxels, whose medium needs at least %.0f MiB in "
+                 "one buffer, and OpenCL device %s allows %.0f MiB per buffer; view it with "
+                 "--device host",
+                 path, n[0], n[1], n[2], bytes / mib, device, (double)max_alloc / mib);
 }

@@ -34,4 +34,15 @@ double view_budget_bytes(const view_budget_grids_t *g);
 int view_budget_check(const char *path, const int n[3], const view_budget_grids_t *g,
                       double held, uint64_t max_bytes, bk_error_t *err);
 
+/* Bytes of the largest buffer a device is asked for, at least, by a view
+ * of grids spanning n[0] x n[1] x n[2] voxels: the packed medium, {S, σt}
+ * under grey light (8 B per voxel of the padded box) and twice that
+ * otherwise; RGB σt, the phase lobes and the {∇n, n} field not counted. */
+double view_budget_least_buffer(const int n[3]);
+
+/* Refuses (BK_ERR_INPUT) a view of path whose least buffer exceeds
+ * max_alloc, the largest `device` allows, pointing to --device host. */
+int view_budget_device_check(const char *path, const int n[3], uint64_t max_alloc,
+                             const char *device, bk_error_t *err);
+
 #endif

@@ -375,7 +375,19 @@ static void view_start_gpu(void *ctx) {
   view_job_t *j = ctx;
   bk_error_t ignored;
   if (!j->gpu.ready && view_gpu_init(&j->gpu, j->o.device, &ignored) == BK_OK)
-    j->tot.device_in_read = 1;
+    j->tot.device_in_read = VIEW_DEVICE_IN_READ;
+}
+
+/* Before a large file is read: the device, opened now, and its largest
+ * buffer (0: the host, or no device, which view_frame reports). */
+static uint64_t view_max_buffer(void *ctx, const char **device) {
+  view_job_t *j = ctx;
+  bk_error_t ignored;
+  if (!j->gpu.ready && view_gpu_init(&j->gpu, j->o.device, &ignored) == BK_OK)
+    j->tot.device_in_read = VIEW_DEVICE_BEFORE_READ;
+  if (!j->gpu.ready || j->gpu.host) return 0;
+  *device = j->gpu.cl.device_name;
+  return j->gpu.cl.max_alloc;
 }
 
 /* The frame's volume: the previous frame's when the file's contents hash
@@ -391,7 +403,8 @@ static int view_frame_volume(view_job_t *j, const char *in, int frame, bk_error_
   }
   view_volume_free(&j->vol);
   j->vol_key = 0;
-  int rc = view_volume_load(in, &j->vol, j->o.max_memory, view_start_gpu, j, err);
+  const view_load_hooks_t hooks = {view_start_gpu, view_max_buffer, j};
+  int rc = view_volume_load(in, &j->vol, j->o.max_memory, &hooks, err);
   j->tot.read_ms += bk_now_ms() - t0;
   if (rc) return rc;
   j->vol_key = key, j->vol_frame = frame;

@@ -101,7 +101,10 @@ void view_report(const view_totals_t *tot, int with_png) {
     double msteps = tot->march_ms > 0 ? (double)tot->ray_steps / (tot->march_ms * 1e3) : 0.0;
     bk_timings_add(&t, "read", tot->read_ms, "%d frame%s%s%s", tot->frames,
                    tot->frames == 1 ? "" : "s", reused_note(tot, note, sizeof note),
-                   tot->device_in_read ? ", OpenCL opened meanwhile" : "");
+                   tot->device_in_read == VIEW_DEVICE_IN_READ       ? ", OpenCL opened meanwhile"
+                   : tot->device_in_read == VIEW_DEVICE_BEFORE_READ ? ", OpenCL opened first, "
+                                                                      "for its buffer limit"
+                                                                    : "");
     bk_timings_add(&t, "build kernel", tot->build_ms, "%s", tot->last_options);
     bk_timings_add(&t, "upload", tot->upload_ms, NULL);
     /* CPU time too: on a shared machine wall time says little about the kernel */

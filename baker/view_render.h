@@ -27,6 +27,10 @@ typedef struct view_gpu {
   char options[256];
 } view_gpu_t;
 
+/* When the device opened, if in the read's time: while the readers worked,
+ * or before them, to check its largest buffer (view_volume.h). */
+enum { VIEW_DEVICE_IN_READ = 1, VIEW_DEVICE_BEFORE_READ = 2 };
+
 /* Times and work over all frames, for the timing table. */
 typedef struct view_totals {
   double read_ms, build_ms, upload_ms, march_ms, write_ms;
@@ -34,7 +38,7 @@ typedef struct view_totals {
   uint64_t ray_steps, pixels, capped;
   int frames;
   int reused;          /* frames that kept the previous frame's volume */
-  int device_in_read;  /* the device was opened during the read (in its time) */
+  int device_in_read;  /* the device was opened in the read's time: VIEW_DEVICE_* */
   int camera_frames, lobe_frames; /* radiance_camera: frames at the bake's camera, elsewhere */
   char last_options[256];
 } view_totals_t;

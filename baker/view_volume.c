@@ -11,6 +11,7 @@
 
 #include "base/grid.h"
 #include "base/parallel.h"
+#include "budget.h"
 #include "field.h"
 #include "kernels/view_march.h"
 #include "vdbio.h"
@@ -135,8 +136,7 @@ typedef struct view_load {
   vdbio_dense_t own[G_COUNT], like;
   float *arr[G_COUNT];
   double scale;
-  void (*meanwhile)(void *ctx); /* while the readers work (view_volume_load) */
-  void *ctx;
+  view_load_hooks_t hooks;
   uint64_t max_bytes; /* --max-memory; 0: what the machine has available */
 } view_load_t;
 
@@ -193,7 +193,7 @@ static int load_read_own(view_load_t *L, bk_error_t *err) {
     }
   /* the grids side by side, one reader per core */
   if ((rc = vdbio_read_dense_verified_all(L->path, count, names, grey, own, checked,
-                                          L->meanwhile, L->ctx, err)))
+                                          L->hooks.meanwhile, L->hooks.ctx, err)))
     return rc;
   for (int i = 0; i < count; i++) {
     const int g = which[i];
@@ -281,7 +281,8 @@ static int load_box(view_load_t *L, view_volume_t *v, bk_error_t *err) {
 /* Before any grid is read: the estimate over the box a baker file records
  * (checksum_box, which holds every active voxel), each grid's channels
  * from its type, radiance's three (its grey read is not known yet). Files
- * of other tools record no box; their check comes after the read. */
+ * of other tools record no box; their check comes after the read. A large
+ * box is checked against the device's largest buffer first. */
 static int load_budget(const view_load_t *L, bk_error_t *err) {
   char text[96];
   int n[3];
@@ -289,6 +290,12 @@ static int load_budget(const view_load_t *L, bk_error_t *err) {
   if (vdbio_read_meta(L->path, "checksum_box", text, sizeof text, &e) != BK_OK ||
       sscanf(text, "%d %d %d", &n[0], &n[1], &n[2]) != 3 || n[0] < 1 || n[1] < 1 || n[2] < 1)
     return BK_OK;
+  if (L->hooks.max_buffer && view_budget_least_buffer(n) > BUDGET_DEVICE_CHECK_BYTES) {
+    const char *device = "";
+    const uint64_t max_alloc = L->hooks.max_buffer(L->hooks.ctx, &device);
+    int rc = view_budget_device_check(L->path, n, max_alloc, device, err);
+    if (rc) return rc;
+  }
   int ch[G_COUNT];
   for (int g = 0; g < G_COUNT; g++) {
     const int i = L->present[g] ? find_name(L->names, L->count, L->gname[g]) : -1;
@@ -522,12 +529,12 @@ static void load_free(view_load_t *L, const int *grids) {
 }
 
 int view_volume_load(const char *path, view_volume_t *v, uint64_t max_bytes,
-                     void (*meanwhile)(void *ctx), void *ctx, bk_error_t *err) {
+                     const view_load_hooks_t *hooks, bk_error_t *err) {
   view_load_t L;
   memset(&L, 0, sizeof L);
   memset(v, 0, sizeof *v);
   L.path = path;
-  L.meanwhile = meanwhile, L.ctx = ctx;
+  if (hooks) L.hooks = *hooks;
   L.max_bytes = max_bytes;
   L.scale = 1.0;
   const char *gname[G_COUNT] = {"radiance",      "ior",     "extinction",         "scattering",

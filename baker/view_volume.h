@@ -49,14 +49,26 @@ typedef struct view_volume {
   char desc[512];              /* what was read, for -v */
 } view_volume_t;
 
+/* What the load asks of the command that renders: meanwhile(ctx) (NULL:
+ * nothing) runs while the grids are decoded in their reader processes
+ * (vdbio_read_dense_verified_all): the view starts OpenCL there.
+ * max_buffer(ctx, &device) opens the device at once and gives the largest
+ * buffer it allows (0: no limit, the host, or no device: the render says
+ * why); asked before the read when a file's least buffer is over
+ * BUDGET_DEVICE_CHECK_BYTES. */
+typedef struct view_load_hooks {
+  void (*meanwhile)(void *ctx);
+  uint64_t (*max_buffer)(void *ctx, const char **device);
+  void *ctx;
+} view_load_hooks_t;
+
 /* Reads path into v (zeroed first); on failure v is freed. A file whose
  * estimated peak (view_budget.h) exceeds the memory available, or
  * max_bytes when > 0, is refused (BK_ERR_INPUT): before any grid is read
- * when the file records its box, else after. meanwhile(ctx) (NULL: none)
- * runs while the grids are decoded in their reader processes
- * (vdbio_read_dense_verified_all): the view starts OpenCL there. */
+ * when the file records its box, else after; so is a large one whose least
+ * buffer the device cannot hold (before the read only). */
 int view_volume_load(const char *path, view_volume_t *v, uint64_t max_bytes,
-                     void (*meanwhile)(void *ctx), void *ctx, bk_error_t *err);
+                     const view_load_hooks_t *hooks, bk_error_t *err);
 void view_volume_free(view_volume_t *v);
 /* World bounding box of the volume's cells. */
 void view_volume_world_box(const view_volume_t *v, double bmin[3], double bmax[3]);

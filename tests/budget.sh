@@ -113,5 +113,53 @@ print(f"{sys.argv[1]}: estimated {est:.0f} B per voxel, measured slope {slope:.1
 sys.exit(0 if slope <= est <= 2.0 * slope else 1)
 PY
   done ;;
+device_bake)
+  # sums the OpenCL device cannot hold in one buffer (PoCL given 4 GB: 1 GiB
+  # per buffer; 520^3 grey sums are 1073 MiB) are refused before the voxels
+  # are made, naming the largest resolution that fits; the march's own
+  # check (march_cl.c) would come after voxelize and octree
+  t0=$(date +%s%N)
+  POCL_MEMORY_LIMIT=4 "$baker" bake "$scenes/sphere.json" -o big.vdb --resolution 520 \
+    --photons 1000 -v -v 2> err.txt
+  rc=$? t1=$(date +%s%N)
+  ms=$(( (t1 - t0) / 1000000 ))
+  cat err.txt
+  [ $rc = 2 ] || fail "exit $rc, want 2"
+  grep -q "sums need 1073 MiB in one buffer" err.txt || fail "no size in the message"
+  grep -q "allows 1024 MiB per buffer" err.txt || fail "no device limit in the message"
+  grep -q "largest grid.resolution that fits is 512" err.txt || fail "no largest resolution"
+  grep -q "^voxelize: " err.txt && fail "voxels made before the refusal"
+  [ ! -e big.vdb ] || fail "output written"
+  echo "refused in $ms ms" ;;
+device_view)
+  # the same for `baker view`, before any grid is read: a file that
+  # records a 520^3 box (its grids hold one voxel, so a view that read it
+  # would be quick) needs at least 1085 MiB for its medium
+  /usr/bin/python3 -c "import pyopenvdb" 2> /dev/null ||
+    { echo "SKIP: OpenVDB's Python module (python3-openvdb) is not installed"; exit 77; }
+  /usr/bin/python3 - <<'PY' || fail "could not write claim.vdb"
+import pyopenvdb as vdb
+rad = vdb.Vec3SGrid()
+rad.name = "radiance"
+rad.transform = vdb.createLinearTransform(voxelSize=0.01)
+rad.getAccessor().setValueOn((0, 0, 0), (0.5, 0.5, 0.5))
+ext = vdb.FloatGrid()
+ext.name = "extinction"
+ext.transform = rad.transform
+ext.getAccessor().setValueOn((0, 0, 0), 1.0)
+vdb.write("claim.vdb", grids=[rad, ext], metadata={"checksum_box": "520 520 520"})
+PY
+  POCL_MEMORY_LIMIT=4 "$baker" view claim.vdb -o v.exr --resolution 32x24 2> err.txt
+  rc=$?; cat err.txt
+  [ $rc = 2 ] || fail "exit $rc, want 2"
+  grep -q "at least 1085 MiB in one buffer" err.txt || fail "no size in the message"
+  grep -q "allows 1024 MiB per buffer; view it with --device host" err.txt ||
+    fail "no device limit in the message"
+  [ ! -e v.exr ] || fail "image written"
+  POCL_MEMORY_LIMIT=4 "$baker" view claim.vdb -o v.exr --resolution 32x24 --device host -q ||
+    fail "the host path was refused"
+  "$baker" view claim.vdb -o w.exr --resolution 32x24 -v > out.txt 2>&1 ||
+    fail "PoCL's own limit refused"
+  grep -q "OpenCL opened first, for its buffer limit" out.txt || fail "no device check" ;;
 *) fail "unknown case $case" ;;
 esac
