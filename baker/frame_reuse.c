@@ -142,13 +142,14 @@ static int fr_opencl_join(bake_reuse_t *r) {
 }
 
 /* A grid whose sums the device cannot hold in one buffer is refused before
- * its voxels are made: for sums over BUDGET_DEVICE_CHECK_BYTES the opening
- * context is waited for (a context opened later, without the early start,
- * is checked by the march). */
+ * its voxels are made: for sums over BUDGET_DEVICE_CHECK_BYTES the context
+ * is waited for (opened now where the voxelizer's VDB reader kept it from
+ * starting: nothing forks while it loads, as it is joined at once). */
 static int fr_device_check(bake_reuse_t *r, const scene_t *s, const float (*box)[3],
-                           bk_error_t *err) {
+                           const char *device, bk_error_t *err) {
   if (budget_sums_bytes(s, box) <= BUDGET_DEVICE_CHECK_BYTES) return BK_OK;
   const double t0 = bk_now_ms();
+  fr_opencl_begin(r, device, s->frame); /* nothing when it is opening or kept */
   const int joined = fr_opencl_join(r);
   if (joined < 0) {
     *err = r->cl_err;
@@ -199,10 +200,9 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
     r->keep_fields = 0;
     rc = BK_OK;
   }
-  if (!rc && cl_device && !s->density_vdb.present && !s->ior_vdb.present) {
+  if (!rc && cl_device && !s->density_vdb.present && !s->ior_vdb.present)
     fr_opencl_begin(r, cl_device, s->frame);
-    rc = fr_device_check(r, s, box, err);
-  }
+  if (!rc && cl_device) rc = fr_device_check(r, s, box, cl_device, err);
   if (!rc && !crops) rc = vox_meshes_load(s, &meshes, err); /* the budget needed none */
   if (!rc) rc = vox_build_meshes(s, &meshes, &r->volume, t, err);
   vox_meshes_free(&meshes);

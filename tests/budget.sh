@@ -131,6 +131,29 @@ device_bake)
   grep -q "^voxelize: " err.txt && fail "voxels made before the refusal"
   [ ! -e big.vdb ] || fail "output written"
   echo "refused in $ms ms" ;;
+device_bake_vdb)
+  # the same with a density VDB, whose reader forks: the device is opened
+  # (and waited for) before the voxels instead of beside them
+  /usr/bin/python3 -c "import pyopenvdb" 2> /dev/null ||
+    { echo "SKIP: OpenVDB's Python module (python3-openvdb) is not installed"; exit 77; }
+  /usr/bin/python3 - <<'PY' || fail "could not write density.vdb"
+import pyopenvdb as vdb
+g = vdb.FloatGrid()
+g.name = "density"
+g.fill((0, 0, 0), (7, 7, 7), 1.0)
+xf = vdb.createLinearTransform(voxelSize=0.25)
+xf.translate((-0.875,) * 3)
+g.transform = xf
+vdb.write("density.vdb", grids=[g])
+PY
+  POCL_MEMORY_LIMIT=4 "$baker" bake "$scenes/sphere.json" -o big.vdb --resolution 520 \
+    --photons 1000 --set "medium.density_vdb={\"file\": \"$work/density.vdb\", \"grid\": \"density\"}" \
+    -v -v 2> err.txt
+  rc=$?; cat err.txt
+  [ $rc = 2 ] || fail "exit $rc, want 2"
+  grep -q "largest grid.resolution that fits is 512" err.txt || fail "no largest resolution"
+  grep -q "^voxelize: " err.txt && fail "voxels made before the refusal"
+  [ ! -e big.vdb ] || fail "output written" ;;
 device_view)
   # the same for `baker view`, before any grid is read: a file that
   # records a 520^3 box (its grids hold one voxel, so a view that read it

@@ -30,14 +30,15 @@ add_test(NAME cli_view_version COMMAND $<TARGET_FILE:baker> view --version)
 # kept fields rather than be refused; and the view's (baker/view_budget.h);
 # a grid whose buffers the OpenCL device cannot hold, refused before work.
 foreach(case refuse max_memory honest frames_fallback view_refuse view_honest device_bake
-        device_view)
+        device_bake_vdb device_view)
   add_test(NAME cli_budget_${case}
            COMMAND bash ${BAKER_TEST_DIR}/budget.sh $<TARGET_FILE:baker>
                    ${CMAKE_BINARY_DIR}/cli_budget ${CMAKE_SOURCE_DIR}/scenes ${case})
 endforeach()
 set_tests_properties(cli_budget_honest cli_budget_view_honest PROPERTIES SKIP_RETURN_CODE 77
                      RUN_SERIAL TRUE)
-set_tests_properties(cli_budget_device_view PROPERTIES SKIP_RETURN_CODE 77)
+set_tests_properties(cli_budget_device_bake_vdb cli_budget_device_view PROPERTIES
+                     SKIP_RETURN_CODE 77)
 
 # Peak memory per voxel (docs/memory.md): the slope of the peak RSS between
 # 128^3 and 192^3 for a grey and an RGB medium, against the measured level.
