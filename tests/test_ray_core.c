@@ -365,6 +365,15 @@ static void check_pyramid(int n[3], const oct_source_t *src, int nsrc, int halo)
   bk_error_t err = {0};
   REQUIRE(oct_build_fields(n[0], n[1], n[2], src, nsrc, halo, &p, &err) == BK_OK, "%s",
           err.msg);
+  /* each finest block by brute force, once; a level-l block is constant
+   * when all its finest blocks are */
+  unsigned char *fine = calloc((size_t)p.bx * p.by * p.bz, 1);
+  REQUIRE(fine != NULL, "out of memory");
+  for (int k = 0; k < p.bz; k++)
+    for (int j = 0; j < p.by; j++)
+      for (int i = 0; i < p.bx; i++)
+        fine[i + (size_t)p.bx * (j + (size_t)p.by * k)] =
+            (unsigned char)brute_constant(n, src, nsrc, halo, (int[3]){2 * i, 2 * j, 2 * k}, 2);
   int bad = 0;
   for (int k = 0; k < p.bz; k++)
     for (int j = 0; j < p.by; j++)
@@ -373,12 +382,11 @@ static void check_pyramid(int n[3], const oct_source_t *src, int nsrc, int halo)
         for (int l = RC_LEVELS; l >= 1 && !want; l--) {
           int lo[3], hi[3];
           rc_block_bounds((rc_dims){n[0], n[1], n[2]}, l, c, lo, hi);
-          /* a level-l block is constant when all its finest blocks are */
-          int all = 1, size = 2;
-          for (int z = lo[2]; z < hi[2] && all; z += size)
-            for (int y = lo[1]; y < hi[1] && all; y += size)
-              for (int x = lo[0]; x < hi[0] && all; x += size)
-                all = brute_constant(n, src, nsrc, halo, (int[3]){x, y, z}, size);
+          int all = 1;
+          for (int z = lo[2] / 2; z < (hi[2] + 1) / 2 && all; z++)
+            for (int y = lo[1] / 2; y < (hi[1] + 1) / 2 && all; y++)
+              for (int x = lo[0] / 2; x < (hi[0] + 1) / 2 && all; x++)
+                all = fine[x + (size_t)p.bx * (y + (size_t)p.by * z)];
           if (all) want = l;
         }
         int got = rc_block_level(p.level, (rc_dims){n[0], n[1], n[2]}, c);
@@ -386,6 +394,7 @@ static void check_pyramid(int n[3], const oct_source_t *src, int nsrc, int halo)
           EXPECT(0, "halo %d block (%d,%d,%d): level %d, want %d", halo, i, j, k, got, want);
       }
   EXPECT(bad == 0, "halo %d: %d blocks wrong", halo, bad);
+  free(fine);
   oct_free(&p);
 }
 
@@ -408,11 +417,24 @@ static void test_pyramid(void) {
         for (int c = 0; c < 4; c++) b[4 * v + c] = 0.25f;
         if ((k >= 18 && k < 20) || k == 35) b[4 * v + 2] = 0.25f + 1e-3f * (float)i;
       }
+  /* {S, σt} pairs (the view's grey-light medium): S varies in a ball */
+  static float c[2 * NX * NY * NZ];
+  for (int k = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      for (int i = 0; i < NX; i++) {
+        size_t v = i + (size_t)NX * (j + (size_t)NY * k);
+        c[2 * v] = (i - 30) * (i - 30) + (j - 10) * (j - 10) + (k - 24) * (k - 24) < 25
+                       ? 0.5f + 1e-3f * (float)k : 0.5f;
+        c[2 * v + 1] = 0.75f;
+      }
   const oct_source_t one = {a, 1, 1, 0}, two[2] = {{a, 1, 1, 0}, {b, 4, 3, 0}};
+  /* every float of a voxel a channel (octree.c compares such rows whole) */
+  const oct_source_t whole[2] = {{c, 2, 2, 0}, {b, 4, 4, 0}};
   for (int halo = 1; halo <= OCT_MAX_HALO; halo++) {
     check_pyramid(n, &one, 1, halo);
     check_pyramid(n, two, 2, halo);
   }
+  for (int halo = 1; halo <= OCT_MAX_HALO; halo++) check_pyramid(n, whole, 2, halo);
   /* b stored padded (field.h's layout, the view's medium) with another
    * value in the padding, which the scan must not read: the same pyramid */
   static float bp[4 * (NX + 2) * (NY + 2) * (NZ + 2)];
@@ -429,6 +451,21 @@ static void test_pyramid(void) {
           "%s", err.msg);
   EXPECT(!memcmp(p0.level, p1.level, (size_t)p0.bx * p0.by * p0.bz),
          "a padded source gives another pyramid");
+  oct_free(&p0);
+  oct_free(&p1);
+  /* the same for the pairs, compared whole */
+  static float cp[2 * (NX + 2) * (NY + 2) * (NZ + 2)];
+  for (size_t q = 0; q < sizeof cp / sizeof cp[0]; q++) cp[q] = 7.0f;
+  for (int k = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      memcpy(cp + 2 * (1 + (NX + 2) * ((size_t)j + 1 + (NY + 2) * ((size_t)k + 1))),
+             c + 2 * (size_t)NX * (j + (size_t)NY * k), 2 * sizeof(float) * NX);
+  const oct_source_t pairs = {c, 2, 2, 0}, pairs_padded = {cp, 2, 2, 1};
+  REQUIRE(oct_build_fields(NX, NY, NZ, &pairs, 1, 2, &p0, &err) == BK_OK &&
+              oct_build_fields(NX, NY, NZ, &pairs_padded, 1, 2, &p1, &err) == BK_OK,
+          "%s", err.msg);
+  EXPECT(!memcmp(p0.level, p1.level, (size_t)p0.bx * p0.by * p0.bz),
+         "a padded source of pairs gives another pyramid");
   oct_free(&p0);
   oct_free(&p1);
 }
