@@ -42,6 +42,13 @@ double budget_output_bytes(const scene_t *s, const char *out_path) {
   return vdbio_is_nano_path(out_path) && budget_grey(s) ? BUDGET_NANOVDB_GREY_BYTES : 0.0;
 }
 
+/* The objects' world box as given (NULL: the bake does not crop, and the
+ * box is never read: zeros). */
+static void box_of(const float (*given)[3], float box[2][3]) {
+  memset(box, 0, 2 * 3 * sizeof(float));
+  if (given) memcpy(box, given, 2 * 3 * sizeof(float));
+}
+
 /* The grid the bake allocates: the scene's, or its crop around the
  * objects' world box (vox_crop.h). */
 static int grid_in(const scene_t *s, int resolution, const float box[2][3], grid_dims_t *d,
@@ -129,8 +136,8 @@ static int largest_fitting(const scene_t *s, int hi, const float box[2][3], doub
 int budget_check(const scene_t *s, const float (*given)[3], uint64_t max_bytes, double kept,
                  bk_error_t *err) {
   budget_t b;
-  float box[2][3] = {{0}}; /* read by vox_grid_for only when the bake crops */
-  if (given) memcpy(box, given, sizeof box);
+  float box[2][3];
+  box_of(given, box);
   int rc = estimate_kept(s, s->resolution, box, kept, &b, err);
   if (rc != BK_OK) return rc;
   uint64_t limit = budget_available(max_bytes);
@@ -166,15 +173,15 @@ static double sums_slots(const scene_t *s) {
 }
 
 double budget_sums_bytes(const scene_t *s, const float (*given)[3]) {
-  float box[2][3] = {{0}};
-  if (given) memcpy(box, given, sizeof box);
+  float box[2][3];
+  box_of(given, box);
   return sums_at(s, s->resolution, box, sums_slots(s));
 }
 
 int budget_device_check(const scene_t *s, const float (*given)[3], uint64_t max_alloc,
                         const char *device, bk_error_t *err) {
-  float box[2][3] = {{0}};
-  if (given) memcpy(box, given, sizeof box);
+  float box[2][3];
+  box_of(given, box);
   const double slots = sums_slots(s), bytes = sums_at(s, s->resolution, box, slots);
   if (!max_alloc || bytes <= (double)max_alloc) return BK_OK;
   grid_dims_t d;
