@@ -9,6 +9,11 @@ set -u
 baker=$1 work=$2/$4 scenes=$3 case=$4
 rm -rf "$work" && mkdir -p "$work" && cd "$work" || exit 1
 fail() { echo "FAIL: $*"; exit 1; }
+# the cases that write their input VDB with OpenVDB's Python module
+need_pyopenvdb() {
+  /usr/bin/python3 -c "import pyopenvdb" 2> /dev/null ||
+    { echo "SKIP: OpenVDB's Python module (python3-openvdb) is not installed"; exit 77; }
+}
 case $case in
 refuse)
   t0=$(date +%s%N)
@@ -134,8 +139,7 @@ device_bake)
 device_bake_vdb)
   # the same with a density VDB, whose reader forks: the device is opened
   # (and waited for) before the voxels instead of beside them
-  /usr/bin/python3 -c "import pyopenvdb" 2> /dev/null ||
-    { echo "SKIP: OpenVDB's Python module (python3-openvdb) is not installed"; exit 77; }
+  need_pyopenvdb
   /usr/bin/python3 - <<'PY' || fail "could not write density.vdb"
 import pyopenvdb as vdb
 g = vdb.FloatGrid()
@@ -158,8 +162,7 @@ device_view)
   # the same for `baker view`, before any grid is read: a file that
   # records a 520^3 box (its grids hold one voxel, so a view that read it
   # would be quick) needs at least 1085 MiB for its medium
-  /usr/bin/python3 -c "import pyopenvdb" 2> /dev/null ||
-    { echo "SKIP: OpenVDB's Python module (python3-openvdb) is not installed"; exit 77; }
+  need_pyopenvdb
   /usr/bin/python3 - <<'PY' || fail "could not write claim.vdb"
 import pyopenvdb as vdb
 rad = vdb.Vec3SGrid()

@@ -398,6 +398,17 @@ static void check_pyramid(int n[3], const oct_source_t *src, int nsrc, int halo)
   oct_free(&p);
 }
 
+/* src (w floats per voxel over n) into dst in field.h's padded layout,
+ * the padding another value (7), which a scan must not read. */
+static void pad_copy(float *dst, const float *src, int w, const int n[3]) {
+  const size_t px = (size_t)n[0] + 2, py = (size_t)n[1] + 2;
+  for (size_t q = 0; q < (size_t)w * px * py * ((size_t)n[2] + 2); q++) dst[q] = 7.0f;
+  for (int k = 0; k < n[2]; k++)
+    for (int j = 0; j < n[1]; j++)
+      memcpy(dst + (size_t)w * (1 + px * ((size_t)j + 1 + py * ((size_t)k + 1))),
+             src + (size_t)w * n[0] * (j + (size_t)n[1] * k), (size_t)w * sizeof(float) * n[0]);
+}
+
 static void test_pyramid(void) {
   /* tall enough (35 block rows) for the build to split it between two
    * threads; the second ball and slab straddle the split (row 17, z = 34), a box
@@ -428,7 +439,7 @@ static void test_pyramid(void) {
         c[2 * v + 1] = 0.75f;
       }
   const oct_source_t one = {a, 1, 1, 0}, two[2] = {{a, 1, 1, 0}, {b, 4, 3, 0}};
-  /* every float of a voxel a channel (octree.c compares such rows whole) */
+  /* every float of a voxel a channel: the view's pairs, four-lane fields */
   const oct_source_t whole[2] = {{c, 2, 2, 0}, {b, 4, 4, 0}};
   for (int halo = 1; halo <= OCT_MAX_HALO; halo++) {
     check_pyramid(n, &one, 1, halo);
@@ -438,11 +449,7 @@ static void test_pyramid(void) {
   /* b stored padded (field.h's layout, the view's medium) with another
    * value in the padding, which the scan must not read: the same pyramid */
   static float bp[4 * (NX + 2) * (NY + 2) * (NZ + 2)];
-  for (size_t q = 0; q < sizeof bp / sizeof bp[0]; q++) bp[q] = 7.0f;
-  for (int k = 0; k < NZ; k++)
-    for (int j = 0; j < NY; j++)
-      memcpy(bp + 4 * (1 + (NX + 2) * ((size_t)j + 1 + (NY + 2) * ((size_t)k + 1))),
-             b + 4 * (size_t)NX * (j + (size_t)NY * k), 4 * sizeof(float) * NX);
+  pad_copy(bp, b, 4, n);
   const oct_source_t padded[2] = {{a, 1, 1, 0}, {bp, 4, 3, 1}};
   oct_pyramid_t p0, p1;
   bk_error_t err = {0};
@@ -455,11 +462,7 @@ static void test_pyramid(void) {
   oct_free(&p1);
   /* the same for the pairs, compared whole */
   static float cp[2 * (NX + 2) * (NY + 2) * (NZ + 2)];
-  for (size_t q = 0; q < sizeof cp / sizeof cp[0]; q++) cp[q] = 7.0f;
-  for (int k = 0; k < NZ; k++)
-    for (int j = 0; j < NY; j++)
-      memcpy(cp + 2 * (1 + (NX + 2) * ((size_t)j + 1 + (NY + 2) * ((size_t)k + 1))),
-             c + 2 * (size_t)NX * (j + (size_t)NY * k), 2 * sizeof(float) * NX);
+  pad_copy(cp, c, 2, n);
   const oct_source_t pairs = {c, 2, 2, 0}, pairs_padded = {cp, 2, 2, 1};
   REQUIRE(oct_build_fields(NX, NY, NZ, &pairs, 1, 2, &p0, &err) == BK_OK &&
               oct_build_fields(NX, NY, NZ, &pairs_padded, 1, 2, &p1, &err) == BK_OK,
