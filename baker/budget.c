@@ -162,12 +162,16 @@ int budget_check(const scene_t *s, const float (*given)[3], uint64_t max_bytes, 
                  max_bytes ? "--max-memory allows" : "this machine has", have, fit);
 }
 
-/* Counters per voxel the march's sums have at least: one channel where
- * the volume is grey (three when the lights differ in colour, march.c),
- * three where it is not or n disperses; one more with the adaptive mode's
+/* Counters per voxel the march's sums have at least: three channels where
+ * the medium's own coefficients differ in colour (it fills the grid around
+ * the objects; not through a density VDB, which may be zero), else one, as
+ * the march has three only once the voxels show colour, or the lights or
+ * n's dispersion ask for it (march.c); one more with the adaptive mode's
  * sampling tables. The flux of an anisotropic medium is not counted. */
 static double sums_slots(const scene_t *s) {
-  const int channels = budget_grey(s) && !scene_has_dispersion(s) ? 1 : 3;
+  const float *cs = s->medium_sigma_s, *ca = s->medium_sigma_a;
+  const int coloured = cs[0] != cs[1] || cs[0] != cs[2] || ca[0] != ca[1] || ca[0] != ca[2];
+  const int channels = coloured && !s->density_vdb.present ? 3 : 1;
   return (double)pm_sum_slots(s->mode == MODE_ADAPTIVE ? PM_MODE_TABLES : PM_MODE_REFERENCE,
                               channels, 0, 0);
 }

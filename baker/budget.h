@@ -101,8 +101,8 @@ int budget_check(const scene_t *s, const float (*box)[3], uint64_t max_bytes, do
 #define BUDGET_DEVICE_CHECK_BYTES (1024.0 * 1024 * 1024)
 
 /* Bytes of the photon march's sums for the scene's grid (its largest
- * device buffer), counted low: the channels a grey volume's lights may
- * add, and an anisotropic medium's flux, are left out. box: as below. */
+ * device buffer), counted low: three channels only for a coloured medium,
+ * and an anisotropic medium's flux left out. box: as below. */
 double budget_sums_bytes(const scene_t *s, const float (*box)[3]);
 
 /* Refuses (BK_ERR_INPUT) a grid whose sums (budget_sums_bytes) exceed

@@ -135,7 +135,14 @@ device_bake)
   grep -q "largest grid.resolution that fits is 512" err.txt || fail "no largest resolution"
   grep -q "^voxelize: " err.txt && fail "voxels made before the refusal"
   [ ! -e big.vdb ] || fail "output written"
-  echo "refused in $ms ms" ;;
+  echo "refused in $ms ms"
+  # a coloured medium: three channels, 24 B per voxel (360^3: 1068 MiB)
+  POCL_MEMORY_LIMIT=4 "$baker" bake "$scenes/sphere.json" -o big.vdb --resolution 360 \
+    --photons 1000 --set "medium.sigma_s=[0.5,0.3,0.1]" 2> err.txt
+  rc=$?; cat err.txt
+  [ $rc = 2 ] || fail "RGB: exit $rc, want 2"
+  grep -q "largest grid.resolution that fits is 355" err.txt || fail "RGB: no largest resolution"
+  [ ! -e big.vdb ] || fail "RGB: output written" ;;
 device_bake_vdb)
   # the same with a density VDB, whose reader forks: the device is opened
   # (and waited for) before the voxels instead of beside them
