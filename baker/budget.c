@@ -112,12 +112,16 @@ static double peak_at(const scene_t *s, int resolution, const float box[2][3], d
   return estimate_kept(s, resolution, box, arg, &b, &e) == BK_OK ? b.peak : -1.0;
 }
 
-/* The march's sums, `arg` 64-bit counters per voxel. */
+/* The march's sums over d, `slots` 64-bit counters per voxel. */
+static double sums_over(const grid_dims_t *d, double slots) {
+  return (double)d->nx * (double)d->ny * (double)d->nz * slots * sizeof(uint64_t);
+}
+
+/* The same for the grid at `resolution`, `arg` counters per voxel. */
 static double sums_at(const scene_t *s, int resolution, const float box[2][3], double arg) {
   grid_dims_t d;
   bk_error_t e = {0};
-  if (grid_in(s, resolution, box, &d, &e) != BK_OK) return -1.0;
-  return (double)d.nx * (double)d.ny * (double)d.nz * arg * sizeof(uint64_t);
+  return grid_in(s, resolution, box, &d, &e) == BK_OK ? sums_over(&d, arg) : -1.0;
 }
 
 /* The largest resolution <= hi whose bytes fit in limit; 0 if none. */
@@ -186,11 +190,11 @@ int budget_device_check(const scene_t *s, const float (*given)[3], uint64_t max_
                         const char *device, bk_error_t *err) {
   float box[2][3];
   box_of(given, box);
-  const double slots = sums_slots(s), bytes = sums_at(s, s->resolution, box, slots);
-  if (!max_alloc || bytes <= (double)max_alloc) return BK_OK;
   grid_dims_t d;
   int rc = grid_in(s, s->resolution, box, &d, err);
   if (rc) return rc;
+  const double slots = sums_slots(s), bytes = sums_over(&d, slots);
+  if (!max_alloc || bytes <= (double)max_alloc) return BK_OK;
   const double mib = 1024.0 * 1024.0; /* MiB: GiB's one decimal would show 1.0 against 1.0 */
   return bk_fail(err, BK_ERR_INPUT,
                  "%s: grid.resolution %d (%dx%dx%d voxels): the photon march's sums need %.0f "

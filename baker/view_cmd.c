@@ -368,23 +368,24 @@ static int view_prepare(view_job_t *j, bk_error_t *err) {
   return j->rgba ? BK_OK : BK_ERR_RUNTIME;
 }
 
-/* While the grids are decoded in reader processes: OpenCL's start-up, tens
- * of ms of library loading. A failure is left for view_frame's own call,
- * which reports it only when the volume needs a device. */
-static void view_start_gpu(void *ctx) {
-  view_job_t *j = ctx;
+/* The device, opened in the read's time (`when`: VIEW_DEVICE_*). A failure
+ * is left for view_frame's own call, which reports it only when the volume
+ * needs a device. */
+static void view_open_in_read(view_job_t *j, int when) {
   bk_error_t ignored;
   if (!j->gpu.ready && view_gpu_init(&j->gpu, j->o.device, &ignored) == BK_OK)
-    j->tot.device_in_read = VIEW_DEVICE_IN_READ;
+    j->tot.device_in_read = when;
 }
+
+/* While the grids are decoded in reader processes: OpenCL's start-up, tens
+ * of ms of library loading. */
+static void view_start_gpu(void *ctx) { view_open_in_read(ctx, VIEW_DEVICE_IN_READ); }
 
 /* Before a large file is read: the device, opened now, and its largest
  * buffer (0: the host, or no device, which view_frame reports). */
 static uint64_t view_max_buffer(void *ctx, const char **device) {
   view_job_t *j = ctx;
-  bk_error_t ignored;
-  if (!j->gpu.ready && view_gpu_init(&j->gpu, j->o.device, &ignored) == BK_OK)
-    j->tot.device_in_read = VIEW_DEVICE_BEFORE_READ;
+  view_open_in_read(j, VIEW_DEVICE_BEFORE_READ);
   if (!j->gpu.ready || j->gpu.host) return 0;
   *device = j->gpu.cl.device_name;
   return j->gpu.cl.max_alloc;
