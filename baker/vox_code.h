@@ -8,18 +8,17 @@
  * that density; any other (an object, its blended shell) is an entry of
  * the table, consecutive equal entries shared. The table is the volume's
  * few object values and the shell around each object, so RGB σ goes from
- * 24 to about 4 bytes per voxel (vox_summarise codes RGB volumes only). */
+ * 24 to about 4 bytes per voxel, grey from 8 (vox_summarise codes RGB
+ * volumes, and grey ones when volume_t.code_grey asks). */
 #ifndef BAKER_VOX_CODE_H
 #define BAKER_VOX_CODE_H
 
 #include "voxelize.h"
 
-/* The coded buffer (kernels/medium_code.h) of v's plain arrays and its
- * length in floats in *floats; NULL when memory ran out. */
-float *vox_code_build(const volume_t *v, size_t *floats);
-
 /* Codes v in place: sigma_code replaces sigma_s and sigma_t, and the
- * density goes. Out of memory, the plain arrays stay (still valid). */
+ * density goes. A grey volume's code is made in σs's array, grown by the
+ * table, so coding needs no second array the size of the grid. Out of
+ * memory, the plain arrays stay (still valid). */
 void vox_code(volume_t *v);
 
 /* σs (t = 0) or σt (t = 1) of voxels [lo, hi) of a coded volume into out,
