@@ -84,14 +84,20 @@ double budget_output_bytes(const scene_t *s, const char *out_path);
  * the physical memory; capped by max_bytes when it is > 0. */
 uint64_t budget_available(uint64_t max_bytes);
 
+/* Bytes per voxel less at every phase when a grey volume's σ is coded
+ * (volume_t.code_grey): σs and σt, 4 + 4 B, become one 4-byte word, which
+ * takes σs's place as it is made (vox_code.c). */
+#define BUDGET_GREY_CODE_SAVES 4.0
+
 /* Refuses (BK_ERR_INPUT) a bake whose estimated peak exceeds what is
  * available, naming the estimate, the limit and the largest resolution that
- * would fit. `kept`: bytes per voxel a batch of frames keeps from one frame
- * to the next (baker/frame_reuse.h: the march's fields). box: the objects'
- * world box (vox_meshes_t.box) when the bake is cropped to them
- * (scene_crops), else NULL. */
+ * would fit. A grey scene that fits only with its σ coded passes with
+ * *code_grey set to 1 (else 0), to be voxelized so. `kept`: bytes per voxel
+ * a batch of frames keeps from one frame to the next (baker/frame_reuse.h:
+ * the march's fields). box: the objects' world box (vox_meshes_t.box) when
+ * the bake is cropped to them (scene_crops), else NULL. */
 int budget_check(const scene_t *s, const float (*box)[3], uint64_t max_bytes, double kept,
-                 bk_error_t *err);
+                 int *code_grey, bk_error_t *err);
 
 /* Sums above this many bytes are checked against the device's largest
  * buffer before the voxels are made (budget_device_check): OpenCL

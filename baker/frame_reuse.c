@@ -188,11 +188,13 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
   const int crops = scene_crops(s);
   int rc = crops ? vox_meshes_load(s, &meshes, err) : BK_OK;
   const float(*box)[3] = crops ? (const float(*)[3])meshes.box : NULL;
+  int code_grey = 0;
   if (!rc)
-    rc = budget_check(s, box, max_memory, (r->keep_fields ? kept : 0.0) + r->extra_bytes, err);
+    rc = budget_check(s, box, max_memory, (r->keep_fields ? kept : 0.0) + r->extra_bytes,
+                      &code_grey, err);
   bk_error_t without;
   if (rc == BK_ERR_INPUT && r->keep_fields &&
-      budget_check(s, box, max_memory, r->extra_bytes, &without) == BK_OK) {
+      budget_check(s, box, max_memory, r->extra_bytes, &code_grey, &without) == BK_OK) {
     /* an optimisation, not worth a refusal: each frame builds its own */
     bk_warn("%s: the march's fields are not kept from frame to frame: they would add %.0f "
             "bytes per voxel to a peak that then does not fit (%s)",
@@ -204,7 +206,7 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
     fr_opencl_begin(r, cl_device, s->frame);
   if (!rc && cl_device) rc = fr_device_check(r, s, box, cl_device, err);
   if (!rc && !crops) rc = vox_meshes_load(s, &meshes, err); /* the budget needed none */
-  if (!rc) rc = vox_build_meshes(s, &meshes, &r->volume, t, err);
+  if (!rc) rc = vox_build_meshes(s, &meshes, code_grey, &r->volume, t, err);
   vox_meshes_free(&meshes);
   if (rc) return rc;
   r->volume.key = key;

@@ -566,13 +566,13 @@ void vox_meshes_free(vox_meshes_t *m) {
 int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_error_t *err) {
   vox_meshes_t meshes;
   int rc = vox_meshes_load(scene, &meshes, err);
-  if (!rc) return vox_build_meshes(scene, &meshes, out, timings, err);
+  if (!rc) return vox_build_meshes(scene, &meshes, 0, out, timings, err);
   vox_meshes_free(&meshes);
   memset(out, 0, sizeof *out);
   return rc;
 }
 
-int vox_build_meshes(const scene_t *scene, vox_meshes_t *meshes, volume_t *out,
+int vox_build_meshes(const scene_t *scene, vox_meshes_t *meshes, int code_grey, volume_t *out,
                      bk_timings_t *timings, bk_error_t *err) {
   vox_scratch_t scratch = {0};
   bk_progress_t prog = {0};
@@ -582,6 +582,7 @@ int vox_build_meshes(const scene_t *scene, vox_meshes_t *meshes, volume_t *out,
   const char *grid_where = scene->where_resolution[0] ? scene->where_resolution : scene->path;
 
   memset(out, 0, sizeof *out);
+  out->code_grey = code_grey;
   /* the objects' world box is for a vacuum's crop (vox_crop.h) */
   int rc = vox_prepare(scene, grid_where, (const float(*)[3])meshes->box, out, err);
   if (rc) goto error;
@@ -624,9 +625,10 @@ int vox_build_meshes(const scene_t *scene, vox_meshes_t *meshes, volume_t *out,
                    scene->object_count == 1 ? "" : "es", total_tris);
   double vox_ms = bk_now_ms() - t_start + meshes->check_ms;
   bk_timings_add(timings, "voxelize", vox_ms,
-                 "%d object%s, %lld tris, %dx%dx%d, n in [%g, %g], %.0f M voxels/s",
+                 "%d object%s, %lld tris, %dx%dx%d, n in [%g, %g], %.0f M voxels/s%s",
                  scene->object_count, scene->object_count == 1 ? "" : "s", total_tris, d->nx,
-                 d->ny, d->nz, out->n_min, out->n_max, (double)count / (vox_ms * 1e3 + 1e-9));
+                 d->ny, d->nz, out->n_min, out->n_max, (double)count / (vox_ms * 1e3 + 1e-9),
+                 out->grey && out->sigma_code ? ", sigma coded to fit in memory" : "");
   vox_meshes_free(meshes);
   free(scratch.dist2);
   free(scratch.vote);

@@ -79,6 +79,9 @@ typedef struct volume {
    * either through vol_sigma_s and vol_sigma_t. */
   float *sigma_code;
   size_t sigma_code_floats; /* the whole buffer: voxels, then the table */
+  /* code a grey volume's σ too (4 bytes per voxel instead of 8): set when
+   * the bake fits in memory only so (budget_check); vox_summarise reads it */
+  int code_grey;
   /* the medium's σs and σa (channel order as sigma_channels) and, while
    * voxelize runs, the density that scales them (density_vdb resampled;
    * NULL: 1 everywhere): what the code expresses a voxel by */
@@ -157,8 +160,9 @@ void vox_meshes_free(vox_meshes_t *m);
 /* The volume of the scene: vox_meshes_load, then vox_build_meshes. */
 int vox_build(const scene_t *scene, volume_t *out, bk_timings_t *timings, bk_error_t *err);
 /* The volume from meshes already read, which it frees (each as soon as it
- * is in the volume); the "mesh load" row gets their read's time. */
-int vox_build_meshes(const scene_t *scene, vox_meshes_t *meshes, volume_t *out,
+ * is in the volume); the "mesh load" row gets their read's time.
+ * code_grey: volume_t.code_grey. */
+int vox_build_meshes(const scene_t *scene, vox_meshes_t *meshes, int code_grey, volume_t *out,
                      bk_timings_t *timings, bk_error_t *err);
 void vox_free(volume_t *v);
 

@@ -11,9 +11,9 @@
  * (1: grey, 3: RGB) then σt; entry 0 holds cs and ca. A voxel is coded as
  * ρ only where that gives its values back bit for bit (the host checks it
  * with mc_medium), so coding changes no result. For RGB this is 4 bytes
- * per voxel plus the table instead of 24. Grey volumes (C = 1) could be
- * coded as well, 4 bytes instead of 8, but the decoding made their march
- * about 35% slower, so vox_summarise leaves them plain. */
+ * per voxel plus the table instead of 24. A grey volume (C = 1) is coded,
+ * 4 bytes instead of 8, only when the bake fits in memory only so
+ * (budget_check): the decoding costs its march about 3% (docs/memory.md). */
 #ifndef BAKER_MEDIUM_CODE_H
 #define BAKER_MEDIUM_CODE_H
 

@@ -27,16 +27,17 @@ add_test(NAME cli_view_version COMMAND $<TARGET_FILE:baker> view --version)
 
 # The memory budget (baker/budget.h): refusal before any work, --max-memory,
 # an estimate not below the real peak, and a batch of frames that drops its
-# kept fields rather than be refused; and the view's (baker/view_budget.h);
+# kept fields rather than be refused; a grey bake that fits only with its σ
+# coded, coded; and the view's (baker/view_budget.h);
 # a grid whose buffers the OpenCL device cannot hold, refused before work.
-foreach(case refuse max_memory honest frames_fallback view_refuse view_honest device_bake
-        device_bake_vdb device_view)
+foreach(case refuse max_memory honest frames_fallback code_grey view_refuse view_honest
+        device_bake device_bake_vdb device_view)
   add_test(NAME cli_budget_${case}
            COMMAND bash ${BAKER_TEST_DIR}/budget.sh $<TARGET_FILE:baker>
                    ${CMAKE_BINARY_DIR}/cli_budget ${CMAKE_SOURCE_DIR}/scenes ${case})
 endforeach()
-set_tests_properties(cli_budget_honest cli_budget_view_honest PROPERTIES SKIP_RETURN_CODE 77
-                     RUN_SERIAL TRUE)
+set_tests_properties(cli_budget_honest cli_budget_view_honest cli_budget_code_grey PROPERTIES
+                     SKIP_RETURN_CODE 77 RUN_SERIAL TRUE)
 set_tests_properties(cli_budget_device_bake_vdb cli_budget_device_view PROPERTIES
                      SKIP_RETURN_CODE 77)
 

@@ -894,8 +894,10 @@ static void scan_pair(int with_g, int uniform) {
  * composited, the float sum σs + σa in every voxel and channel, and scans
  * it as vox_scan scans a volume that holds σt already (grey and RGB); the
  * code an RGB volume then keeps gives every value back (here nearly all
- * are table entries: the medium's coefficients are 0). */
-static void summarise_pair(int channels) {
+ * are table entries: the medium's coefficients are 0), as does the code a
+ * grey volume keeps when the budget asks for it (code_grey: made in σs's
+ * place, vox_code.c). */
+static void summarise_pair(int channels, int code_grey) {
   volume_t v, t;
   memset(&v, 0, sizeof v);
   v.dims.nx = 9, v.dims.ny = 14, v.dims.nz = 11;
@@ -919,6 +921,7 @@ static void summarise_pair(int channels) {
   }
   vox_scan_t b;
   vox_scan(&t, &b);
+  v.code_grey = code_grey;
   vox_summarise(&v);
   const vox_scan_t *a = &v.scan;
   /* read back through the code (vox_code.h), bit for bit */
@@ -929,9 +932,12 @@ static void summarise_pair(int channels) {
       differ += memcmp(&st, &t.sigma_t[(size_t)channels * i + c], sizeof st) != 0 ||
                 memcmp(&ss, &t.sigma_s[(size_t)channels * i + c], sizeof ss) != 0;
     }
-  /* RGB is coded, grey stays plain (vox_summarise) */
-  EXPECT(v.sigma_channels == channels && (v.sigma_code != NULL) == (channels == 3) && differ == 0,
-         "%d channels: %zu values are not sigma_s and sigma_s + sigma_a", channels, differ);
+  /* RGB is coded, grey stays plain unless asked (vox_summarise) */
+  const int coded = channels == 3 || code_grey;
+  EXPECT(v.sigma_channels == channels && (v.sigma_code != NULL) == coded && differ == 0,
+         "%d channels, code_grey %d: coded %d, %zu values are not sigma_s and sigma_s + sigma_a",
+         channels, code_grey, v.sigma_code != NULL, differ);
+  EXPECT(!coded || (!v.sigma_s && !v.sigma_t), "coded, yet the plain arrays are kept");
   EXPECT(a->varies == b.varies && a->coloured == b.coloured && a->t_varies == b.t_varies &&
          a->t_coloured == b.t_coloured && a->s_varies == b.s_varies &&
          a->s_coloured == b.s_coloured && a->n_min == b.n_min && a->n_max == b.n_max);
@@ -983,8 +989,9 @@ static void case_scan(void) {
   scan_pair(0, 0);
   scan_pair(1, 0);
   scan_pair(0, 1);
-  summarise_pair(1);
-  summarise_pair(3);
+  summarise_pair(1, 0);
+  summarise_pair(1, 1);
+  summarise_pair(3, 0);
 }
 
 /* A homogeneous volume keeps one voxel's σs and σt (vox_summarise): every
@@ -992,7 +999,7 @@ static void case_scan(void) {
  * scattering and density fills give what the full arrays gave; one voxel
  * that differs makes the volume coded (vox_code.h), which gives them back
  * bit for bit. */
-static void uniform_case(int channels, int odd_voxel) {
+static void uniform_case(int channels, int odd_voxel, int code_grey) {
   volume_t v;
   memset(&v, 0, sizeof v);
   v.dims.nx = 7, v.dims.ny = 5, v.dims.nz = 6;
@@ -1012,12 +1019,14 @@ static void uniform_case(int channels, int odd_voxel) {
   }
   for (int c = 0; c < 3; c++) v.medium_s[c] = s0[c], v.medium_a[c] = a0[c];
   if (odd_voxel) v.sigma_s[m - 1] = 0.25f;
+  v.code_grey = code_grey;
   vox_summarise(&v);
   EXPECT(v.homogeneous == !odd_voxel, "%d channels, odd voxel %d: homogeneous %d", channels,
          odd_voxel, v.homogeneous);
   /* the others are the medium at density 1: the odd voxel is the one entry
    * after the medium's coefficients (kernels/medium_code.h) */
-  EXPECT(!odd_voxel || (v.sigma_code && v.sigma_code_floats == n + 2 * 2 * (size_t)channels),
+  EXPECT(!odd_voxel || (channels == 1 && !code_grey) ||
+             (v.sigma_code && v.sigma_code_floats == n + 2 * 2 * (size_t)channels),
          "%d channels, odd voxel: coded %d, %zu floats", channels, v.sigma_code != NULL,
          v.sigma_code_floats);
   const og_source_t src = {.vol = &v};
@@ -1045,9 +1054,11 @@ static void uniform_case(int channels, int odd_voxel) {
 }
 
 static void case_uniform(void) {
-  uniform_case(1, 0);
-  uniform_case(3, 0);
-  uniform_case(3, 1);
+  uniform_case(1, 0, 0);
+  uniform_case(1, 1, 0);
+  uniform_case(1, 1, 1);
+  uniform_case(3, 0, 0);
+  uniform_case(3, 1, 0);
 }
 
 /* mesh_io_read and vox_build must both refuse with BK_ERR_INPUT, naming the
