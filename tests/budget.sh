@@ -85,7 +85,12 @@ code_grey)
       --photons 20000 --resolution 256 "$@" > out.txt 2> err.txt || { cat err.txt; return 1; }
     sed -n 's/^peak_kb //p' err.txt
   }
-  bake warm.vdb --resolution 32 -q > /dev/null || fail "warm-up bake failed" # kernels cached
+  # the kernels of both bakes cached first, so that neither peak holds LLVM
+  # compiling one: plain, and coded (64^3: 325.25 MiB estimated plain,
+  # 324.25 coded)
+  bake warm.vdb --resolution 64 -q > /dev/null || fail "warm-up bake failed"
+  bake warm.vdb --resolution 64 --max-memory 324.75M > /dev/null || fail "coded warm-up failed"
+  grep -q "only with its sigma coded" err.txt || fail "the warm-up was not coded"
   plain=$(bake plain.vdb -q) || fail "plain bake failed"
   coded=$(bake coded.vdb -v --max-memory 620M) || fail "capped bake refused"
   grep "memory: " err.txt && grep "^voxelize " out.txt
