@@ -156,6 +156,16 @@ struct text_cursor {
   }
 };
 
+// A text format's pre-scan stops at a NUL byte while OpenMesh reads on, so
+// an OBJ, or an ASCII OFF or PLY, with one is refused (fuzz_mesh_obj hid a
+// bad face behind one).
+bool no_nul(const char *text, size_t len, std::string *msg) {
+  const char *nul = (const char *)memchr(text, 0, len);
+  if (!nul) return true;
+  *msg = " a NUL byte at offset " + std::to_string(nul - text) + " (not a text file)";
+  return false;
+}
+
 // Parses a whole token as a number (strtod accepts nan, inf and overflow).
 bool parse_number(const std::string &tok, double *v) {
   if (tok.empty()) return false;
@@ -283,6 +293,36 @@ bool check_off_counts(const std::string counts[3], size_t len, int line, std::st
   return false;
 }
 
+// A list's count (an OFF face's, a PLY list property's): OpenMesh reads it
+// as unsigned and then that many numbers, past the line and the file's end,
+// keeping each: "-3" (fuzz_mesh_off) had it take 5 GB and growing. So the
+// count must be a whole number whose entries fit in the `left` bytes after
+// it (at least 2 each, " 0").
+bool check_list_count(const std::string &tok, size_t left, int line, const std::string &who,
+                      std::string *msg) {
+  double n = 0;
+  if (parse_number(tok, &n) && n >= 0 && n == std::floor(n) && n <= 0.5 * (double)left) return true;
+  *msg = std::to_string(line) + ": " + who + ": its count of entries must be a whole number " +
+         "that fits in the file, found '" + tok.substr(0, 20) + "'";
+  return false;
+}
+
+// The faces of an ASCII OFF after its vertices: each one's vertex count
+// (check_list_count), then that many indices, then the rest of the line
+// (colours). True also on a truncated body (OpenMesh reports it).
+bool prescan_off_faces(text_cursor &c, const char *end, double nf, std::string *msg) {
+  for (long i = 0; i < (long)nf; i++) {
+    std::string n = c.token(true, false);
+    if (n.empty()) return true;
+    if (!check_list_count(n, (size_t)(end - c.p), c.line, "face " + std::to_string(i), msg))
+      return false;
+    for (long m = 0; m < (long)std::atof(n.c_str()); m++)
+      if (c.token(true, false).empty()) return true;
+    c.next_line();
+  }
+  return true;
+}
+
 bool prescan_off(const char *text, size_t len, std::string *msg) {
   text_cursor c{text, 1};
   std::string head = c.token(true, false);
@@ -297,6 +337,8 @@ bool prescan_off(const char *text, size_t len, std::string *msg) {
   if (c.token(true, false) == "BINARY") return true; // NaN passes through, checked after reading
   c.p = save;
   c.line = save_line;
+  // text from here on: the scan below stops at a NUL byte, OpenMesh reads on
+  if (!no_nul(text, len, msg)) return false;
   const char *comment_msg = ": '#' comments are not supported by OpenMesh's OFF reader; remove them";
   std::string counts[3];
   for (int a = 0; a < 3; a++) {
@@ -307,8 +349,9 @@ bool prescan_off(const char *text, size_t len, std::string *msg) {
     }
   }
   if (!check_off_counts(counts, len, c.line, msg)) return false;
-  double nv = 0;
-  if (!parse_number(counts[0], &nv) || nv < 0 || nv > 1e9) return true; // OpenMesh reports it
+  double nv = 0, nf = 0;
+  if (!parse_number(counts[0], &nv) || nv < 0 || nv > 1e9 || !parse_number(counts[1], &nf))
+    return true; // OpenMesh reports it
   for (long i = 0; i < (long)nv; i++) {
     c.skip_space(false);
     if (!*c.p) return true; // truncated: OpenMesh will notice
@@ -322,7 +365,7 @@ bool prescan_off(const char *text, size_t len, std::string *msg) {
     if (!check_coords(tok, line, "vertex " + std::to_string(i), msg)) return false;
     c.next_line(); // normals, colours and texture coordinates follow on the line
   }
-  return true;
+  return prescan_off_faces(c, text + len, nf, msg);
 }
 
 // OpenMesh 9 loops forever, its error messages piling up, on a header line
@@ -423,9 +466,11 @@ bool ply_header(text_cursor &c, std::vector<ply_element> &elems, bool *ascii, st
   }
 }
 
-// One element's rows of the ASCII body; for the "vertex" element, x, y and z
-// checked as coordinates. True also on a truncated body (OpenMesh reports it).
-bool ply_element_rows(text_cursor &c, const ply_element &e, std::string *msg) {
+// One element's rows of the ASCII body (end: the text's end): for the
+// "vertex" element, x, y and z checked as coordinates; every list's count
+// checked (check_list_count). True also on a truncated body (OpenMesh
+// reports it).
+bool ply_element_rows(text_cursor &c, const char *end, const ply_element &e, std::string *msg) {
   int ix = -1, iy = -1, iz = -1;
   const bool is_vertex = e.name == "vertex";
   for (size_t k = 0; k < e.props.size(); k++) {
@@ -441,9 +486,10 @@ bool ply_element_rows(text_cursor &c, const ply_element &e, std::string *msg) {
       if (t.empty()) return true; // truncated: OpenMesh will notice
       if (line < 0) line = c.line;
       if (e.props[k].list) {
-        double n = 0;
-        if (!parse_number(t, &n) || n < 0) return true;
-        for (long m = 0; m < (long)n; m++) c.token(true, false);
+        const std::string who = e.name + " " + std::to_string(i) + ", " + e.props[k].name;
+        if (!check_list_count(t, (size_t)(end - c.p), c.line, who, msg)) return false;
+        for (long m = 0; m < (long)std::atof(t.c_str()); m++)
+          if (c.token(true, false).empty()) return true;
         continue;
       }
       if (is_vertex && (int)k == ix) tok[0] = t;
@@ -457,19 +503,23 @@ bool ply_element_rows(text_cursor &c, const ply_element &e, std::string *msg) {
   return true;
 }
 
-// ASCII PLY: the x, y, z properties of the "vertex" element; elements before it
-// are skipped token by token (list properties carry their own count).
-bool prescan_ply(const char *text, std::string *msg) {
+// PLY: the header (OpenMesh takes "PLY" for "ply" too: fuzz_mesh_ply_ascii
+// hid a header it loops on behind it); in an ASCII body every element's rows
+// (ply_element_rows).
+bool prescan_ply(const char *text, size_t len, std::string *msg) {
   text_cursor c{text, 1};
-  if (c.token(true, false) != "ply") return true;
+  const std::string magic = c.token(true, false);
+  if (magic != "ply" && magic != "PLY") {
+    *msg = "1: expected 'ply' on the first line, found '" + magic.substr(0, 20) + "'";
+    return false;
+  }
   std::vector<ply_element> elems;
   bool ascii = false;
   if (!ply_header(c, elems, &ascii, msg)) return false;
   if (!ascii) return true; // binary: NaN passes through, checked after reading
-  for (const ply_element &e : elems) {
-    if (!ply_element_rows(c, e, msg)) return false;
-    if (e.name == "vertex") return true;
-  }
+  if (!no_nul(text, len, msg)) return false;
+  for (const ply_element &e : elems)
+    if (!ply_element_rows(c, text + len, e, msg)) return false;
   return true;
 }
 
@@ -527,16 +577,6 @@ bool prescan_stl(const char *text, size_t len, std::string *msg) {
 // Missing or unreadable files are named here, before OpenMesh tries, and the
 // same read feeds the pre-scan; an OBJ's "v" lines are counted into
 // obj_vertex_lines so that vertices OpenMesh drops can be noticed.
-// A text format's pre-scan stops at a NUL byte while OpenMesh reads on, so
-// an OBJ (text only) with one is refused (fuzz_mesh_obj hid a bad face
-// behind one).
-bool no_nul(const char *text, size_t len, std::string *msg) {
-  const char *nul = (const char *)memchr(text, 0, len);
-  if (!nul) return true;
-  *msg = " a NUL byte at offset " + std::to_string(nul - text) + " (not a text file)";
-  return false;
-}
-
 int prescan_file(const char *path, mesh_format fmt, int *obj_vertex_lines, bk_error_t *err) {
   char *text = nullptr;
   size_t len = 0;
@@ -548,7 +588,7 @@ int prescan_file(const char *path, mesh_format fmt, int *obj_vertex_lines, bk_er
   switch (fmt) {
   case FMT_OBJ: ok = no_nul(text, len, &msg) && prescan_obj(text, obj_vertex_lines, &msg); break;
   case FMT_OFF: ok = prescan_off(text, len, &msg); break;
-  case FMT_PLY: ok = prescan_ply(text, &msg); break;
+  case FMT_PLY: ok = prescan_ply(text, len, &msg); break;
   case FMT_STL: ok = prescan_stl(text, len, &msg); break;
   default: break;
   }

@@ -58,6 +58,7 @@ function(baker_fuzz_replay t src)
   add_test(NAME fuzz_replay_${t}
            COMMAND bash ${BAKER_TEST_DIR}/fuzz/ctest_fuzz.sh replay $<TARGET_FILE:replay_${t}> ${t}
                    ${BAKER_TEST_DIR})
+  set_tests_properties(fuzz_replay_${t} PROPERTIES TIMEOUT 120)
 endfunction()
 baker_fuzz_replay(fuzz_scene fuzz_scene.c)
 foreach(kind obj:obj ply_ascii:ply ply_binary:ply stl_ascii:stl stl_binary:stl off:off)
