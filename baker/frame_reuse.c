@@ -30,6 +30,15 @@ static void mix_words(uint64_t *h, const unsigned char *p, size_t n) {
 uint64_t fr_file_key(const char *path) {
   enum { CHUNK = 1 << 20 };
   uint64_t h = BK_HASH_SEED;
+  /* a pipe or a device is not read here (its reader would then find the
+   * pipe empty, or /dev/zero never end): a key no other call gives */
+  const bk_file_kind_t kind = bk_file_kind(path);
+  if (kind == BK_FILE_PIPE || kind == BK_FILE_OTHER) {
+    static _Atomic uint64_t unique;
+    const uint64_t n = ++unique;
+    mix(&h, &n, sizeof n);
+    return h ? h : 1;
+  }
   FILE *f = fopen(path, "rb");
   unsigned char *buf = f ? malloc(CHUNK) : NULL;
   if (!buf) {

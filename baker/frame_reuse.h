@@ -58,8 +58,9 @@ typedef struct bake_reuse {
   double cl_waited_ms;          /* the wait for it before the voxels (fr_volume's device check) */
 } bake_reuse_t;
 
-/* A file's contents, hashed (one that cannot be read hashes its error);
- * never 0. `baker view --frames` keeps a frame's volume for the next when
+/* A file's contents, hashed (one that cannot be read hashes its error; a
+ * pipe or a device is not read and gets a key no other call gives); never
+ * 0. `baker view --frames` keeps a frame's volume for the next when
  * its input's key is the same. */
 uint64_t fr_file_key(const char *path);
 /* The hash of every input the voxelize stage reads (above); files are

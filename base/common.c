@@ -6,6 +6,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <libgen.h>
+#include <sys/stat.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -249,7 +250,15 @@ uint64_t bk_hash64(const void *data, size_t len, uint64_t h) {
   return h;
 }
 
+bk_file_kind_t bk_file_kind(const char *path) {
+  struct stat st;
+  if (stat(path, &st) != 0) return BK_FILE_MISSING;
+  return S_ISREG(st.st_mode) ? BK_FILE_REGULAR : S_ISFIFO(st.st_mode) ? BK_FILE_PIPE : BK_FILE_OTHER;
+}
+
 int bk_read_file(const char *path, char **out, size_t *len, bk_error_t *err) {
+  if (bk_file_kind(path) == BK_FILE_OTHER)
+    return bk_fail(err, BK_ERR_INPUT, "%s: not a regular file (a directory or a device)", path);
   FILE *f = fopen(path, "rb");
   if (!f)
     return bk_fail(err, BK_ERR_INPUT, "%s: cannot open: %s", path, strerror(errno));

@@ -106,7 +106,15 @@ void bk_timings_mark_reused(bk_timings_t *t, int frame);
 uint64_t bk_hash64(const void *data, size_t len, uint64_t seed);
 #define BK_HASH_SEED 1469598103934665603ull
 
-/* Reads a whole file into a NUL-terminated buffer (caller frees). */
+/* What a path names. A pipe (a FIFO, `<(...)`) can be read once, in order,
+ * and blocks until its writer writes; a directory or a device (/dev/zero
+ * never ends) is no input file. Missing: stat failed, and the open that
+ * follows says why. */
+typedef enum { BK_FILE_MISSING, BK_FILE_REGULAR, BK_FILE_PIPE, BK_FILE_OTHER } bk_file_kind_t;
+bk_file_kind_t bk_file_kind(const char *path);
+
+/* Reads a whole file into a NUL-terminated buffer (caller frees): a regular
+ * file or a pipe; anything else (BK_FILE_OTHER) is refused, BK_ERR_INPUT. */
 int bk_read_file(const char *path, char **out, size_t *len, bk_error_t *err);
 
 /* Output files are written to a temporary name in the same directory and

@@ -692,6 +692,11 @@ extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err)
     return bk_fail(err, BK_ERR_INPUT,
                    "%s: unknown mesh format '%s': expected .obj, .ply, .off or .stl", path,
                    ext.empty() ? "(no extension)" : ext.c_str());
+  /* read twice, checked and then loaded: a pipe would be empty the second
+   * time, and a device such as /dev/zero never ends */
+  const bk_file_kind_t kind = bk_file_kind(path);
+  if (kind == BK_FILE_PIPE || kind == BK_FILE_OTHER)
+    return bk_fail(err, BK_ERR_INPUT, "%s: not a regular file", path);
   int obj_vertex_lines = -1;
   int rc = prescan_file(path, fmt, &obj_vertex_lines, err);
   if (rc != BK_OK) return rc;

@@ -49,6 +49,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <sys/mman.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -274,9 +275,17 @@ struct iso_started {
   iso_limits limits = {};
 };
 
-/* Starts the child of `job`. */
+/* Starts the child of `job`. A path that is not a regular file (a FIFO, a
+ * device) is refused: the child would wait on it until its alarm. The child
+ * dies with this process (PR_SET_PDEATHSIG): a bake killed by its scheduler
+ * leaves no reader behind, holding memory until the alarm. (The signal
+ * follows the forking thread, which always waits for its children here.) */
 static int iso_start(iso_job &job, const char *path, const iso_limits &l, iso_started *s,
                      bk_error_t *err) {
+  const bk_file_kind_t kind = bk_file_kind(path);
+  if (kind == BK_FILE_PIPE || kind == BK_FILE_OTHER)
+    return bk_fail(err, BK_ERR_INPUT, "%s: not a regular file", path);
+  const pid_t parent = getpid();
   int fds[2];
   if (pipe(fds) != 0)
     return bk_fail(err, BK_ERR_RUNTIME, "%s: cannot create a pipe: %s", path, strerror(errno));
@@ -297,6 +306,8 @@ static int iso_start(iso_job &job, const char *path, const iso_limits &l, iso_st
   }
   if (pid == 0) {
     close(fds[0]);
+    if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || getppid() != parent)
+      _exit(127); /* the parent is gone already */
     iso_child(job, fds[1], l);
   }
   close(fds[1]); /* so that a later child does not hold this pipe open */

@@ -1,7 +1,8 @@
 # End-to-end checks of `baker bake` on bad input (issue 2): each case must exit
 # 2, name the file and the problem, and leave no output file.
 foreach(case malformed_json missing_key wrong_type negative_resolution huge_grid
-        missing_mesh nan_mesh empty_mesh unwritable_output truncated_ior_vdb)
+        missing_mesh nan_mesh empty_mesh unwritable_output truncated_ior_vdb fifo_mesh
+        device_vdb)
   add_test(NAME cli_bad_${case}
            COMMAND bash ${BAKER_TEST_DIR}/cli_bad_input.sh $<TARGET_FILE:baker>
                    ${CMAKE_BINARY_DIR}/cli_bad ${CMAKE_SOURCE_DIR}/scenes/meshes ${case})

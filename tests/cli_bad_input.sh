@@ -55,10 +55,22 @@ case "$CASE" in
     printf '{\n  %s,\n  "medium": { "ior_vdb": { "file": "cut.vdb", "grid": "ior" } },\n  %s\n}\n' \
       "$good_grid" "$light" > scene.json
     expect=("cut.vdb");;
+  fifo_mesh)
+    # a pipe with no writer: opening it to read would wait for ever
+    mkfifo pipe.obj || { echo "FAIL: mkfifo failed"; exit 1; }
+    scene ', "objects": [ { "mesh": "pipe.obj", "ior": 1.5 } ]'
+    expect=("pipe.obj" "not a regular file" "objects[0].mesh");;
+  device_vdb)
+    # /dev/zero never ends: hashing it for frame reuse, or reading it, would
+    # not stop
+    scene ', "medium": { "sigma_s": [1,1,1], "sigma_a": [0,0,0],
+                "density_vdb": { "file": "/dev/zero", "grid": "density" } }'
+    expect=("/dev/zero" "not a regular file");;
   *) echo "unknown case $CASE"; exit 1;;
 esac
 
-"$BAKER" bake scene.json -o "$out" -q 2> stderr.txt
+# bounded time: a hang fails the case (exit 124) instead of the suite
+timeout 60 "$BAKER" bake scene.json -o "$out" -q 2> stderr.txt
 status=$?
 fail=0
 if [ "$status" != "$expect_status" ]; then
