@@ -307,17 +307,33 @@ bool check_list_count(const std::string &tok, size_t left, int line, const std::
   return false;
 }
 
-// The faces of an ASCII OFF after its vertices: each one's vertex count
-// (check_list_count), then that many indices, then the rest of the line
-// (colours). True also on a truncated body (OpenMesh reports it).
-bool prescan_off_faces(text_cursor &c, const char *end, double nf, std::string *msg) {
+// A face's vertex index: OpenMesh sizes an array by it, so 555555555 in a
+// file of 8 vertices took 2 GB (fuzz_mesh_off). It must be one of the nv
+// vertices.
+bool check_vertex_index(const std::string &tok, double nv, int line, const std::string &who,
+                        std::string *msg) {
+  double k = 0;
+  if (parse_number(tok, &k) && k >= 0 && k == std::floor(k) && k < nv) return true;
+  *msg = std::to_string(line) + ": " + who + ": vertex index '" + tok.substr(0, 20) +
+         "' is not one of the " + std::to_string((long)nv) + " vertices";
+  return false;
+}
+
+// The faces of an ASCII OFF after its nv vertices: each one's vertex count
+// (check_list_count), then that many indices (check_vertex_index), then the
+// rest of the line (colours). True also on a truncated body (OpenMesh
+// reports it).
+bool prescan_off_faces(text_cursor &c, const char *end, double nv, double nf, std::string *msg) {
   for (long i = 0; i < (long)nf; i++) {
     std::string n = c.token(true, false);
     if (n.empty()) return true;
-    if (!check_list_count(n, (size_t)(end - c.p), c.line, "face " + std::to_string(i), msg))
-      return false;
-    for (long m = 0; m < (long)std::atof(n.c_str()); m++)
-      if (c.token(true, false).empty()) return true;
+    const std::string who = "face " + std::to_string(i);
+    if (!check_list_count(n, (size_t)(end - c.p), c.line, who, msg)) return false;
+    for (long m = 0; m < (long)std::atof(n.c_str()); m++) {
+      std::string k = c.token(true, false);
+      if (k.empty()) return true;
+      if (!check_vertex_index(k, nv, c.line, who, msg)) return false;
+    }
     c.next_line();
   }
   return true;
@@ -365,7 +381,7 @@ bool prescan_off(const char *text, size_t len, std::string *msg) {
     if (!check_coords(tok, line, "vertex " + std::to_string(i), msg)) return false;
     c.next_line(); // normals, colours and texture coordinates follow on the line
   }
-  return prescan_off_faces(c, text + len, nf, msg);
+  return prescan_off_faces(c, text + len, nv, nf, msg);
 }
 
 // OpenMesh 9 loops forever, its error messages piling up, on a header line
@@ -395,6 +411,18 @@ bool is_ply_format(const std::string &type, const std::string &version) {
 
 struct ply_prop { std::string name; bool list; };
 struct ply_element { std::string name; long count; std::vector<ply_prop> props; };
+
+// OpenMesh reads a header line to its newline and takes what it can of it:
+// text after a line's fields ("element face 8\fproperty ...", an end_header
+// followed by a NUL and binary data with no newline) made it loop for ever
+// (fuzz_mesh_ply_*). So each line must end after its fields.
+bool ply_line_ends(text_cursor &c, const std::string &kw, std::string *msg) {
+  c.skip_space_in_line();
+  if (*c.p == '\n') return true;
+  *msg = std::to_string(c.line) + ": the PLY header's " + kw + " line must end after its " +
+         "fields, found " + (*c.p ? "more on it" : "no newline");
+  return false;
+}
 
 // The rest of an "element NAME COUNT" line onto elems.
 bool ply_element_line(text_cursor &c, std::vector<ply_element> &elems, std::string *msg) {
@@ -456,21 +484,25 @@ bool ply_header(text_cursor &c, std::vector<ply_element> &elems, bool *ascii, st
     } else if (kw == "property" && !elems.empty()) {
       if (!ply_property_line(c, elems.back(), msg)) return false;
     } else if (kw == "end_header") {
+      if (!ply_line_ends(c, kw, msg)) return false;
       c.next_line();
       return true;
     } else if (kw != "comment" && kw != "obj_info") {
       *msg = std::to_string(c.line) + ": unknown PLY header line \"" + kw.substr(0, 20) + "\"";
       return false;
     }
+    if (kw != "comment" && kw != "obj_info" && !ply_line_ends(c, kw, msg)) return false;
     c.next_line();
   }
 }
 
-// One element's rows of the ASCII body (end: the text's end): for the
-// "vertex" element, x, y and z checked as coordinates; every list's count
-// checked (check_list_count). True also on a truncated body (OpenMesh
-// reports it).
-bool ply_element_rows(text_cursor &c, const char *end, const ply_element &e, std::string *msg) {
+// One element's rows of the ASCII body (end: the text's end; nv: the vertex
+// element's count): for the "vertex" element, x, y and z checked as
+// coordinates; every list's count checked (check_list_count), and a face's
+// vertex indices (check_vertex_index). True also on a truncated body
+// (OpenMesh reports it).
+bool ply_element_rows(text_cursor &c, const char *end, const ply_element &e, double nv,
+                      std::string *msg) {
   int ix = -1, iy = -1, iz = -1;
   const bool is_vertex = e.name == "vertex";
   for (size_t k = 0; k < e.props.size(); k++) {
@@ -488,8 +520,12 @@ bool ply_element_rows(text_cursor &c, const char *end, const ply_element &e, std
       if (e.props[k].list) {
         const std::string who = e.name + " " + std::to_string(i) + ", " + e.props[k].name;
         if (!check_list_count(t, (size_t)(end - c.p), c.line, who, msg)) return false;
-        for (long m = 0; m < (long)std::atof(t.c_str()); m++)
-          if (c.token(true, false).empty()) return true;
+        const bool indices = e.name == "face" && e.props[k].name.rfind("vertex_ind", 0) == 0;
+        for (long m = 0; m < (long)std::atof(t.c_str()); m++) {
+          std::string x = c.token(true, false);
+          if (x.empty()) return true;
+          if (indices && !check_vertex_index(x, nv, c.line, who, msg)) return false;
+        }
         continue;
       }
       if (is_vertex && (int)k == ix) tok[0] = t;
@@ -518,8 +554,11 @@ bool prescan_ply(const char *text, size_t len, std::string *msg) {
   if (!ply_header(c, elems, &ascii, msg)) return false;
   if (!ascii) return true; // binary: NaN passes through, checked after reading
   if (!no_nul(text, len, msg)) return false;
+  double nv = 0;
   for (const ply_element &e : elems)
-    if (!ply_element_rows(c, text + len, e, msg)) return false;
+    if (e.name == "vertex") nv = (double)e.count;
+  for (const ply_element &e : elems)
+    if (!ply_element_rows(c, text + len, e, nv, msg)) return false;
   return true;
 }
 
