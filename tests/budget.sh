@@ -97,10 +97,16 @@ code_grey)
   grep -q "fits in 620.0 MiB only with its sigma coded" err.txt || fail "no notice"
   grep -q "^voxelize .*sigma coded to fit in memory" out.txt || fail "no note in the stage table"
   cmp <(tail -c +60 plain.vdb) <(tail -c +60 coded.vdb) || fail "the files differ"
-  # 4 B per voxel less in the march (measured 63 MiB at 256^3); 2.5 asserted
+  # 4 B per voxel less in the march (measured 63 MiB at 256^3); 2.5 asserted.
+  # Not under AddressSanitizer, whose realloc always copies and whose
+  # quarantine keeps what is freed (scripts/sanitize.sh)
   echo "peak RSS: plain $((plain / 1024)) MiB, coded $((coded / 1024)) MiB"
-  [ $((plain - coded)) -ge $((256 * 256 * 256 * 5 / 2 / 1024)) ] ||
-    fail "coding saved less than 2.5 bytes per voxel"
+  if ldd "$baker" 2> /dev/null | grep -q libasan; then
+    echo "peak RSS not compared: an AddressSanitizer build"
+  else
+    [ $((plain - coded)) -ge $((256 * 256 * 256 * 5 / 2 / 1024)) ] ||
+      fail "coding saved less than 2.5 bytes per voxel"
+  fi
   bake refused.vdb --max-memory 560M && fail "560M accepted"
   cat err.txt
   grep -q "17 bytes per voxel with its sigma coded" err.txt || fail "no coded estimate"
