@@ -214,21 +214,30 @@ bool check_vertex_index(const std::string &tok, double nv, int line, const std::
   return false;
 }
 
-// The faces of an ASCII OFF after its nv vertices: each one's vertex count
-// (check_list_count), then that many indices (check_vertex_index), then the
-// rest of the line (colours). True also on a truncated body (OpenMesh
-// reports it).
+// A list after its count token n (end: the text's end): the count checked
+// (check_list_count), then its entries read, each a vertex index among nv
+// (check_vertex_index) when nv >= 0. 1: read; 0: refused (*msg); -1: the
+// text ended first (OpenMesh reports a truncated body).
+int scan_list(text_cursor &c, const char *end, const std::string &n, double nv,
+              const std::string &who, std::string *msg) {
+  if (!check_list_count(n, (size_t)(end - c.p), c.line, who, msg)) return 0;
+  for (long m = 0; m < (long)std::atof(n.c_str()); m++) {
+    std::string k = c.token(true, false);
+    if (k.empty()) return -1;
+    if (nv >= 0 && !check_vertex_index(k, nv, c.line, who, msg)) return 0;
+  }
+  return 1;
+}
+
+// The faces of an ASCII OFF after its nv vertices: each one's list of
+// vertex indices (scan_list), then the rest of the line (colours). True
+// also on a truncated body (OpenMesh reports it).
 bool prescan_off_faces(text_cursor &c, const char *end, double nv, double nf, std::string *msg) {
   for (long i = 0; i < (long)nf; i++) {
     std::string n = c.token(true, false);
     if (n.empty()) return true;
-    const std::string who = "face " + std::to_string(i);
-    if (!check_list_count(n, (size_t)(end - c.p), c.line, who, msg)) return false;
-    for (long m = 0; m < (long)std::atof(n.c_str()); m++) {
-      std::string k = c.token(true, false);
-      if (k.empty()) return true;
-      if (!check_vertex_index(k, nv, c.line, who, msg)) return false;
-    }
+    const int r = scan_list(c, end, n, nv, "face " + std::to_string(i), msg);
+    if (r <= 0) return r < 0;
     c.next_line();
   }
   return true;
@@ -393,8 +402,8 @@ bool ply_header(text_cursor &c, std::vector<ply_element> &elems, bool *ascii, st
 
 // One element's rows of the ASCII body (end: the text's end; nv: the vertex
 // element's count): for the "vertex" element, x, y and z checked as
-// coordinates; every list's count checked (check_list_count), and a face's
-// vertex indices (check_vertex_index). True also on a truncated body
+// coordinates; every list read by scan_list, a face's checked as vertex
+// indices. True also on a truncated body
 // (OpenMesh reports it).
 bool ply_element_rows(text_cursor &c, const char *end, const ply_element &e, double nv,
                       std::string *msg) {
@@ -414,13 +423,9 @@ bool ply_element_rows(text_cursor &c, const char *end, const ply_element &e, dou
       if (line < 0) line = c.line;
       if (e.props[k].list) {
         const std::string who = e.name + " " + std::to_string(i) + ", " + e.props[k].name;
-        if (!check_list_count(t, (size_t)(end - c.p), c.line, who, msg)) return false;
         const bool indices = e.name == "face" && e.props[k].name.rfind("vertex_ind", 0) == 0;
-        for (long m = 0; m < (long)std::atof(t.c_str()); m++) {
-          std::string x = c.token(true, false);
-          if (x.empty()) return true;
-          if (indices && !check_vertex_index(x, nv, c.line, who, msg)) return false;
-        }
+        const int r = scan_list(c, end, t, indices ? nv : -1.0, who, msg);
+        if (r <= 0) return r < 0;
         continue;
       }
       if (is_vertex && (int)k == ix) tok[0] = t;
