@@ -1,4 +1,5 @@
-// mesh_prescan.cpp: the text pre-scan of mesh files (mesh_prescan.h).
+// mesh_prescan.cpp: the text pre-scan of mesh files, and the headers of
+// binary ones (mesh_prescan.h; their bodies: mesh_prescan_binary.cpp).
 //
 // OpenMesh's ASCII readers fail quietly or without bound on bad text: they
 // parse numbers with `istream >> float` (nan drops an OBJ vertex), loop for
@@ -230,14 +231,25 @@ int scan_list(text_cursor &c, const char *end, const std::string &n, double nv,
 }
 
 // The faces of an ASCII OFF after its nv vertices: each one's list of
-// vertex indices (scan_list), then the rest of the line (colours). True
+// vertex indices (scan_list), then in a COFF the rest of the line (its
+// colour). OpenMesh reads a face's colour only in a COFF; in an OFF it
+// takes one for the next face's count ("3 0 3 2 0222…2", fuzz_mesh_off:
+// 3 GB of indices), so values after the indices are refused there. True
 // also on a truncated body (OpenMesh reports it).
-bool prescan_off_faces(text_cursor &c, const char *end, double nv, double nf, std::string *msg) {
+bool prescan_off_faces(text_cursor &c, const char *end, double nv, double nf, bool colours,
+                       std::string *msg) {
   for (long i = 0; i < (long)nf; i++) {
     std::string n = c.token(true, false);
     if (n.empty()) return true;
     const int r = scan_list(c, end, n, nv, "face " + std::to_string(i), msg);
     if (r <= 0) return r < 0;
+    const int line = c.line;
+    const std::string more = colours ? "" : c.token(false, false);
+    if (!more.empty()) {
+      *msg = std::to_string(line) + ": face " + std::to_string(i) + ": \"" + more.substr(0, 20) +
+             "\" after its vertex indices; OpenMesh reads face colours only in a COFF file";
+      return false;
+    }
     c.next_line();
   }
   return true;
@@ -252,13 +264,28 @@ bool prescan_off(const char *text, size_t len, std::string *msg) {
     return false;
   }
   if (head.find('4') != std::string::npos || head.find('n') != std::string::npos) return true;
-  const char *save = c.p;
-  int save_line = c.line;
-  if (c.token(true, false) == "BINARY") return true; // NaN passes through, checked after reading
-  c.p = save;
-  c.line = save_line;
+  // OpenMesh reads a body as binary when its first line has BINARY one
+  // character after OFF; NaN passes through then, checked after reading
+  const size_t off_end = (size_t)(c.p - text);
+  if (off_end == head.size() && len >= off_end + 7 && text[off_end] != '\n' &&
+      memcmp(text + off_end + 1, "BINARY", 6) == 0) {
+    const size_t letters = head.size() - 3;
+    const std::string flags = head.substr(0, letters);
+    return prescan_off_binary(text, len, flags.find('N') != std::string::npos,
+                              flags.find('C') != std::string::npos,
+                              flags.compare(0, 2, "ST") == 0, msg);
+  }
   // text from here on: the scan below stops at a NUL byte, OpenMesh reads on
   if (!no_nul(text, len, msg)) return false;
+  // OpenMesh reads the counts from the second line, whatever follows OFF on
+  // the first ("OFF 0 0\n13 -313" made it reserve 17 GB: fuzz_mesh_off)
+  const std::string rest = c.token(false, false);
+  if (!rest.empty()) {
+    *msg = "1: \"" + rest.substr(0, 20) + "\" after " + head + ": OpenMesh reads the counts " +
+           "from the next line and nothing else on this one; put them there";
+    return false;
+  }
+  c.next_line();
   const char *comment_msg = ": '#' comments are not supported by OpenMesh's OFF reader; remove them";
   std::string counts[3];
   for (int a = 0; a < 3; a++) {
@@ -285,36 +312,44 @@ bool prescan_off(const char *text, size_t len, std::string *msg) {
     if (!check_coords(tok, line, "vertex " + std::to_string(i), msg)) return false;
     c.next_line(); // normals, colours and texture coordinates follow on the line
   }
-  return prescan_off_faces(c, text + len, nv, nf, msg);
+  return prescan_off_faces(c, text + len, nv, nf, head.find('C') != std::string::npos, msg);
 }
 
 // OpenMesh 9 loops forever, its error messages piling up, on a header line
-// it cannot parse (fuzz_mesh_ply_ascii: "property flotex_indices").
-bool is_ply_type(const std::string &t) {
-  static const char *const types[] = {"char",  "uchar",  "short",   "ushort",  "int",
-                                      "uint",  "float",  "double",  "int8",    "uint8",
-                                      "int16", "uint16", "int32",   "uint32",  "float32",
-                                      "float64"};
-  for (const char *k : types)
-    if (t == k) return true;
+// it cannot parse (fuzz_mesh_ply_ascii: "property flotex_indices"). A
+// known type's size and kind, for a binary body; false for an unknown one.
+bool ply_type_layout(const std::string &t, int *bytes, bool *is_signed, bool *integer) {
+  static const struct {
+    const char *name;
+    int bytes;
+    bool is_signed, integer;
+  } types[] = {{"char", 1, true, true},     {"int8", 1, true, true},    {"uchar", 1, false, true},
+               {"uint8", 1, false, true},   {"short", 2, true, true},   {"int16", 2, true, true},
+               {"ushort", 2, false, true},  {"uint16", 2, false, true}, {"int", 4, true, true},
+               {"int32", 4, true, true},    {"uint", 4, false, true},   {"uint32", 4, false, true},
+               {"float", 4, true, false},   {"float32", 4, true, false},
+               {"double", 8, true, false},  {"float64", 8, true, false}};
+  for (const auto &k : types)
+    if (t == k.name) {
+      *bytes = k.bytes, *is_signed = k.is_signed, *integer = k.integer;
+      return true;
+    }
   return false;
 }
 
 // The same loop on a format line whose version its stream cannot read as a
-// number ("format ascii $.0", fuzz_mesh_ply_ascii): a known type and a plain
-// decimal version only.
+// number ("format ascii $.0", fuzz_mesh_ply_ascii; a hundred digits,
+// which overflow its float: fuzz_mesh_ply_binary): a known type and a plain
+// decimal version of at most 8 characters only.
 bool is_ply_format(const std::string &type, const std::string &version) {
   if (type != "ascii" && type != "binary_little_endian" && type != "binary_big_endian") return false;
-  if (version.empty() || !isdigit((unsigned char)version[0])) return false;
+  if (version.empty() || version.size() > 8 || !isdigit((unsigned char)version[0])) return false;
   int dots = 0;
   for (char ch : version)
     if (ch == '.') dots++;
     else if (!isdigit((unsigned char)ch)) return false;
   return dots <= 1;
 }
-
-struct ply_prop { std::string name; bool list; };
-struct ply_element { std::string name; long count; std::vector<ply_prop> props; };
 
 // OpenMesh reads a header line to its newline and takes what it can of it:
 // text after a line's fields ("element face 8\fproperty ...", an end_header
@@ -349,22 +384,46 @@ bool ply_element_line(text_cursor &c, std::vector<ply_element> &elems, std::stri
 // the last element.
 bool ply_property_line(text_cursor &c, ply_element &e, std::string *msg) {
   std::string type = c.token(false, false);
-  ply_prop pr;
+  ply_prop pr{};
   pr.list = type == "list";
-  bool typed = pr.list ? is_ply_type(c.token(false, false)) && is_ply_type(c.token(false, false))
-                       : is_ply_type(type);
+  bool count_integer = true, typed = true;
+  if (pr.list) {
+    typed = ply_type_layout(c.token(false, false), &pr.count_bytes, &pr.count_signed,
+                            &count_integer);
+    type = c.token(false, false);
+  }
+  typed = ply_type_layout(type, &pr.bytes, &pr.is_signed, &pr.integer) && typed;
   pr.name = c.token(false, false);
   if (!typed || pr.name.empty()) {
     *msg = std::to_string(c.line) + ": a PLY property needs a known type and a name";
+    return false;
+  }
+  if (!count_integer) {
+    *msg = std::to_string(c.line) + ": property " + pr.name + ": a list's count must have an "
+           "integer type";
     return false;
   }
   e.props.push_back(pr);
   return true;
 }
 
-// The header up to and past end_header: its elements, and whether the body
-// is ASCII. False with *msg on a line OpenMesh would loop on or misread.
-bool ply_header(text_cursor &c, std::vector<ply_element> &elems, bool *ascii, std::string *msg) {
+// Where a header line's fields end: its end, less trailing blanks.
+const char *fields_end(const char *p) {
+  const char *s = p;
+  while (*p && *p != '\n') p++;
+  while (p > s && (p[-1] == ' ' || p[-1] == '\t' || p[-1] == '\r')) p--;
+  return p;
+}
+
+// The header up to and past end_header: its elements, its format ("ascii",
+// "binary_little_endian" or "binary_big_endian"), and in *om_body where
+// OpenMesh 9 takes a binary body to start: 12 bytes (14 after "\r\n")
+// past where it stopped reading the line before end_header, which is the
+// end of its fields, or for a comment the next line's start. False with
+// *msg on a line OpenMesh would loop on or misread.
+bool ply_header(text_cursor &c, std::vector<ply_element> &elems, std::string *format,
+                const char **om_body, std::string *msg) {
+  const char *om_stop = c.p;
   for (;;) {
     c.skip_space(false);
     // OpenMesh 9 loops forever on a header without end_header (found by
@@ -382,7 +441,7 @@ bool ply_header(text_cursor &c, std::vector<ply_element> &elems, bool *ascii, st
                version.substr(0, 20) + "'";
         return false;
       }
-      *ascii = type == "ascii";
+      *format = type;
     } else if (kw == "element") {
       if (!ply_element_line(c, elems, msg)) return false;
     } else if (kw == "property" && !elems.empty()) {
@@ -390,13 +449,16 @@ bool ply_header(text_cursor &c, std::vector<ply_element> &elems, bool *ascii, st
     } else if (kw == "end_header") {
       if (!ply_line_ends(c, kw, msg)) return false;
       c.next_line();
+      *om_body = om_stop + (om_stop[0] == '\r' && om_stop[1] == '\n' ? 14 : 12);
       return true;
     } else if (kw != "comment" && kw != "obj_info") {
       *msg = std::to_string(c.line) + ": unknown PLY header line \"" + kw.substr(0, 20) + "\"";
       return false;
     }
     if (kw != "comment" && kw != "obj_info" && !ply_line_ends(c, kw, msg)) return false;
+    om_stop = fields_end(c.p);
     c.next_line();
+    if (kw == "comment") om_stop = c.p;
   }
 }
 
@@ -450,9 +512,22 @@ bool prescan_ply(const char *text, size_t len, std::string *msg) {
     return false;
   }
   std::vector<ply_element> elems;
-  bool ascii = false;
-  if (!ply_header(c, elems, &ascii, msg)) return false;
-  if (!ascii) return true; // binary: NaN passes through, checked after reading
+  std::string format;
+  const char *om_body = nullptr;
+  if (!ply_header(c, elems, &format, &om_body, msg)) return false;
+  if (format.empty()) {
+    *msg = " the PLY header has no format line";
+    return false;
+  }
+  const size_t at = (size_t)(c.p - text);
+  if (format != "ascii" && om_body != c.p) {
+    *msg = std::to_string(c.line - 1) + ": OpenMesh would read the binary body from byte " +
+           std::to_string(om_body - text) + ", not " + std::to_string(at) + " where it starts" +
+           " (after a comment or a blank line); remove the line before end_header";
+    return false;
+  }
+  if (format != "ascii") // NaN passes through here, checked after reading
+    return prescan_ply_binary(c.p, len - at, at, elems, format == "binary_big_endian", msg);
   if (!no_nul(text, len, msg)) return false;
   double nv = 0;
   for (const ply_element &e : elems)

@@ -1,9 +1,10 @@
 /* test_mesh.c: mesh reading (mesh_io), the scene transform and the topology
  * counts of mesh_check, on small meshes whose answers are known by hand.
  *
- * Usage: test_mesh CASE DIR, CASE one of io, check, transform. */
+ * Usage: test_mesh CASE DIR, CASE one of io, binary, check, transform. */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -110,6 +111,135 @@ static void case_io(void) {
     fclose(f);
     expect_mesh(p, 4, 4, TETRA, 4);
   }
+}
+
+/* A binary file built value by value, in either byte order. */
+typedef struct {
+  unsigned char b[1024];
+  size_t n;
+  int big;
+} bytes_t;
+
+static void put(bytes_t *o, uint64_t v, int size) {
+  for (int k = 0; k < size; k++)
+    o->b[o->n++] = (unsigned char)(v >> (8 * (o->big ? size - 1 - k : k)));
+}
+
+static void put_text(bytes_t *o, const char *s) {
+  memcpy(o->b + o->n, s, strlen(s));
+  o->n += strlen(s);
+}
+
+static void save(const char *name, const bytes_t *o, char *p, size_t len) {
+  tu_path(p, len, name);
+  FILE *f = fopen(p, "wb");
+  REQUIRE(f != NULL);
+  fwrite(o->b, 1, o->n, f);
+  fclose(f);
+}
+
+/* The tetrahedron's vertices as floats, then its faces, each a count of
+ * count_bytes bytes and three ints; the last face's count and last index
+ * replaced by last_count and last_index (3 and 3 for the true mesh). */
+static void put_tetra(bytes_t *o, int count_bytes, int64_t last_count, int64_t last_index) {
+  for (int k = 0; k < 12; k++) {
+    uint32_t u;
+    memcpy(&u, &TETRA[k], 4);
+    put(o, u, 4);
+  }
+  for (int t = 0; t < 4; t++) {
+    put(o, (uint64_t)(t == 3 ? last_count : 3), count_bytes);
+    for (int q = 0; q < 3; q++)
+      put(o, (uint64_t)(t == 3 && q == 2 ? last_index : TETRA_F[3 * t + q]), 4);
+  }
+}
+
+/* A binary PLY of it; `tail` goes before end_header. */
+static void ply_tetra(bytes_t *o, int big, long vertices, const char *count_type,
+                      int64_t last_count, int64_t last_index, const char *tail) {
+  char head[512];
+  snprintf(head, sizeof head,
+           "ply\nformat binary_%s_endian 1.0\ncomment made by test_mesh\nelement vertex %ld\n"
+           "property float x\nproperty float y\nproperty float z\nelement face 4\n"
+           "property list %s int vertex_indices\n%send_header\n",
+           big ? "big" : "little", vertices, count_type, tail);
+  *o = (bytes_t){.big = big};
+  put_text(o, head);
+  put_tetra(o, strcmp(count_type, "int") ? 1 : 4, last_count, last_index);
+}
+
+static void off_tetra(bytes_t *o, int64_t vertices, int64_t faces, int64_t last_count,
+                      int64_t last_index) {
+  *o = (bytes_t){0};
+  put_text(o, "OFF BINARY\n");
+  put(o, (uint64_t)vertices, 4);
+  put(o, (uint64_t)faces, 4);
+  put(o, 0, 4);
+  put_tetra(o, 4, last_count, last_index);
+}
+
+/* mesh_io_read refuses path, naming it and saying `has`. */
+static void expect_refused(const char *path, const char *has) {
+  mesh_tris_t m;
+  bk_error_t err;
+  if (mesh_io_read(path, &m, &err) == BK_OK) {
+    fprintf(stderr, "%s was read, expected a refusal saying '%s'\n", path, has);
+    tu_failures++;
+    mesh_io_free(&m);
+    return;
+  }
+  printf("refused: %s\n", err.msg);
+  EXPECT(strstr(err.msg, path) != NULL);
+  EXPECT(strstr(err.msg, has) != NULL);
+}
+
+/* Binary OFF and PLY: the tetrahedron read in both PLY byte orders; counts
+ * that do not fit in the file (OpenMesh reserves or reads by them: a face
+ * count of -1 is four billion reads, each kept), indices beyond the
+ * vertices, a short body and a list OpenMesh misreads are refused. */
+static void case_binary(void) {
+  char p[4096];
+  bytes_t o;
+  for (int big = 0; big <= 1; big++) {
+    ply_tetra(&o, big, 4, "uchar", 3, 3, "");
+    save(big ? "tetra_be.ply" : "tetra_le.ply", &o, p, sizeof p);
+    expect_mesh(p, 4, 4, TETRA, 4);
+  }
+  ply_tetra(&o, 0, 4, "int", -1, 3, "");
+  save("count_minus_one.ply", &o, p, sizeof p);
+  expect_refused(p, "face 3: its count of entries (-1) does not fit in the");
+  ply_tetra(&o, 0, 4, "uchar", 3, 555555555, "");
+  save("index_huge.ply", &o, p, sizeof p);
+  expect_refused(p, "face 3: vertex index 555555555 is not one of the 4 vertices");
+  ply_tetra(&o, 1, 2000000000, "uchar", 3, 3, "");
+  save("vertex_count_huge.ply", &o, p, sizeof p);
+  expect_refused(p, "element vertex: 2000000000 rows of 12 bytes do not fit");
+  ply_tetra(&o, 0, 4, "uchar", 3, 3, "");
+  o.n -= 13; /* the last face: its count and three indices */
+  save("short.ply", &o, p, sizeof p);
+  expect_refused(p, "the binary body ends inside face 3");
+  /* OpenMesh 9 then starts the body a byte late and misreads every face */
+  ply_tetra(&o, 0, 4, "uchar", 3, 3, "comment last\n");
+  save("comment_last.ply", &o, p, sizeof p);
+  expect_refused(p, "OpenMesh would read the binary body from byte");
+  tu_write_text("vertex_list.ply",
+                "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+                "property list uchar float extra\nend_header\n",
+                p, sizeof p);
+  expect_refused(p, "reads only a face's vertex_indices as a list");
+
+  off_tetra(&o, 4, 4, 3, 3);
+  save("tetra.off", &o, p, sizeof p);
+  expect_mesh(p, 4, 4, TETRA, 4);
+  off_tetra(&o, 2000000000, 4, 3, 3);
+  save("vertex_count_huge.off", &o, p, sizeof p);
+  expect_refused(p, "2000000000 vertices of 12 bytes and 4 faces do not fit");
+  off_tetra(&o, 4, 4, -1, 3);
+  save("count_minus_one.off", &o, p, sizeof p);
+  expect_refused(p, "face 3: its count of entries (4294967295) does not fit");
+  off_tetra(&o, 4, 4, 3, 555555555);
+  save("index_huge.off", &o, p, sizeof p);
+  expect_refused(p, "vertex index 555555555 is not one of the 4 vertices");
 }
 
 static void check_counts(const char *what, const mesh_tris_t *m, int degenerate, int boundary,
@@ -235,6 +365,7 @@ int main(int argc, char **argv) {
   tu_dir = argv[2];
   mkdir(tu_dir, 0777);
   if (!strcmp(argv[1], "io")) case_io();
+  else if (!strcmp(argv[1], "binary")) case_binary();
   else if (!strcmp(argv[1], "check")) case_check();
   else if (!strcmp(argv[1], "transform")) case_transform();
   else {

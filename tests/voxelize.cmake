@@ -12,6 +12,6 @@ foreach(case sphere profile smoothing objects medium scan uniform bricks ties op
 endforeach()
 add_test(NAME vox_bunny COMMAND test_voxelize bunny ${VOX_TEST_DIR}/bunny
          ${CMAKE_SOURCE_DIR}/scenes/meshes/stanford-bunny.obj)
-foreach(case io check transform)
+foreach(case io binary check transform)
   add_test(NAME vox_mesh_${case} COMMAND test_mesh ${case} ${VOX_TEST_DIR}/mesh_${case})
 endforeach()
