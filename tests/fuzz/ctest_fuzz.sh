@@ -43,19 +43,6 @@ known_openvdb() {
   grep -q 'libFuzzer: timeout' "$run/log" && grep -q 'iso_read\|iso_wait' "$run/log" && return 0
   grep -q 'out-of-memory' "$run/log" && grep -q 'openvdb::.*io::' "$run/log"
 }
-# Known OpenMesh reader faults on corrupt headers the pre-scan does not yet
-# catch (docs/reliability.md, "What remains"): a PLY header it loops on, an
-# OFF or PLY count it reserves gigabytes for. A timeout or out-of-memory
-# inside OpenMesh does not fail the short run; a crash still does.
-known_openmesh() {
-  case $target in fuzz_mesh_*) ;; *) return 1 ;; esac
-  grep -qE 'libFuzzer: (timeout|out-of-memory)' "$run/log" && grep -q 'OpenMesh' "$run/log"
-}
-if [ $rc -ne 0 ] && known_openmesh; then
-  echo "KNOWN OpenMesh reader fault, not failing this run (docs/reliability.md):"
-  grep -m 3 -E '^(==.*ERROR|SUMMARY)' "$run/log"
-  exit 0
-fi
 if [ $rc -ne 0 ] && known_openvdb; then
   echo "KNOWN OpenVDB bug, not failing this run (issue 17 item 2; docs/reliability.md):"
   grep -m 5 -E '^(==.*ERROR|SUMMARY)' "$run/log"
