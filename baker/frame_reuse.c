@@ -211,10 +211,13 @@ int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char
     r->keep_fields = 0;
     rc = BK_OK;
   }
+  /* the meshes before the context's thread starts: each is read in a
+   * forked child, and a fork while another thread loads libraries is not
+   * safe (the VDB readers keep it from starting for the same reason) */
+  if (!rc && !crops) rc = vox_meshes_load(s, &meshes, err); /* the budget needed none */
   if (!rc && cl_device && !s->density_vdb.present && !s->ior_vdb.present)
     fr_opencl_begin(r, cl_device, s->frame);
   if (!rc && cl_device) rc = fr_device_check(r, s, box, cl_device, err);
-  if (!rc && !crops) rc = vox_meshes_load(s, &meshes, err); /* the budget needed none */
   if (!rc) rc = vox_build_meshes(s, &meshes, code_grey, &r->volume, t, err);
   vox_meshes_free(&meshes);
   if (rc) return rc;

@@ -73,11 +73,12 @@ uint64_t fr_volume_key(const scene_t *s);
  * keep_fields: when only they do not fit, keep_fields is cleared with a
  * warning and every frame builds its own) and the volume built.
  * cl_device (NULL: none; "" the default device): the frame will want the
- * OpenCL context of that device, so once the budget has passed, a context
- * not kept already starts opening on a thread of its own while the voxels
- * are made (loading the driver is ~30-70 ms on one core); fr_opencl takes
- * it. Not when the voxelizer reads a VDB file: its reader is a forked
- * child, and a fork while another thread loads libraries is not safe. */
+ * OpenCL context of that device, so once the budget has passed and the
+ * meshes are read, a context not kept already starts opening on a thread
+ * of its own while the voxels are made (loading the driver is ~30-70 ms on
+ * one core); fr_opencl takes it. Not when the voxelizer reads a VDB file:
+ * mesh and VDB readers are forked children, and a fork while another
+ * thread loads libraries is not safe. */
 int fr_volume(bake_reuse_t *r, const scene_t *s, uint64_t max_memory, const char *cl_device,
               bk_timings_t *t, bk_error_t *err);
 /* The OpenCL context in r->cl: the kept one for the same device spec (an

@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "isolate.h"
 #include "mesh_io.h"
 #include "mesh_prescan.h"
 
@@ -200,7 +201,52 @@ int copy_triangles(const char *path, om_mesh_t &mesh, mesh_tris_t *out, bk_error
 
 } // namespace
 
+// The read in a child (mesh_io_read): the child fills its copy of *out and
+// sends the two counts and the arrays; the parent checks the counts and
+// every index before it keeps them.
+struct mesh_read_job : iso_job {
+  const char *path;
+  mesh_tris_t *out;
+  const char *kind() const override { return "mesh"; }
+  bool parses_first() const override { return false; }
+  int work(bk_error_t *err) override { return mesh_io_read_here(path, out, err); }
+  bool send(int fd) override {
+    const int32_t n[2] = {out->vertex_count, out->triangle_count};
+    return iso_write(fd, n, sizeof n) &&
+           iso_write(fd, out->positions, (size_t)n[0] * 3 * sizeof(float)) &&
+           iso_write(fd, out->indices, (size_t)n[1] * 3 * sizeof(int));
+  }
+  int recv(int fd, bk_error_t *err) override {
+    int32_t n[2];
+    if (!iso_read(fd, n, sizeof n) || n[0] < 0 || n[1] < 0 || n[0] > INT32_MAX / 3 ||
+        n[1] > INT32_MAX / 3)
+      return -1;
+    out->positions = (float *)bk_calloc((size_t)n[0] * 3 + 1, sizeof(float), path, err);
+    out->indices = (int *)bk_calloc((size_t)n[1] * 3 + 1, sizeof(int), path, err);
+    if (!out->positions || !out->indices) {
+      mesh_io_free(out);
+      return BK_ERR_RUNTIME;
+    }
+    out->vertex_count = n[0];
+    out->triangle_count = n[1];
+    bool ok = iso_read(fd, out->positions, (size_t)n[0] * 3 * sizeof(float)) &&
+              iso_read(fd, out->indices, (size_t)n[1] * 3 * sizeof(int));
+    for (int32_t k = 0; ok && k < 3 * n[1]; k++)
+      ok = out->indices[k] >= 0 && out->indices[k] < n[0];
+    if (!ok) mesh_io_free(out);
+    return ok ? BK_OK : -1;
+  }
+};
+
 extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err) {
+  memset(out, 0, sizeof *out);
+  mesh_read_job job;
+  job.path = path;
+  job.out = out;
+  return iso_run(job, path, err);
+}
+
+extern "C" int mesh_io_read_here(const char *path, mesh_tris_t *out, bk_error_t *err) {
   memset(out, 0, sizeof *out);
   std::string ext;
   mesh_format fmt = format_of(path, &ext);
@@ -214,7 +260,8 @@ extern "C" int mesh_io_read(const char *path, mesh_tris_t *out, bk_error_t *err)
   if (kind == BK_FILE_PIPE || kind == BK_FILE_OTHER)
     return bk_fail(err, BK_ERR_INPUT, "%s: not a regular file", path);
   int obj_vertex_lines = -1;
-  int rc = mesh_prescan_file(path, fmt, &obj_vertex_lines, err);
+  const char *skip = getenv("BAKER_MESH_NO_PRESCAN");
+  int rc = skip && !strcmp(skip, "1") ? BK_OK : mesh_prescan_file(path, fmt, &obj_vertex_lines, err);
   if (rc != BK_OK) return rc;
   om_mesh_t mesh;
   rc = read_openmesh(path, ext, obj_vertex_lines, mesh, err);

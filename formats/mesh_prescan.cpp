@@ -369,8 +369,10 @@ bool ply_element_line(text_cursor &c, std::vector<ply_element> &elems, std::stri
   e.name = c.token(false, false);
   std::string count = c.token(false, false);
   double n = 0;
-  /* OpenMesh reads "nan" or "-1" as a huge count; PLY counts are ints */
-  if (!parse_number(count, &n) || !(n >= 0) || n != std::floor(n) || n > 2147483647.0) {
+  /* OpenMesh reads "nan" or "-1" as a huge count, and its stream fails for
+   * good on ".0" (fuzz_mesh_ply_ascii: it then added elements until out of
+   * memory); PLY counts are digits */
+  if (!is_count(count) || !parse_number(count, &n) || n > 2147483647.0) {
     *msg = std::to_string(c.line) + ": element " + e.name +
            ": the count must be a whole number from 0 to 2147483647, found '" + count + "'";
     return false;
@@ -407,6 +409,35 @@ bool ply_property_line(text_cursor &c, ply_element &e, std::string *msg) {
   return true;
 }
 
+// The line after "ply": OpenMesh takes its second and third words for the
+// format and the version, whatever the first, and never reads another
+// format line (a later one made the pre-scan walk a binary body as text).
+bool ply_format_line(text_cursor &c, std::string *format, std::string *msg) {
+  c.skip_space(false);
+  const std::string kw = c.token(false, false);
+  const std::string type = c.token(false, false), version = c.token(false, false);
+  if (kw != "format" || !is_ply_format(type, version)) {
+    *msg = std::to_string(c.line) + ": the line after 'ply' must read 'format ascii 1.0' (or " +
+           "binary_little_endian / binary_big_endian), found '" + kw.substr(0, 20) + " " +
+           type.substr(0, 20) + " " + version.substr(0, 20) + "'";
+    return false;
+  }
+  *format = type;
+  return ply_line_ends(c, kw, msg);
+}
+
+// An obj_info line: OpenMesh reads each of its words as a header keyword,
+// so one that is "element", "property" or "end_header" is refused.
+bool ply_obj_info_line(text_cursor &c, std::string *msg) {
+  for (std::string w = c.token(false, false); !w.empty(); w = c.token(false, false))
+    if (w == "element" || w == "property" || w == "end_header") {
+      *msg = std::to_string(c.line) + ": obj_info text holds '" + w + "', which OpenMesh " +
+             "reads as a header line; remove it";
+      return false;
+    }
+  return true;
+}
+
 // Where a header line's fields end: its end, less trailing blanks.
 const char *fields_end(const char *p) {
   const char *s = p;
@@ -423,7 +454,9 @@ const char *fields_end(const char *p) {
 // *msg on a line OpenMesh would loop on or misread.
 bool ply_header(text_cursor &c, std::vector<ply_element> &elems, std::string *format,
                 const char **om_body, std::string *msg) {
-  const char *om_stop = c.p;
+  if (!ply_format_line(c, format, msg)) return false;
+  const char *om_stop = fields_end(c.p);
+  c.next_line();
   for (;;) {
     c.skip_space(false);
     // OpenMesh 9 loops forever on a header without end_header (found by
@@ -433,15 +466,8 @@ bool ply_header(text_cursor &c, std::vector<ply_element> &elems, std::string *fo
       return false;
     }
     std::string kw = c.token(false, false);
-    if (kw == "format") {
-      std::string type = c.token(false, false), version = c.token(false, false);
-      if (!is_ply_format(type, version)) {
-        *msg = std::to_string(c.line) + ": the PLY format line must read 'format ascii 1.0' (or " +
-               "binary_little_endian / binary_big_endian), found '" + type.substr(0, 20) + " " +
-               version.substr(0, 20) + "'";
-        return false;
-      }
-      *format = type;
+    if (kw == "obj_info") {
+      if (!ply_obj_info_line(c, msg)) return false;
     } else if (kw == "element") {
       if (!ply_element_line(c, elems, msg)) return false;
     } else if (kw == "property" && !elems.empty()) {
@@ -515,10 +541,6 @@ bool prescan_ply(const char *text, size_t len, std::string *msg) {
   std::string format;
   const char *om_body = nullptr;
   if (!ply_header(c, elems, &format, &om_body, msg)) return false;
-  if (format.empty()) {
-    *msg = " the PLY header has no format line";
-    return false;
-  }
   const size_t at = (size_t)(c.p - text);
   if (format != "ascii" && om_body != c.p) {
     *msg = std::to_string(c.line - 1) + ": OpenMesh would read the binary body from byte " +
