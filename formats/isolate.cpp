@@ -13,8 +13,9 @@
  * (2 GB in an 165 KB file) once made OpenVDB fill 13.5 GB before failing;
  * under the parse limit it fails at once. Not set under AddressSanitizer,
  * whose shadow memory needs terabytes of address space. Time:
- * ISO_BASE_SECONDS plus one second per ISO_BYTES_PER_SECOND of file (zip
- * decodes faster than 10 MB/s of input on any machine we know). */
+ * the job's base (60 s for a VDB file: OpenVDB's initialize and TBB; 10 s
+ * for a mesh) plus one second per ISO_BYTES_PER_SECOND of file (zip decodes
+ * faster than 10 MB/s of input on any machine we know). */
 #include "isolate.h"
 
 #include <cerrno>
@@ -41,7 +42,6 @@
 
 #define ISO_MIN_MEMORY (1ull << 30)    /* a small good file must read on a loaded machine */
 #define ISO_AS_SLACK (1ull << 30)      /* reserved, unused address space (see above) */
-#define ISO_BASE_SECONDS 60u           /* process start, OpenVDB's initialize, TBB */
 #define ISO_BYTES_PER_SECOND (10u << 20)
 #define ISO_PARSE_MEMORY (256ull << 20) /* metadata, descriptors, transforms */
 #define ISO_PIPE_BYTES (1 << 20)        /* Linux's default pipe-max-size */
@@ -124,10 +124,10 @@ static uint64_t iso_file_size(const char *path) {
   return (uint64_t)pages * (uint64_t)sysconf(_SC_PAGESIZE);
 }
 
-iso_limits iso_limits_for(const char *path) {
+iso_limits iso_limits_for(const iso_job &job, const char *path) {
   iso_limits l;
   const uint64_t size = iso_file_size(path);
-  l.seconds = ISO_BASE_SECONDS + (unsigned)(size / ISO_BYTES_PER_SECOND);
+  l.seconds = job.base_seconds() + (unsigned)(size / ISO_BYTES_PER_SECOND);
   l.memory = l.parse_memory = 0;
 #ifndef ISO_ASAN
   uint64_t avail = iso_mem_available();
@@ -297,7 +297,7 @@ void iso_abandon(iso_started *s) {
 }
 
 int iso_run(iso_job &job, const char *path, bk_error_t *err) {
-  const iso_limits l = iso_limits_for(path);
+  const iso_limits l = iso_limits_for(job, path);
   iso_started s;
   int rc = iso_start(job, path, l, &s, err);
   if (rc)

@@ -19,6 +19,8 @@ struct iso_job {
   virtual const char *kind() const { return "VDB"; }
   /* under the tighter parse limit until iso_lift_parse_limit */
   virtual bool parses_first() const { return true; }
+  /* seconds allowed besides one per 10 MB of file (isolate.cpp) */
+  virtual unsigned base_seconds() const { return 60u; } /* OpenVDB's initialize, TBB */
   virtual void prepare() {}                     /* parent, before the fork */
   virtual int work(bk_error_t *err) = 0;        /* child: read the file */
   virtual bool send(int fd) = 0;                /* child: the result */
@@ -38,7 +40,7 @@ struct iso_limits {
   uint64_t parse_memory; /* until iso_lift_parse_limit; 0: none */
   unsigned seconds;
 };
-iso_limits iso_limits_for(const char *path);
+iso_limits iso_limits_for(const iso_job &job, const char *path);
 /* In the child: from the parse limit to the full one. */
 void iso_lift_parse_limit(void);
 

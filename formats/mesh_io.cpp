@@ -209,6 +209,8 @@ struct mesh_read_job : iso_job {
   mesh_tris_t *out;
   const char *kind() const override { return "mesh"; }
   bool parses_first() const override { return false; }
+  // OpenMesh has nothing to start: a hang is known sooner than a VDB's
+  unsigned base_seconds() const override { return 10u; }
   int work(bk_error_t *err) override { return mesh_io_read_here(path, out, err); }
   bool send(int fd) override {
     const int32_t n[2] = {out->vertex_count, out->triangle_count};

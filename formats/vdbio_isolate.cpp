@@ -244,7 +244,7 @@ static int iso_run_all(iso_job *const *jobs, int count, int width, const char *p
       if (!done[(size_t)j] && st[(size_t)j].pid <= 0) {
         /* each child's own: the address space it starts with holds the
          * grids mapped since the last one started */
-        st[(size_t)j].limits = iso_limits_for(path);
+        st[(size_t)j].limits = iso_limits_for(*jobs[j], path);
         rc = iso_start(*jobs[j], path, st[(size_t)j].limits, &st[(size_t)j], err);
         running += !rc;
       }
