@@ -211,6 +211,21 @@ static int iso_wait(pid_t pid) {
   return status;
 }
 
+/* "3072 MiB of memory, 10 s"; the parse limit too where the job has one;
+ * no memory where none was set (under AddressSanitizer). */
+static std::string iso_limits_text(const iso_limits &l, bool parses_first) {
+  char buf[160];
+  const double mib = 1048576.0;
+  if (!l.memory)
+    snprintf(buf, sizeof buf, "%u s, no memory limit", l.seconds);
+  else if (!parses_first)
+    snprintf(buf, sizeof buf, "%.0f MiB of memory, %u s", (double)l.memory / mib, l.seconds);
+  else
+    snprintf(buf, sizeof buf, "%.0f MiB of memory while parsing its metadata, %.0f MiB for its "
+             "grids, %u s", (double)l.parse_memory / mib, (double)l.memory / mib, l.seconds);
+  return buf;
+}
+
 /* Reads the child's answer: its status and message, then the result. */
 int iso_parent(iso_job &job, int fd, pid_t pid, const char *path, const iso_limits &l,
                       bk_error_t *err, bool *died) {
@@ -231,16 +246,9 @@ int iso_parent(iso_job &job, int fd, pid_t pid, const char *path, const iso_limi
     return rc;
   if (died)
     *died = true;
-  if (!job.parses_first())
-    return bk_fail(err, BK_ERR_INPUT,
-                   "%s: the %s file is corrupt: reading it %s (limits: %.0f MiB of memory, %u s)",
-                   path, job.kind(), iso_why(status, l).c_str(), (double)l.memory / 1048576.0,
-                   l.seconds);
-  return bk_fail(err, BK_ERR_INPUT,
-                 "%s: the %s file is corrupt: reading it %s (limits: %.0f MiB of memory while "
-                 "parsing its metadata, %.0f MiB for its grids, %u s)",
-                 path, job.kind(), iso_why(status, l).c_str(), (double)l.parse_memory / 1048576.0,
-                 (double)l.memory / 1048576.0, l.seconds);
+  return bk_fail(err, BK_ERR_INPUT, "%s: the %s file is corrupt: reading it %s (limits: %s)",
+                 path, job.kind(), iso_why(status, l).c_str(),
+                 iso_limits_text(l, job.parses_first()).c_str());
 }
 
 /* Starts the child of `job`. A path that is not a regular file (a FIFO, a
