@@ -281,8 +281,9 @@ bool prescan_off(const char *text, size_t len, std::string *msg) {
   // the first ("OFF 0 0\n13 -313" made it reserve 17 GB: fuzz_mesh_off)
   const std::string rest = c.token(false, false);
   if (!rest.empty()) {
-    *msg = "1: \"" + rest.substr(0, 20) + "\" after " + head + ": OpenMesh reads the counts " +
-           "from the next line and nothing else on this one; put them there";
+    *msg = std::to_string(c.line) + ": \"" + rest.substr(0, 20) + "\" after " + head +
+           ": OpenMesh reads the counts from the next line and nothing else on this one; put "
+           "them there";
     return false;
   }
   c.next_line();
