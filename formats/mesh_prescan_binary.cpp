@@ -83,8 +83,19 @@ bool is_face_indices(const ply_element &e, const ply_prop &pr) {
 // it), a face property before the indices (it drops it from its layout),
 // indices that are not integers, and rows of no bytes (nothing then bounds
 // the count it reserves for).
+// The fewest bytes a row of e takes (a list as its count alone); the exact
+// row size when it has no list.
+size_t least_row_bytes(const ply_element &e, bool *has_list) {
+  size_t bytes = 0;
+  *has_list = false;
+  for (const ply_prop &pr : e.props) {
+    bytes += (size_t)(pr.list ? pr.count_bytes : pr.bytes);
+    *has_list = *has_list || pr.list;
+  }
+  return bytes;
+}
+
 bool check_binary_layout(const ply_element &e, std::string *msg) {
-  size_t row_bytes = 0;
   for (size_t k = 0; k < e.props.size(); k++) {
     const ply_prop &pr = e.props[k];
     const std::string who = "element " + e.name + ", property " + pr.name;
@@ -102,9 +113,9 @@ bool check_binary_layout(const ply_element &e, std::string *msg) {
       *msg = " " + who + ": vertex indices must be integers";
       return false;
     }
-    row_bytes += (size_t)(pr.list ? pr.count_bytes : pr.bytes);
   }
-  if (e.count > 0 && row_bytes == 0) {
+  bool has_list;
+  if (e.count > 0 && least_row_bytes(e, &has_list) == 0) {
     *msg = " element " + e.name + ": " + std::to_string(e.count) + " rows of no bytes each";
     return false;
   }
@@ -114,12 +125,8 @@ bool check_binary_layout(const ply_element &e, std::string *msg) {
 // One element's rows: rows of scalars skipped whole, a face's rows walked
 // list by list.
 bool scan_ply_rows(body_cursor &b, const ply_element &e, double nv, std::string *msg) {
-  size_t row = 0;
-  bool has_list = false;
-  for (const ply_prop &pr : e.props) {
-    row += (size_t)pr.bytes;
-    has_list = has_list || pr.list;
-  }
+  bool has_list;
+  const size_t row = least_row_bytes(e, &has_list);
   if (!has_list) {
     if ((double)e.count * (double)row <= (double)b.left()) {
       b.skip((size_t)e.count * row);
