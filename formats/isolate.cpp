@@ -15,7 +15,9 @@
  * whose shadow memory needs terabytes of address space. Time:
  * the job's base (60 s for a VDB file: OpenVDB's initialize and TBB; 10 s
  * for a mesh) plus one second per ISO_BYTES_PER_SECOND of file (zip decodes
- * faster than 10 MB/s of input on any machine we know). */
+ * faster than 10 MB/s of input on any machine we know), at most
+ * $BAKER_READER_SECONDS when that is set (a farm that wants a corrupt file
+ * to fail sooner; the fuzz targets, under libFuzzer's own timeout). */
 #include "isolate.h"
 
 #include <cerrno>
@@ -45,6 +47,7 @@
 #define ISO_BYTES_PER_SECOND (10u << 20)
 #define ISO_PARSE_MEMORY (256ull << 20) /* metadata, descriptors, transforms */
 #define ISO_PIPE_BYTES (1 << 20)        /* Linux's default pipe-max-size */
+#define ISO_MAX_CAP 86400u              /* BAKER_READER_SECONDS: a day at most */
 
 /* --- the pipe ------------------------------------------------------------------ */
 
@@ -124,10 +127,32 @@ static uint64_t iso_file_size(const char *path) {
   return (uint64_t)pages * (uint64_t)sysconf(_SC_PAGESIZE);
 }
 
+/* $BAKER_READER_SECONDS: a whole number of seconds from 1 to ISO_MAX_CAP,
+ * or 0 (no cap) when unset; another value is refused once with a warning. */
+static unsigned iso_seconds_cap(void) {
+  static int warned;
+  const char *s = getenv("BAKER_READER_SECONDS");
+  if (!s || !*s)
+    return 0;
+  char *end;
+  errno = 0;
+  const unsigned long v = strtoul(s, &end, 10);
+  if (*end || errno || v < 1 || v > ISO_MAX_CAP || *s == '-' || *s == '+') {
+    if (!warned++)
+      bk_warn("BAKER_READER_SECONDS=%s is not a whole number of seconds from 1 to %u: ignored", s,
+              ISO_MAX_CAP);
+    return 0;
+  }
+  return (unsigned)v;
+}
+
 iso_limits iso_limits_for(const iso_job &job, const char *path) {
   iso_limits l;
   const uint64_t size = iso_file_size(path);
   l.seconds = job.base_seconds() + (unsigned)(size / ISO_BYTES_PER_SECOND);
+  const unsigned cap = iso_seconds_cap();
+  if (cap && cap < l.seconds)
+    l.seconds = cap;
   l.memory = l.parse_memory = 0;
 #ifndef ISO_ASAN
   uint64_t avail = iso_mem_available();

@@ -127,7 +127,23 @@ open('bad.stl', 'wb').write(b'x' * 80 + struct.pack('<I', 100000000) + tri * 2)"
       esac
       grep -q "$why" err.txt || fail "$m: expected '$why': $(cat err.txt)"
       echo "ok ($ms ms): $(cat err.txt)"
-    done;;
+    done
+    # BAKER_READER_SECONDS caps the child's alarm: the loop ends at 2 s
+    [ "$cap" = unlimited ] || loop_end="reading it took longer than 2 s"
+    t0=$(date +%s%N)
+    (ulimit -v $cap; BAKER_READER_SECONDS=2 BAKER_MESH_NO_PRESCAN=1 timeout 120 "$BAKER" bake \
+      scene.json "${small[@]}" -o out.vdb 2> err.txt); rc=$?
+    ms=$(( ($(date +%s%N) - t0) / 1000000 ))
+    [ $rc = 2 ] || fail "capped: exit $rc, expected 2: $(cat err.txt)"
+    grep -q "$loop_end" err.txt || fail "capped: expected '$loop_end': $(cat err.txt)"
+    [ $ms -lt 8000 ] || fail "capped at 2 s, the refusal took $ms ms"
+    echo "ok, capped ($ms ms): $(cat err.txt)"
+    # a value that is not a number of seconds is named and ignored
+    BAKER_READER_SECONDS=2s "$BAKER" bake "$SCENES/cube.json" "${small[@]}" -o good.vdb \
+      2> err.txt || fail "a bake with a bad BAKER_READER_SECONDS: $(cat err.txt)"
+    grep -q "BAKER_READER_SECONDS=2s is not a whole number" err.txt ||
+      fail "no warning about BAKER_READER_SECONDS=2s: $(cat err.txt)"
+    echo "ok: $(grep BAKER_READER_SECONDS err.txt)";;
   coarse_step)
     bake -o out.vdb --step 50 2> err.txt; rc=$?
     [ $rc = 0 ] || fail "exit $rc: $(cat err.txt)"

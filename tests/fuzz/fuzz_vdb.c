@@ -1,5 +1,6 @@
 /* fuzz_vdb: a VDB file -> vdbio_list_grids -> vdbio_read_dense of each
  * float or Vec3f grid (at most 4), the path of `baker view`. */
+#include <stdlib.h>
 #include <string.h>
 
 #include "fuzz_util.h"
@@ -7,9 +8,16 @@
 
 enum { FUZZ_VDB_MAX_GRIDS = 4 }; /* bounds the time per input */
 
+/* Each read runs in a child (formats/isolate.cpp) whose alarm defaults to
+ * 60 s: an input that keeps OpenVDB busy would pass libFuzzer's -timeout
+ * in the waiting parent. One second each keeps the list and the four reads
+ * of an input under it; a good seed reads in a fraction of that. */
+#define FUZZ_VDB_READER_SECONDS "1"
+
 int LLVMFuzzerInitialize(int *argc, char ***argv) {
   (void)argc, (void)argv;
   fuzz_enter_workdir();
+  setenv("BAKER_READER_SECONDS", FUZZ_VDB_READER_SECONDS, 1);
   return 0;
 }
 
