@@ -56,7 +56,7 @@ static int build_kernel(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, 
   ms_kernel_defines(&s->ms, ms, sizeof ms);
   snprintf(opts, sizeof opts,
            "-DHAS_REFRACTION=%d -DHOMOGENEOUS=%d -DINTEGRATOR=%u -DPM_CHANNELS=%d "
-           "-DPM_SIGMA_STRIDE=%u %s -DPM_MODE=%d%s%s%s%s%s%s",
+           "-DPM_SIGMA_STRIDE=%u %s -DPM_MODE=%d%s%s%s%s%s%s%s",
            s->has_refraction, s->homogeneous, s->params.integrator, s->channels,
            s->params.sigma_stride & ~PM_SIGMA_CODED_FLAG, lights,
            (int)s->params.mode, scatter ? " " : "", ms,
@@ -65,7 +65,8 @@ static int build_kernel(clh_context_t *cl, const pm_setup_t *s, pm_cl_run_t *r, 
            s->params.flux && s->params.mode != PM_MODE_ORIGINS ? " -DPM_FLUX=1" : "",
            s->params.camera && s->params.flux && s->params.mode != PM_MODE_ORIGINS
                ? " -DPM_CAMERA=1"
-               : "");
+               : "",
+           s->params.lattice ? " -DPM_LATTICE=1" : "");
   if (clh_build(cl, scatter ? "march_ms.cl" : "march.cl", opts, &r->prog, err) != BK_OK)
     return BK_ERR_RUNTIME;
   r->kern = clCreateKernel(r->prog, scatter ? "pm_march_ms" : "pm_march", &cerr);

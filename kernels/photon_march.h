@@ -131,6 +131,12 @@
 #endif
 #define PM_CAMERA_COMPILED (PM_FLUX_COMPILED && PM_CAMERA)
 #define PM_CAMERA_OF(P) (PM_CAMERA_COMPILED)
+/* the twins' even lattice (pm_params.lattice): a per-voxel test and index
+ * that cost the main march 5% when compiled in and switched off */
+#ifndef PM_LATTICE
+#define PM_LATTICE 0
+#endif
+#define PM_LATTICE_OF(P) (PM_LATTICE && PM_MODE == PM_MODE_REFERENCE)
 #define PM_HAS_REFRACTION(P) (HAS_REFRACTION)
 #define PM_HOMOGENEOUS(P) (HOMOGENEOUS)
 #define PM_INTEGRATOR(P) (INTEGRATOR)
@@ -153,6 +159,7 @@
 #define PM_FLUX_OF(P) ((P)->flux && (P)->mode != PM_MODE_ORIGINS)
 #define PM_CAMERA_COMPILED 1
 #define PM_CAMERA_OF(P) ((P)->camera && PM_FLUX_OF(P))
+#define PM_LATTICE_OF(P) ((P)->lattice != 0)
 /* The host path marches one photon at a time on one thread. */
 #define PM_ATOMIC_ADD(p, q) (*(p) += (q))
 /* Host-only path recording for tests (pm_trace_* in baker/march.h). */
@@ -309,13 +316,11 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
   }
 #endif
   int keep = 1; /* the deposit is stored */
-#if !PH_DEVICE || PM_MODE == PM_MODE_REFERENCE
-  if (P->lattice) { /* the twins read the even lattice alone: 1/8 of the sums */
+  if (PM_LATTICE_OF(P)) { /* the twins read the even lattice alone: 1/8 of the sums */
     keep = ((c[0] | c[1] | c[2]) & 1) == 0;
     didx = (bk_long)(c[0] >> 1) +
            (bk_long)P->cnx * ((bk_long)(c[1] >> 1) + (bk_long)P->cny * (bk_long)(c[2] >> 1));
   }
-#endif
 #if !PH_DEVICE || PM_MODE == PM_MODE_TABLES
   if (PM_MODE_OF(P) == PM_MODE_TABLES && idx != ph->last) {
     ph->last = idx;
