@@ -127,8 +127,8 @@ static uint64_t iso_file_size(const char *path) {
   return (uint64_t)pages * (uint64_t)sysconf(_SC_PAGESIZE);
 }
 
-/* $BAKER_READER_SECONDS: a whole number of seconds from 1 to ISO_MAX_CAP,
- * or 0 (no cap) when unset; another value is refused once with a warning. */
+/* $BAKER_READER_SECONDS: a whole number of seconds from 1 to ISO_MAX_CAP;
+ * 0 (no cap) when unset, or for another value, which one warning names. */
 static unsigned iso_seconds_cap(void) {
   static int warned;
   const char *s = getenv("BAKER_READER_SECONDS");
