@@ -78,11 +78,6 @@ bool is_face_indices(const ply_element &e, const ply_prop &pr) {
   return e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
 }
 
-// What OpenMesh 9's binary PLY reader cannot walk the way the file is laid
-// out: a list other than a face's vertex indices (it reads one value of
-// it), a face property before the indices (it drops it from its layout),
-// indices that are not integers, and rows of no bytes (nothing then bounds
-// the count it reserves for).
 // The fewest bytes a row of e takes (a list as its count alone); the exact
 // row size when it has no list.
 size_t least_row_bytes(const ply_element &e, bool *has_list) {
@@ -95,6 +90,11 @@ size_t least_row_bytes(const ply_element &e, bool *has_list) {
   return bytes;
 }
 
+// What OpenMesh 9's binary PLY reader cannot walk the way the file is laid
+// out: a list other than a face's vertex indices (it reads one value of
+// it), a face property before the indices (it drops it from its layout),
+// indices that are not integers, and rows of no bytes (nothing then bounds
+// the count it reserves for).
 bool check_binary_layout(const ply_element &e, std::string *msg) {
   for (size_t k = 0; k < e.props.size(); k++) {
     const ply_prop &pr = e.props[k];
