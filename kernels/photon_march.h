@@ -296,10 +296,12 @@ BK_INLINE void pm_sigma_t_all(const pm_params *P, BK_GLOBAL const float *sigma, 
 
 /* The photon crosses length seg (voxels) of voxel idx (at c): deposits the
  * exact integral of its attenuated power and attenuates it. Returns 1 when
- * it is absorbed (every channel below its threshold). */
-BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
-                             BK_GLOBAL bk_ulong *acc, BK_GLOBAL bk_ulong *masks, pm_photon *ph,
-                             bk_long idx, const int *c, float seg) {
+ * it is absorbed (every channel below its threshold). Always inlined: with
+ * multiple scattering PoCL made it a call per voxel, which cost that march
+ * 8% (the DDA's registers saved and restored around it). */
+BK_ALWAYS_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
+                                    BK_GLOBAL bk_ulong *acc, BK_GLOBAL bk_ulong *masks,
+                                    pm_photon *ph, bk_long idx, const int *c, float seg) {
   const int nch = PM_NCH(P);
   const int stride = pm_acc_stride(PM_MODE_OF(P), nch);
   bk_long didx = idx; /* where the deposit goes */
@@ -380,6 +382,27 @@ BK_INLINE int pm_cross_voxel(const pm_params *P, BK_GLOBAL const float *sigma,
 #define PM_DDA_LEFT_GRID 2
 #define PM_DDA_ABSORBED 3
 
+/* One axis of the DDA's set-up: the step along it, the path between two
+ * crossings of its voxel planes and the path to the first (clamped: x may sit
+ * a rounding error outside voxel c). Called once per axis with constant
+ * indices, so that the caller's arrays stay in registers. */
+BK_INLINE void pm_dda_axis(float d, float x, int c, int *step, float *tdelta, float *tmax) {
+  if (d > 0.0f) {
+    *step = 1;
+    *tdelta = 1.0f / d;
+    *tmax = ((float)(c + 1) - x) * *tdelta;
+  } else if (d < 0.0f) {
+    *step = -1;
+    *tdelta = -1.0f / d;
+    *tmax = (x - (float)c) * *tdelta;
+  } else {
+    *step = 0;
+    *tdelta = RC_FAR;
+    *tmax = RC_FAR;
+  }
+  *tmax = bk_clampf(*tmax, 0.0f, *tdelta);
+}
+
 /* Walks from ph->x (in voxel ph->c) along unit direction d for length len
  * (RC_FAR: until it leaves the block), depositing the exact length spent in
  * each voxel (Amanatides & Woo) with exact attenuation. Stops early when the
@@ -399,29 +422,18 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
 #if PM_FLUX_COMPILED
   ph->fdir = d;
 #endif
-  for (int a = 0; a < 3; a++) {
-    if (dv[a] > 0.0f) {
-      stp[a] = 1;
-      tdelta[a] = 1.0f / dv[a];
-      tmax[a] = ((float)(c[a] + 1) - x0[a]) * tdelta[a];
-    } else if (dv[a] < 0.0f) {
-      stp[a] = -1;
-      tdelta[a] = -1.0f / dv[a];
-      tmax[a] = (x0[a] - (float)c[a]) * tdelta[a];
-    } else {
-      stp[a] = 0;
-      tdelta[a] = RC_FAR;
-      tmax[a] = RC_FAR;
-    }
-    /* x may sit a rounding error outside voxel c: keep the crossing in range */
-    tmax[a] = bk_clampf(tmax[a], 0.0f, tdelta[a]);
-    didx[a] = stp[a] * stride[a];
-  }
+  pm_dda_axis(dv[0], x0[0], c[0], &stp[0], &tdelta[0], &tmax[0]);
+  pm_dda_axis(dv[1], x0[1], c[1], &stp[1], &tdelta[1], &tmax[1]);
+  pm_dda_axis(dv[2], x0[2], c[2], &stp[2], &tdelta[2], &tmax[2]);
+  for (int a = 0; a < 3; a++) didx[a] = stp[a] * stride[a];
   float t = 0.0f;
   int status;
   for (;;) {
+    /* tmax is read and written at constant indices only, so it stays in
+     * registers: indexed by a, it lived on the stack and every voxel waited
+     * on a store and its reload (5% of the single-scattering march) */
     int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
-    float tn = tmax[a];
+    float tn = a == 0 ? tmax[0] : a == 1 ? tmax[1] : tmax[2];
     int last = tn >= len;
     float seg = (last ? len : tn) - t;
     int absorbed = seg > 0.0f && pm_cross_voxel(P, sigma, acc, masks, ph, idx, c, seg);
@@ -441,7 +453,9 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const float *sigma,
     t = tn;
     c[a] += stp[a];
     idx += didx[a];
-    tmax[a] += tdelta[a];
+    tmax[0] = a == 0 ? tmax[0] + tdelta[0] : tmax[0];
+    tmax[1] = a == 1 ? tmax[1] + tdelta[1] : tmax[1];
+    tmax[2] = a == 2 ? tmax[2] + tdelta[2] : tmax[2];
     if (c[a] < 0 || c[a] >= n[a]) {
       status = PM_DDA_LEFT_GRID;
       break;

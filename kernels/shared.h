@@ -10,6 +10,7 @@
 
 #if defined(__OPENCL_VERSION__) || defined(__OPENCL_C_VERSION__)
 #define BK_INLINE static inline
+#define BK_ALWAYS_INLINE static inline __attribute__((always_inline))
 #define BK_GLOBAL __global
 #define BK_CONSTANT __constant
 #define BK_STATIC_ASSERT(cond, msg)
@@ -21,6 +22,7 @@ typedef long bk_long;
 #include <math.h>
 #include <stdint.h>
 #define BK_INLINE static inline
+#define BK_ALWAYS_INLINE static inline __attribute__((always_inline))
 #define BK_GLOBAL
 #define BK_CONSTANT
 #define BK_STATIC_ASSERT(cond, msg) _Static_assert(cond, msg)
