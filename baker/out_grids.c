@@ -16,8 +16,13 @@ static void sigma_run(const volume_t *v, int t, size_t lo, size_t hi, float *out
     return;
   }
   const int C = sigma_channels(v);
+  const float *a = t ? v->sigma_t : v->sigma_s;
+  if (!v->homogeneous) { /* the run as stored: a copy, not a lookup per value */
+    memcpy(out, a + (size_t)C * lo, (hi - lo) * (size_t)C * sizeof(float));
+    return;
+  }
   for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < C; c++) *out++ = vol_sigma(v, i, c, t);
+    for (int c = 0; c < C; c++) *out++ = a[c];
 }
 
 /* Voxels per piece of a fill that needs σ beside other values. */
