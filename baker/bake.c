@@ -515,6 +515,7 @@ int bake_frame(const bake_options_t *opt, const char *scene_path, const char *ou
     double ms = bk_now_ms() - t0;
     bk_timings_add(&j->timings, "write", ms, "%s, %.0f M voxels/s", out_path,
                    (double)grid_count(&j->vol->dims) / (ms * 1e3 + 1e-9));
+    pm_warn_step_limit(&j->scene, &j->stats);
     if (bk_verbosity >= 1) bake_report(j, scene_path, out_path);
     if (opt->stats_path) rc = bake_stats(j, opt, scene_path, out_path, frame, err);
   }

@@ -51,7 +51,8 @@ static void bake_usage(FILE *out) {
           "                           unbiased estimate)\n"
           "  --write-filter-radius    adaptive: also write the filter_radius grid (debug)\n"
           "  --integrator euler|rk4   ray-equation integrator (scene photons.integrator)\n"
-          "  --step VOXELS            march step in refractive regions (scene photons.step)\n"
+          "  --step VOXELS            march step in refractive regions, at least 1/1024\n"
+          "                           (scene photons.step)\n"
           "  --seed N                 sampling seed (scene photons.seed)\n"
           "  --batches N              trace the photons in N independent batches, whose\n"
           "                           spread measures the noise (scene photons.batches,\n"
@@ -155,7 +156,8 @@ static int bake_option(bake_options_t *opt, const char **sets, int c, const char
     else want = "euler or rk4";
     break;
   case OPT_STEP:
-    if (!cmd_parse_float(val, &opt->step) || !(opt->step > 0.0f)) want = "a positive step in voxels";
+    if (!cmd_parse_float(val, &opt->step) || !(opt->step >= SCENE_MIN_STEP))
+      want = "a step in voxels of at least 1/1024 (0.0009765625)";
     break;
   case OPT_SEED:
     if (!cmd_parse_ll(val, &ll) || ll < 0 || ll > UINT_MAX) want = "a seed in 0..4294967295";

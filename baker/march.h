@@ -220,6 +220,9 @@ void pm_count_cell_work(const pm_setup_t *s, uint64_t slot, const pm_result *r);
 void pm_stats_add_tally(pm_stats_t *st, const ms_tally *t);
 /* The share of the deposited energy after the first scattering event. */
 double pm_scattered_share(const pm_stats_t *st);
+/* Warns when 1% or more of the photons stopped at the step limit: the
+ * light they still carried is missing from the grid. */
+void pm_warn_step_limit(const scene_t *scene, const pm_stats_t *st);
 
 /* Marches every photon into acc (pm_acc_count counters, zeroed by the
  * caller): in plain C on this thread, or with OpenCL on cl. */

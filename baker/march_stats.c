@@ -19,6 +19,16 @@ void pm_stats_add(pm_stats_t *st, const pm_result *r) {
   st->path_voxels += r->path;
 }
 
+void pm_warn_step_limit(const scene_t *scene, const pm_stats_t *st) {
+  if (!st->photons || st->step_limit * 100 < st->photons) return;
+  bk_warn("%s: %.1f%% of the photons stopped at the step limit (%d steps, or %g grid diagonals "
+          "of path) and the light they still carried is missing from the grid: light trapped "
+          "by total internal reflection, a random walk that long, or photons.step (%g voxels) "
+          "too fine for the band where n varies (grid.ior_smoothing %g voxels)",
+          scene->path, 100.0 * (double)st->step_limit / (double)st->photons, PM_MAX_STEPS,
+          (double)PM_MAX_PATH_DIAGONALS, (double)scene->step, (double)scene->ior_smoothing);
+}
+
 uint64_t pm_work(unsigned integrator, uint64_t steps, uint64_t voxels) {
   const integrator_kind_t *k = integrator_of_device(integrator);
   return steps * (k ? k->evals : 1u) + voxels;

@@ -41,6 +41,7 @@ static const sc_range_t R_BOUNCES = {0, SCENE_MAX_BOUNCES, 0, 0, 1, 0};
 static const sc_range_t R_HG = {-1, 1, 1, 1, 0, 0};
 static const sc_range_t R_BATCHES = {1, 65536, 0, 0, 1, 0};
 static const sc_range_t R_TARGET_ERROR = {0, 1, 1, 0, 0, 0};
+static const sc_range_t R_STEP = {SCENE_MIN_STEP, SC_NOLIM, 0, 0, 0, 1};
 static const sc_range_t R_PHOTONS = {1, 9007199254740992.0, 0, 0, 1, 1};
 
 /* --- sections ------------------------------------------------------------- */
@@ -336,7 +337,7 @@ static int sc_photons(const sc_ctx_t *c, const json_value_t *v, scene_t *s) {
   }
   if ((rc = sc_opt_int(c, v, "photons", "count", &R_PHOTONS, &s->photon_count)) ||
       (rc = sc_opt_int(c, v, "photons", "seed", &R_SEED, &seed)) ||
-      (rc = sc_opt_float(c, v, "photons", "step", &R_POSITIVE, &s->step)) ||
+      (rc = sc_opt_float(c, v, "photons", "step", &R_STEP, &s->step)) ||
       (rc = sc_bounces(c, v, &s->bounces)) ||
       (rc = sc_opt_int(c, v, "photons", "batches", &R_BATCHES, &batches)) ||
       (rc = sc_opt_float(c, v, "photons", "target_error", &R_TARGET_ERROR, &s->target_error)) ||

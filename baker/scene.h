@@ -70,6 +70,12 @@ typedef struct scene_camera {
 /* photons.bounces "auto" (baker/bounces.h decides), and the largest N. */
 #define SCENE_BOUNCES_AUTO (-1)
 #define SCENE_MAX_BOUNCES 100000
+/* photons.step's least value, 2^-10 voxel: a photon takes at most
+ * PM_MAX_STEPS (65 536) steps, 64 voxels of curved path at this step.
+ * Finer steps ran for minutes and stopped most photons that met a surface
+ * at the limit, their light missing from the grid. */
+#define SCENE_MIN_STEP_LOG2 10
+#define SCENE_MIN_STEP (1.0 / (double)(1 << SCENE_MIN_STEP_LOG2))
 
 typedef struct scene {
   char path[SCENE_PATH_MAX]; /* the scene file as given */

@@ -11,7 +11,7 @@ if(BAKER_SANITIZE)
   target_link_options(bk_enospc_shim PRIVATE -fno-sanitize=all)
 endif()
 foreach(case enospc_vdb fsync_vdb enospc_exr enospc_png stale_temp no_home huge_intensity
-        coarse_step verify verify_absurd view_checksum view_handover mesh_headers mesh_isolated)
+        coarse_step fine_step verify verify_absurd view_checksum view_handover mesh_headers mesh_isolated)
   add_test(NAME reliability_${case}
            COMMAND bash ${BAKER_TEST_DIR}/reliability.sh $<TARGET_FILE:baker>
                    ${CMAKE_BINARY_DIR}/reliability ${CMAKE_SOURCE_DIR}/scenes

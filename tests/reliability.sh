@@ -148,6 +148,26 @@ open('bad.stl', 'wb').write(b'x' * 80 + struct.pack('<I', 100000000) + tri * 2)"
     bake -o fine.vdb --step 0.5 2> err2.txt || fail "fine bake"
     grep -q "photons.step" err2.txt && fail "a fine step was warned about"
     echo "ok: $(cat err.txt)";;
+  fine_step)
+    # below 1/1024 voxel the step limit stops every photon at a surface:
+    # refused before any work, from the command line and from the scene
+    timeout 60 "$BAKER" bake scene.json "${small[@]}" -o out.vdb --step 1e-9 2> err.txt; rc=$?
+    [ $rc = 2 ] || fail "--step 1e-9: exit $rc, expected 2"
+    grep -q -- "--step.*1/1024" err.txt || fail "--step 1e-9: not named: $(cat err.txt)"
+    timeout 60 "$BAKER" bake scene.json "${small[@]}" -o out.vdb --set photons.step=1e-9 2> err2.txt
+    rc=$?
+    [ $rc = 2 ] || fail "photons.step 1e-9: exit $rc, expected 2"
+    grep -q "photons.step" err2.txt || fail "photons.step 1e-9: not named: $(cat err2.txt)"
+    [ -e out.vdb ] && fail "a refused bake left out.vdb"
+    # the least step is accepted; with n varying over the whole 64^3 grid
+    # the photons run out of steps, which the bake says
+    bake -o out.vdb --resolution 64 --photons 200 --step 0.0009765625 \
+      --set grid.ior_smoothing=64 --set photons.bounces=0 2> err3.txt || fail "least step: $(cat err3.txt)"
+    grep -q "of the photons stopped at the step limit" err3.txt ||
+      fail "no warning about the step limit: $(cat err3.txt)"
+    bake -o fine.vdb 2> err4.txt || fail "default bake"
+    grep -q "step limit" err4.txt && fail "a default bake warned about the step limit"
+    echo "ok: $(cat err.txt)"; echo "ok: $(cat err2.txt)"; echo "ok: $(cat err3.txt)";;
   verify)
     bake -o out.vdb --compression none || fail "bake"
     "$BAKER" verify out.vdb > v.txt || fail "verify of an intact file: $(cat v.txt)"
