@@ -19,6 +19,9 @@ void pm_stats_add(pm_stats_t *st, const pm_result *r) {
   st->path_voxels += r->path;
 }
 
+BK_STATIC_ASSERT((PM_MAX_STEPS >> SCENE_MIN_STEP_LOG2) >= 64,
+                 "scene.h SCENE_MIN_STEP: 64 voxels of curved path within the step limit");
+
 void pm_warn_step_limit(const scene_t *scene, const pm_stats_t *st) {
   if (!st->photons || st->step_limit * 100 < st->photons) return;
   bk_warn("%s: %.1f%% of the photons stopped at the step limit (%d steps, or %g grid diagonals "
