@@ -13,5 +13,8 @@ void fuzz_enter_workdir(void);
 /* Writes the input as NAME in the working directory; aborts on failure
  * (a full disk is not a finding). */
 void fuzz_write_input(const char *name, const uint8_t *data, size_t size);
+/* For targets whose readers fork (fuzz_vdb): a child that fails is not a
+ * finding, so it leaves no artifact; the parent's own faults still do. */
+void fuzz_children_die_plainly(void);
 
 #endif

@@ -17,6 +17,7 @@ enum { FUZZ_VDB_MAX_GRIDS = 4 }; /* bounds the time per input */
 int LLVMFuzzerInitialize(int *argc, char ***argv) {
   (void)argc, (void)argv;
   fuzz_enter_workdir();
+  fuzz_children_die_plainly();
   setenv("BAKER_READER_SECONDS", FUZZ_VDB_READER_SECONDS, 1);
   return 0;
 }
