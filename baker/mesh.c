@@ -85,26 +85,10 @@ static int zero_area(const float *a, const float *b, const float *c) {
   return area2 <= 1e-14 * lmax * lmax;
 }
 
-int mesh_check(const mesh_tris_t *m, mesh_report_t *out, bk_error_t *err) {
-  weld_key_t *keys = NULL;
-  int *canon = NULL, *parent = NULL;
-  uint64_t *edges = NULL;
-  int rc = BK_OK;
-  memset(out, 0, sizeof *out);
-  out->triangles = m->triangle_count;
-  out->vertices = m->vertex_count;
-  if (m->vertex_count <= 0 || m->triangle_count <= 0) return BK_OK;
-
-  keys = bk_calloc((size_t)m->vertex_count, sizeof *keys, "mesh check: weld keys", err);
-  canon = bk_calloc((size_t)m->vertex_count, sizeof *canon, "mesh check: welded ids", err);
-  parent = bk_calloc((size_t)m->vertex_count, sizeof *parent, "mesh check: loops", err);
-  edges = bk_calloc((size_t)m->triangle_count * 3, sizeof *edges, "mesh check: edges", err);
-  if (!keys || !canon || !parent || !edges) {
-    rc = BK_ERR_RUNTIME;
-    goto error;
-  }
-
-  /* weld: equal positions share the id of the first of them in sorted order */
+/* Welds equal positions: canon[v] is the id of the first of them in
+ * sorted order. */
+static void weld_vertices(const mesh_tris_t *m, weld_key_t *keys, int *canon,
+                          mesh_report_t *out) {
   for (int v = 0; v < m->vertex_count; v++) {
     memcpy(keys[v].p, m->positions + 3 * (size_t)v, sizeof keys[v].p);
     keys[v].index = v;
@@ -118,9 +102,13 @@ int mesh_check(const mesh_tris_t *m, mesh_report_t *out, bk_error_t *err) {
       out->welded_vertices++;
     }
   }
+}
 
-  /* edges as (min, max) welded ids; a face with a repeated vertex has no
-   * proper edges and would only hide its neighbours' boundary, so it is left out */
+/* The edges as (min, max) welded ids, sorted; returns their count. A face
+ * with a repeated vertex has no proper edges and would only hide its
+ * neighbours' boundary, so it is left out. */
+static size_t collect_edges(const mesh_tris_t *m, const int *canon, uint64_t *edges,
+                            mesh_report_t *out) {
   size_t ne = 0;
   for (int t = 0; t < m->triangle_count; t++) {
     const int *f = m->indices + 3 * (size_t)t;
@@ -139,8 +127,14 @@ int mesh_check(const mesh_tris_t *m, mesh_report_t *out, bk_error_t *err) {
     }
   }
   qsort(edges, ne, sizeof *edges, cmp_u64);
+  return ne;
+}
 
-  for (int v = 0; v < m->vertex_count; v++) parent[v] = v;
+/* Counts boundary (one face) and non-manifold (more than two) edges, and
+ * joins the ends of each boundary edge in the union-find `parent`. */
+static void classify_edges(const uint64_t *edges, size_t ne, int vertices, int *parent,
+                           mesh_report_t *out) {
+  for (int v = 0; v < vertices; v++) parent[v] = v;
   for (size_t i = 0; i < ne;) {
     size_t j = i;
     while (j < ne && edges[j] == edges[i]) j++;
@@ -154,9 +148,12 @@ int mesh_check(const mesh_tris_t *m, mesh_report_t *out, bk_error_t *err) {
     }
     i = j;
   }
-  /* one loop per union-find root among the boundary vertices (canon, no
-   * longer needed, marks the roots already counted) */
-  memset(canon, 0, (size_t)m->vertex_count * sizeof *canon);
+}
+
+/* One loop per union-find root among the boundary vertices; `seen` (zeroed,
+ * one per vertex) marks the roots already counted. */
+static void count_loops(const uint64_t *edges, size_t ne, int *parent, int *seen,
+                        mesh_report_t *out) {
   for (size_t i = 0; i < ne;) {
     size_t j = i;
     while (j < ne && edges[j] == edges[i]) j++;
@@ -164,16 +161,35 @@ int mesh_check(const mesh_tris_t *m, mesh_report_t *out, bk_error_t *err) {
       int ends[2] = {(int)(edges[i] >> 32), (int)(edges[i] & 0xffffffffu)};
       for (int k = 0; k < 2; k++) {
         int root = uf_find(parent, ends[k]);
-        if (!canon[root]) {
-          canon[root] = 1;
+        if (!seen[root]) {
+          seen[root] = 1;
           out->boundary_loops++;
         }
       }
     }
     i = j;
   }
+}
 
-error:
+int mesh_check(const mesh_tris_t *m, mesh_report_t *out, bk_error_t *err) {
+  memset(out, 0, sizeof *out);
+  out->triangles = m->triangle_count;
+  out->vertices = m->vertex_count;
+  if (m->vertex_count <= 0 || m->triangle_count <= 0) return BK_OK;
+
+  const size_t nv = (size_t)m->vertex_count;
+  weld_key_t *keys = bk_calloc(nv, sizeof *keys, "mesh check: weld keys", err);
+  int *canon = bk_calloc(nv, sizeof *canon, "mesh check: welded ids", err);
+  int *parent = bk_calloc(nv, sizeof *parent, "mesh check: loops", err);
+  uint64_t *edges = bk_calloc((size_t)m->triangle_count * 3, sizeof *edges, "mesh check: edges", err);
+  int rc = keys && canon && parent && edges ? BK_OK : BK_ERR_RUNTIME;
+  if (rc == BK_OK) {
+    weld_vertices(m, keys, canon, out);
+    const size_t ne = collect_edges(m, canon, edges, out);
+    classify_edges(edges, ne, m->vertex_count, parent, out);
+    memset(canon, 0, nv * sizeof *canon); /* no longer needed: the loops' marks */
+    count_loops(edges, ne, parent, canon, out);
+  }
   free(keys);
   free(canon);
   free(parent);
