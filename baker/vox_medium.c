@@ -68,82 +68,83 @@ static void fill_density_chunk(void *ctx, size_t k, size_t lo, size_t hi) {
   f->clamped[k] = clamped;
 }
 
-int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
-  const grid_dims_t *d = &out->dims;
-  const size_t count = grid_count(d);
-  float *density = NULL;
-  int rc = BK_OK;
-
-  if (scene->ior_vdb.present) {
-    const scene_vdb_ref_t *ref = &scene->ior_vdb;
-    rc = vdbio_resample_float(ref->file, ref->grid, d, out->ior, ref->where, err);
-    if (rc) goto error;
-    size_t clamped = 0;
-    float lowest = 1.0f;
-    for (size_t v = 0; v < count; v++) {
-      if (!isfinite(out->ior[v])) {
-        rc = bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite n at voxel %zu",
+/* n from the scene's ior_vdb, resampled onto the grid; n < 1 (e.g. a zero
+ * background outside the active voxels) is raised to 1, with a warning. */
+static int medium_ior_from_vdb(const scene_t *scene, volume_t *out, bk_error_t *err) {
+  const scene_vdb_ref_t *ref = &scene->ior_vdb;
+  const size_t count = grid_count(&out->dims);
+  int rc = vdbio_resample_float(ref->file, ref->grid, &out->dims, out->ior, ref->where, err);
+  if (rc) return rc;
+  size_t clamped = 0;
+  float lowest = 1.0f;
+  for (size_t v = 0; v < count; v++) {
+    if (!isfinite(out->ior[v]))
+      return bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite n at voxel %zu",
                      ref->where, ref->file, ref->grid, v);
-        goto error;
-      }
-      if (out->ior[v] < 1.0f) { /* e.g. a zero background outside the active voxels */
-        lowest = fminf(lowest, out->ior[v]);
-        out->ior[v] = 1.0f;
-        clamped++;
-      }
+    if (out->ior[v] < 1.0f) {
+      lowest = fminf(lowest, out->ior[v]);
+      out->ior[v] = 1.0f;
+      clamped++;
     }
-    if (clamped)
-      bk_warn("%s: %s: grid \"%s\": %zu voxels had n < 1 (lowest %g), raised to 1", ref->where,
-              ref->file, ref->grid, clamped, lowest);
-  } else {
-    medium_fill_t f = {scene, out};
-    bk_parallel(count, BK_GRAIN, fill_ior_range, &f);
   }
+  if (clamped)
+    bk_warn("%s: %s: grid \"%s\": %zu voxels had n < 1 (lowest %g), raised to 1", ref->where,
+            ref->file, ref->grid, clamped, lowest);
+  return BK_OK;
+}
 
-  if (scene->density_vdb.present) {
-    const scene_vdb_ref_t *ref = &scene->density_vdb;
-    density = bk_calloc(count, sizeof *density, "voxelize: density_vdb", err);
-    if (!density) {
-      rc = BK_ERR_RUNTIME;
-      goto error;
-    }
-    rc = vdbio_resample_float(ref->file, ref->grid, d, density, ref->where, err);
-    if (rc) goto error;
-    density_fill_t f = {scene, out, density, {0}, {0}};
-    bk_parallel_chunks(count, DENSITY_CHUNKS, fill_density_chunk, &f);
-    size_t clamped = 0, bad = SIZE_MAX;
-    for (int k = 0; k < DENSITY_CHUNKS; k++) {
-      clamped += f.clamped[k];
-      bad = f.bad[k] < bad ? f.bad[k] : bad;
-    }
-    if (bad != SIZE_MAX) {
-      rc = bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite density at voxel %zu",
-                   ref->where, ref->file, ref->grid, bad);
-      goto error;
-    }
-    if (clamped)
-      bk_warn("%s: %s: grid \"%s\": %zu voxels had a negative density, set to 0", ref->where,
-              ref->file, ref->grid, clamped);
-    out->density = density; /* kept until vox_summarise codes σ by it */
-    density = NULL;
-  } else {
-    medium_fill_t f = {scene, out};
-    bk_parallel(count, BK_GRAIN, fill_sigma_range, &f);
+/* σs and σa from the scene's density_vdb (density_fill_t); the density is
+ * kept in out->density until vox_summarise codes σ by it. */
+static int medium_sigma_from_density(const scene_t *scene, volume_t *out, bk_error_t *err) {
+  const scene_vdb_ref_t *ref = &scene->density_vdb;
+  const size_t count = grid_count(&out->dims);
+  float *density = bk_calloc(count, sizeof *density, "voxelize: density_vdb", err);
+  if (!density) return BK_ERR_RUNTIME;
+  int rc = vdbio_resample_float(ref->file, ref->grid, &out->dims, density, ref->where, err);
+  if (rc) {
+    free(density);
+    return rc;
   }
+  density_fill_t f = {scene, out, density, {0}, {0}};
+  bk_parallel_chunks(count, DENSITY_CHUNKS, fill_density_chunk, &f);
+  size_t clamped = 0, bad = SIZE_MAX;
+  for (int k = 0; k < DENSITY_CHUNKS; k++) {
+    clamped += f.clamped[k];
+    bad = f.bad[k] < bad ? f.bad[k] : bad;
+  }
+  if (bad != SIZE_MAX) {
+    free(density);
+    return bk_fail(err, BK_ERR_INPUT, "%s: %s: grid \"%s\" gives a non-finite density at voxel %zu",
+                   ref->where, ref->file, ref->grid, bad);
+  }
+  if (clamped)
+    bk_warn("%s: %s: grid \"%s\": %zu voxels had a negative density, set to 0", ref->where,
+            ref->file, ref->grid, clamped);
+  out->density = density;
+  return BK_OK;
+}
+
+int vox_medium(const scene_t *scene, volume_t *out, bk_error_t *err) {
+  const size_t count = grid_count(&out->dims);
+  medium_fill_t f = {scene, out};
+  int rc = BK_OK;
+  if (scene->ior_vdb.present) rc = medium_ior_from_vdb(scene, out, err);
+  else bk_parallel(count, BK_GRAIN, fill_ior_range, &f);
+  if (rc) return rc;
+  if (scene->density_vdb.present) rc = medium_sigma_from_density(scene, out, err);
+  else bk_parallel(count, BK_GRAIN, fill_sigma_range, &f);
+  if (rc) return rc;
   for (int c = 0; c < 3; c++) {
     out->medium_s[c] = scene->medium_sigma_s[c];
     out->medium_a[c] = scene->medium_sigma_a[c];
   }
-
-  if (rc == BK_OK && scene_has_dispersion(scene)) { /* the medium's n in every channel */
+  if (scene_has_dispersion(scene)) { /* the medium's n in every channel */
     if (!(out->ior_rb = bk_calloc(count, 2 * sizeof(float), "voxelize: ior per channel", err)))
       return BK_ERR_RUNTIME;
     memcpy(out->ior_rb, out->ior, count * sizeof(float));
     memcpy(out->ior_rb + count, out->ior, count * sizeof(float));
   }
-error:
-  free(density);
-  return rc;
+  return BK_OK;
 }
 
 void vox_blend_dispersion(const scene_object_t *obj, float w, size_t gv, size_t plane, float *rb) {
