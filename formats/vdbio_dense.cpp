@@ -270,6 +270,31 @@ static void vdbio_shrink_dense(vdbio_dense_t *d, int channels, bool in_room) {
   }
 }
 
+/* The grid's active box grown by pad voxels on every side (one voxel at
+ * the origin for an empty grid), refused when an axis would leave int or
+ * hold more than GRID_MAX_AXIS voxels. */
+static int vdbio_padded_box(const vdb::GridBase &g, int pad, const char *path,
+                            const char *grid_name, vdb::CoordBBox *out, bk_error_t *err) {
+  const vdb::CoordBBox box = g.evalActiveVoxelBoundingBox();
+  if (box.empty()) {
+    *out = vdb::CoordBBox(vdb::Coord(0), vdb::Coord(0));
+    return BK_OK;
+  }
+  int64_t lo[3], hi[3]; /* in 64 bits: a padded box near the int limits must not wrap */
+  for (int a = 0; a < 3; a++) {
+    lo[a] = (int64_t)box.min()[a] - pad;
+    hi[a] = (int64_t)box.max()[a] + pad;
+    if (lo[a] < INT32_MIN || hi[a] > INT32_MAX || hi[a] - lo[a] + 1 > GRID_MAX_AXIS)
+      return bk_fail(err, BK_ERR_INPUT,
+                     "%s: grid \"%s\": its active box spans %lld voxels along axis %d (with "
+                     "pad %d), more than the %d a dense read allows",
+                     path, grid_name, (long long)(hi[a] - lo[a] + 1), a, pad, GRID_MAX_AXIS);
+  }
+  *out = vdb::CoordBBox(vdb::Coord((int)lo[0], (int)lo[1], (int)lo[2]),
+                        vdb::Coord((int)hi[0], (int)hi[1], (int)hi[2]));
+  return BK_OK;
+}
+
 int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vdbio_dense_t *out,
                             int *checked, int grey, bk_error_t *err) {
   if (!path || !out)
@@ -311,24 +336,9 @@ int vdbio_read_dense_direct(const char *path, const char *grid_name, int pad, vd
                             "%s: grid \"%s\" has a non-linear (%s) transform, which is unsupported",
                             path, grid_name, xf.mapType().c_str()));
 
-    vdb::CoordBBox box = g->evalActiveVoxelBoundingBox();
-    if (box.empty()) {
-      box = vdb::CoordBBox(vdb::Coord(0), vdb::Coord(0));
-    } else {
-      /* in 64 bits: a padded box near the int limits must not wrap */
-      int64_t lo[3], hi[3];
-      for (int a = 0; a < 3; a++) {
-        lo[a] = (int64_t)box.min()[a] - pad;
-        hi[a] = (int64_t)box.max()[a] + pad;
-        if (lo[a] < INT32_MIN || hi[a] > INT32_MAX || hi[a] - lo[a] + 1 > GRID_MAX_AXIS)
-          return refuse(bk_fail(err, BK_ERR_INPUT,
-                         "%s: grid \"%s\": its active box spans %lld voxels along axis %d (with "
-                         "pad %d), more than the %d a dense read allows",
-                         path, grid_name, (long long)(hi[a] - lo[a] + 1), a, pad, GRID_MAX_AXIS));
-      }
-      box = vdb::CoordBBox(vdb::Coord((int)lo[0], (int)lo[1], (int)lo[2]),
-                           vdb::Coord((int)hi[0], (int)hi[1], (int)hi[2]));
-    }
+    vdb::CoordBBox box;
+    if ((rc = vdbio_padded_box(*g, pad, path, grid_name, &box, err)))
+      return refuse(rc);
     /* a box other than the checksum's (a damaged file's may be huge) is
      * checked before anything that size is allocated */
     if (late_check && !vdbio_is_checksum_box(meta.get(), box)) {
