@@ -15,14 +15,13 @@ static void sigma_run(const volume_t *v, int t, size_t lo, size_t hi, float *out
     vox_code_run(v, t, lo, hi, out);
     return;
   }
-  const int C = sigma_channels(v);
-  const float *a = t ? v->sigma_t : v->sigma_s;
+  const size_t C = (size_t)sigma_channels(v);
+  const float *a = (t ? v->sigma_t : v->sigma_s) + vox_sigma_index(v, lo, 0);
   if (!v->homogeneous) { /* the run as stored: a copy, not a lookup per value */
-    memcpy(out, a + (size_t)C * lo, (hi - lo) * (size_t)C * sizeof(float));
+    memcpy(out, a, (hi - lo) * C * sizeof(float));
     return;
   }
-  for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < C; c++) *out++ = a[c];
+  for (size_t i = lo; i < hi; i++, out += C) memcpy(out, a, C * sizeof(float));
 }
 
 /* Voxels per piece of a fill that needs σ beside other values. */

@@ -38,13 +38,14 @@ void fuzz_write_input(const char *name, const uint8_t *data, size_t size) {
   }
 }
 
+/* weak: the replay programs are built without a sanitizer runtime */
+extern void __sanitizer_set_death_callback(void (*callback)(void)) __attribute__((weak));
+
 /* A reader's child (formats/isolate.cpp) inherits libFuzzer's crash
  * handlers through fork, and they wrote each child's expected failure (an
  * OpenVDB assert, a sanitizer report inside OpenVDB) to the artifact
  * directory as if it were a finding. The parent reports those failures
  * itself; the child now just dies, the sanitizer's report still printed. */
-/* weak: the replay programs are built without a sanitizer runtime */
-extern void __sanitizer_set_death_callback(void (*callback)(void)) __attribute__((weak));
 
 static void child_without_fuzzer_handlers(void) {
   static const int faults[] = {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL};
