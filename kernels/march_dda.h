@@ -93,8 +93,11 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const bk_uchar *pyr,
   for (;;) {
     /* tmax is read and written at constant indices only, so it stays in
      * registers: indexed by a, it lived on the stack and every voxel waited
-     * on a store and its reload (5% of the single-scattering march) */
-    int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
+     * on a store and its reload (5% of the single-scattering march). The
+     * axis from the three comparisons as arithmetic: nested ?: on floats
+     * compiled to two unpredictable branches per voxel. */
+    const int lt01 = tmax[0] < tmax[1], lt02 = tmax[0] < tmax[2], lt12 = tmax[1] < tmax[2];
+    int a = lt01 ? 2 * !lt02 : 2 - lt12;
     float tn = a == 0 ? tmax[0] : a == 1 ? tmax[1] : tmax[2];
     int last = tn >= len;
     float seg = (last ? len : tn) - t;
