@@ -119,7 +119,7 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
   };
   const float *first = row(0, 0);
   const bool first_bg = B::is_background(first);
-  bool mixed = ex < D || ey < D || ez < D, equal = true, any_on = false;
+  bool mixed = ex < D || ey < D || ez < D, any_on = false;
   if (!mixed && vdbio_block_uniform<LeafT>(first, row)) { /* the scan's result, sooner */
     if (first_bg) return;
     out.tile_on = true;
@@ -136,9 +136,8 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
       any_on |= bits != 0;
       mixed |= first_bg ? bits != 0 : bits != full;
     }
-  equal = !differs;
   if (!any_on) return; /* all inactive: the background */
-  if (!mixed && equal) { /* all active, one value */
+  if (!mixed && !differs) { /* all active, one value */
     out.tile_on = true;
     out.tile = *reinterpret_cast<const ValueT *>(first);
     return;

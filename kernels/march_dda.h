@@ -34,7 +34,8 @@ BK_INLINE void pm_dda_axis(float d, float x, int c, int *step, float *tdelta, fl
 }
 
 /* The path from x to the first voxel plane of one axis, for a step and a
- * tdelta set up already: pm_dda_axis's value, bit for bit. */
+ * tdelta set up already: pm_dda_axis's value, bit for bit. (pm_dda_axis
+ * calling it measured 1.3% slower on the march: 8 alternating runs.) */
 BK_INLINE float pm_dda_tmax(int step, float tdelta, float x, int c) {
   if (step == 0) return RC_FAR;
   const float t = step > 0 ? ((float)(c + 1) - x) * tdelta : (x - (float)c) * tdelta;
