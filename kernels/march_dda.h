@@ -42,6 +42,12 @@ BK_INLINE float pm_dda_tmax(int step, float tdelta, float x, int c) {
   return bk_clampf(t, 0.0f, tdelta);
 }
 
+/* Whether a photon has reached the step or the path limit (PM_FATE_STEP_LIMIT),
+ * checked before each step of the leg and each block of the straight walk. */
+BK_INLINE int pm_out_of_steps(const pm_params *P, const pm_photon *ph, bk_uint steps) {
+  return steps >= PM_MAX_STEPS || ph->path >= P->path_cap;
+}
+
 /* Whether the straight walk goes on into voxel c's block: the step and path
  * limits are checked and the step counted as pm_march_leg does for each
  * block, and lo, hi become that block's. Returns its pyramid level, 0 when
@@ -49,7 +55,7 @@ BK_INLINE float pm_dda_tmax(int step, float tdelta, float x, int c) {
 BK_INLINE int pm_next_block(const pm_params *P, BK_GLOBAL const bk_uchar *pyr,
                             const pm_photon *ph, const int *c, bk_uint *steps, int *lo, int *hi) {
   const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
-  if (*steps >= PM_MAX_STEPS || ph->path >= P->path_cap) return 0;
+  if (pm_out_of_steps(P, ph, *steps)) return 0;
   const int level = rc_block_level(pyr, n3, c);
   if (level == 0) return 0;
   (*steps)++;

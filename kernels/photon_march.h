@@ -520,7 +520,7 @@ BK_INLINE bk_uint pm_march_leg(const pm_params *P, BK_GLOBAL const float *ng,
   const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
   int gl[3] = {0, 0, 0}, gh[3] = {n3.nx, n3.ny, n3.nz};
   for (;;) {
-    if (*steps >= PM_MAX_STEPS || ph->path >= P->path_cap) return PM_FATE_STEP_LIMIT;
+    if (pm_out_of_steps(P, ph, *steps)) return PM_FATE_STEP_LIMIT;
     (*steps)++;
     int r;
 #if !PH_DEVICE || HAS_REFRACTION
