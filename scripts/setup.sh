@@ -18,7 +18,7 @@ done
 
 PACKAGES=(
   build-essential cmake ccache pkg-config
-  libopenvdb-dev libopenvdb-tools python3-openvdb python3-numpy python3-matplotlib
+  libopenvdb-dev libblosc-dev libopenvdb-tools python3-openvdb python3-numpy python3-matplotlib
   libnanovdb-dev libnanovdb-tools
   libopenmesh-dev libopenexr-dev libpng-dev
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
