@@ -196,33 +196,41 @@ static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
     slot[cell(o[0] / D, o[1] / D, o[2] / D)] = (int)i;
   }
   const int x0 = lo[0], x1 = std::min(hi[0] + D, d.nx), y1 = std::min(hi[1] + D, d.ny);
-  /* a layer of cells along z per task: its leaves are that task's alone */
+  /* a layer of cells along z per task: its leaves are that task's alone.
+   * The rows of a run at the layer's 8 z are made together and written z
+   * innermost, the leaves' own order: each cache line of a leaf is written
+   * whole at once, not 12 bytes in each of 8 passes over the layer. */
   tbb::parallel_for(0, cz, [&](int kz) {
-    std::vector<float> made(g.data ? 0 : (size_t)C * (size_t)(x1 - x0));
-    const int z1 = std::min(lo[2] + D * (kz + 1), d.nz);
-    for (int z = lo[2] + D * kz; z < z1; z++)
-      for (int y = lo[1]; y < y1; y++) {
-        const int ky = (y - lo[1]) / D;
-        for (int ka = 0, kb; ka < cx; ka = kb) { /* the runs [ka, kb) of leaves */
-          if (slot[cell(ka, ky, kz)] < 0) {
-            kb = ka + 1;
-            continue;
-          }
-          for (kb = ka + 1; kb < cx && slot[cell(kb, ky, kz)] >= 0;) kb++;
-          const int xa = x0 + D * ka, xb = std::min(x0 + D * kb, x1);
-          const size_t at = grid_index(&d, xa, y, z);
-          const float *r = g.data ? g.data + (size_t)C * at : made.data();
-          if (!g.data) g.fill(g.fill_ctx, at, at + (size_t)(xb - xa), made.data());
-          const vdb::Index row = LeafT::coordToOffset(vdb::Coord(0, y, z)); /* x = 0 */
-          for (int k = ka; k < kb; k++) {
-            ValueT *leaf = out[slot[cell(k, ky, kz)]] + row;
-            const int xl = x0 + D * k, xh = std::min(xl + D, x1);
-            for (int x = xl; x < xh; x++)
-              leaf[LeafT::coordToOffset(vdb::Coord(x - xl, 0, 0))] =
-                  *reinterpret_cast<const ValueT *>(r + (size_t)C * (size_t)(x - xa));
+    const int za = lo[2] + D * kz, nzr = std::min(za + D, d.nz) - za;
+    std::vector<float> made(g.data ? 0 : (size_t)C * (size_t)(x1 - x0) * (size_t)D);
+    const float *rows[LeafT::DIM];
+    for (int y = lo[1]; y < y1; y++) {
+      const int ky = (y - lo[1]) / D;
+      for (int ka = 0, kb; ka < cx; ka = kb) { /* the runs [ka, kb) of leaves */
+        if (slot[cell(ka, ky, kz)] < 0) {
+          kb = ka + 1;
+          continue;
+        }
+        for (kb = ka + 1; kb < cx && slot[cell(kb, ky, kz)] >= 0;) kb++;
+        const int xa = x0 + D * ka, xb = std::min(x0 + D * kb, x1);
+        const size_t len = (size_t)(xb - xa);
+        for (int z = 0; z < nzr; z++) {
+          const size_t at = grid_index(&d, xa, y, za + z);
+          float *m = made.data() + (size_t)C * len * (size_t)z;
+          if (!g.data) g.fill(g.fill_ctx, at, at + len, m);
+          rows[z] = g.data ? g.data + (size_t)C * at : m;
+        }
+        for (int k = ka; k < kb; k++) {
+          const int xl = x0 + D * k, xh = std::min(xl + D, x1);
+          ValueT *leaf = out[slot[cell(k, ky, kz)]];
+          for (int x = xl; x < xh; x++) {
+            ValueT *col = leaf + LeafT::coordToOffset(vdb::Coord(x - xl, y, za));
+            const size_t from = (size_t)C * (size_t)(x - xa);
+            for (int z = 0; z < nzr; z++) col[z] = *reinterpret_cast<const ValueT *>(rows[z] + from);
           }
         }
       }
+    }
   });
 }
 
