@@ -88,13 +88,15 @@ template <typename LeafT> static bool vdbio_equal_channels(const LeafT &leaf) {
 }
 
 /* The leaf's buffers, the bytes of LeafNode::writeBuffers with Blosc but its
- * values compressed in VDBIO_GREY_TYPESIZE elements: OpenVDB's own writer
- * makes the value mask, the mask compression's flag, inactive values and
- * selection mask, then the values raw (into `raw`); the values, the last
- * of those bytes, then go through Blosc as bloscToStream sends them (a
- * 64-bit size, negative for values stored raw where Blosc cannot compress
- * them). Returns false, having written nothing, where the leaf is not grey
- * or the stream is not Blosc's: OpenVDB's writer then writes it. */
+ * values compressed in VDBIO_GREY_TYPESIZE elements. A leaf whose voxels are
+ * all active is its value mask, the mask compression's flag saying so and
+ * its values. Any other leaf is first written by OpenVDB's own writer
+ * without the Blosc step, into `raw`: the value mask, the flag, inactive
+ * values and selection mask, then the values raw, the last of those bytes.
+ * The values then go through Blosc as bloscToStream sends them (a 64-bit
+ * size, negative for values stored raw where Blosc cannot compress them).
+ * Returns false, having written nothing, where the leaf is not grey or the
+ * stream is not Blosc's: OpenVDB's writer then writes it. */
 template <typename LeafT>
 static bool vdbio_write_grey_leaf(const LeafT &leaf, std::ostream &os, uint32_t compression,
                                   const void *background, vdbio_string_buf &raw,
@@ -102,23 +104,37 @@ static bool vdbio_write_grey_leaf(const LeafT &leaf, std::ostream &os, uint32_t 
   namespace io = openvdb::io;
   using ValueT = typename LeafT::ValueType;
   if (!(compression & io::COMPRESS_BLOSC) || !vdbio_equal_channels(leaf)) return false;
-  raw.bytes.clear();
-  std::ostream plain(&raw);
-  io::setDataCompression(plain, compression & ~(uint32_t)io::COMPRESS_BLOSC);
-  io::setGridBackgroundValuePtr(plain, background);
-  leaf.writeBuffers(plain, false);
-  const size_t flag_at = leaf.getValueMask().memUsage();
-  /* readCompressedValues' rule: all SIZE values, or the active ones */
-  const bool all = (int8_t)raw.bytes[flag_at] == io::NO_MASK_AND_ALL_VALS;
-  const size_t bytes = (all ? LeafT::SIZE : leaf.getValueMask().countOn()) * sizeof(ValueT);
-  if (bytes == 0 || raw.bytes.size() < flag_at + 1 + bytes) return false;
-  const size_t head = raw.bytes.size() - bytes;
+  const typename LeafT::NodeMaskType &mask = leaf.getValueMask();
+  const char *head, *values;
+  size_t head_bytes, bytes;
+  const int8_t all_active = io::NO_MASK_OR_INACTIVE_VALS;
+  if ((compression & io::COMPRESS_ACTIVE_MASK) && mask.isOn()) {
+    raw.bytes.assign(mask.memUsage(), '\xff'); /* the mask's words, every bit on */
+    raw.bytes.append(reinterpret_cast<const char *>(&all_active), 1);
+    head = raw.bytes.data();
+    head_bytes = raw.bytes.size();
+    values = reinterpret_cast<const char *>(leaf.buffer().data());
+    bytes = LeafT::SIZE * sizeof(ValueT);
+  } else {
+    raw.bytes.clear();
+    std::ostream plain(&raw);
+    io::setDataCompression(plain, compression & ~(uint32_t)io::COMPRESS_BLOSC);
+    io::setGridBackgroundValuePtr(plain, background);
+    leaf.writeBuffers(plain, false);
+    const size_t flag_at = mask.memUsage();
+    /* readCompressedValues' rule: all SIZE values, or the active ones */
+    const bool all = (int8_t)raw.bytes[flag_at] == io::NO_MASK_AND_ALL_VALS;
+    bytes = (all ? LeafT::SIZE : mask.countOn()) * sizeof(ValueT);
+    if (bytes == 0 || raw.bytes.size() < flag_at + 1 + bytes) return false;
+    head = raw.bytes.data();
+    head_bytes = raw.bytes.size() - bytes;
+    values = head + head_bytes;
+  }
   packed.resize(bytes + BLOSC_MAX_OVERHEAD);
-  const char *values = raw.bytes.data() + head;
   const int n = blosc_compress_ctx(9, BLOSC_SHUFFLE, VDBIO_GREY_TYPESIZE, bytes, values,
                                    packed.data(), packed.size(), BLOSC_LZ4_COMPNAME, bytes, 1);
   const int64_t size = n > 0 ? (int64_t)n : -(int64_t)bytes;
-  os.write(raw.bytes.data(), (std::streamsize)head);
+  os.write(head, (std::streamsize)head_bytes);
   os.write(reinterpret_cast<const char *>(&size), sizeof size);
   os.write(n > 0 ? packed.data() : values, n > 0 ? (std::streamsize)n : (std::streamsize)bytes);
   return true;
