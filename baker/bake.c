@@ -215,7 +215,7 @@ static int bake_photons(bake_job_t *j, const bake_options_t *opt, bk_error_t *er
 /* A grid of the list, dense or made at the write. */
 static vdbio_grid_t made_grid(const char *name, vdbio_type_t type, og_values_t v, int inv,
                               float background) {
-  return (vdbio_grid_t){name, type, v.data, inv, background, v.fill, v.ctx};
+  return (vdbio_grid_t){name, type, v.data, inv, background, v.fill, v.ctx, v.grey};
 }
 
 /* Each background is the value outside the grid: the medium's n for `ior`,
@@ -279,7 +279,7 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
    * arrays as they stand, else decoded (a coded volume, voxelize.h) or
    * repeated (a homogeneous one's one voxel) at the write; Vec3, or floats
    * when the volume is grey (vox_summarise) */
-  const og_values_t ior = j->ior_bricks.slot ? (og_values_t){NULL, bg_fill, &j->ior_bricks}
+  const og_values_t ior = j->ior_bricks.slot ? (og_values_t){NULL, bg_fill, &j->ior_bricks, 0}
                                              : og_dense(vol->ior);
   const int plain = vol->sigma_s && !vol->homogeneous;
   /* a coded volume's σt decoded once: the writer reads a grid several times
@@ -294,8 +294,13 @@ static int bake_output_grids(bake_job_t *j, vdbio_grid_t grids[BAKE_MAX_GRIDS], 
                      j->photon_count, j->photon_weight, j->filter_radius, 3,
                      j->scene.medium_ior, og_dense(NULL), j->error.flux, j->error.uncollided,
                      og_dense(NULL), NULL, NULL};
-  if (j->radiance) a.emission = og_made(og_emission, src);
-  if (j->radiance && rad_channels == 1) a.radiance = og_made(og_radiance, src);
+  /* grey light: radiance and (in a grey medium) emission written as RGB
+   * from one float per voxel (vdbio_grid_t.grey) */
+  const int grey_emission = rad_channels == 1 && vol->sigma_channels == 1;
+  if (j->radiance)
+    a.emission = grey_emission ? og_grey(og_made(og_emission_grey, src))
+                               : og_made(og_emission, src);
+  if (j->radiance && rad_channels == 1) a.radiance = og_grey(og_dense(j->radiance));
   if (j->error.uncollided) a.radiance_flux_uncollided = pm_flux_uncollided(j->error.uncollided, n);
   if (j->error.camera) a.radiance_camera = pm_radiance_camera(j->error.uncollided, n);
   if (vol->ior_rb) a.ior_rgb = og_made(og_ior_rgb, src);

@@ -66,10 +66,6 @@ void og_emission(const void *src, size_t lo, size_t hi, float *out) {
       sigma_run(s->vol, 0, a, b, ss);
       for (size_t i = a; i < b; i++, out += 3) {
         const float *sk = ss + (size_t)C * (i - a), *r = s->radiance + (size_t)R * i;
-        if (C == 1 && R == 1) { /* grey: one product per voxel */
-          out[0] = out[1] = out[2] = sk[0] * r[0];
-          continue;
-        }
         for (int c = 0; c < 3; c++) out[c] = sk[C == 1 ? 0 : c] * r[R == 1 ? 0 : c];
       }
     }
@@ -81,11 +77,15 @@ void og_emission(const void *src, size_t lo, size_t hi, float *out) {
                s->radiance[vox_channel_at(s->radiance_channels, i, c)];
 }
 
-/* Grey light's one value per voxel as the RGB grid `radiance`. */
-void og_radiance(const void *src, size_t lo, size_t hi, float *out) {
+/* Grey light in a grey medium: og_emission's one product per voxel, once. */
+void og_emission_grey(const void *src, size_t lo, size_t hi, float *out) {
   const og_source_t *s = src;
-  for (size_t i = lo; i < hi; i++)
-    for (int c = 0; c < 3; c++) *out++ = s->radiance[vox_channel_at(s->radiance_channels, i, c)];
+  float ss[OG_PIECE];
+  for (size_t a = lo; a < hi; a += OG_PIECE) {
+    const size_t b = hi - a < OG_PIECE ? hi : a + OG_PIECE;
+    sigma_run(s->vol, 0, a, b, ss);
+    for (size_t i = a; i < b; i++) *out++ = ss[i - a] * s->radiance[i];
+  }
 }
 
 /* Dispersion: n per channel interleaved (R, G, B). */

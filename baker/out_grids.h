@@ -1,4 +1,4 @@
-/* out_grids.h: the grids a bake writes that follow from others (density, the grey copies, emission, ior_rgb, phase_g), made a run of voxels
+/* out_grids.h: the grids a bake writes that follow from others (density, emission, ior_rgb, phase_g), made a run of voxels
  * at a time while the writer builds each OpenVDB tree (vdbio_fill_fn) instead
  * of as whole arrays: at the write, the peak of a bake, they cost a few z
  * slices instead of 4-12 bytes per voxel each. Each value is computed exactly
@@ -27,19 +27,25 @@ typedef struct og_source {
   float medium_g;
 } og_source_t;
 
-/* A grid's values: a dense array, or a fill over an og_source_t. */
+/* A grid's values: a dense array, or a fill over an og_source_t; `grey`:
+ * a Vec3 grid given as one float per voxel (vdbio_grid_t.grey). */
 typedef struct og_values {
   const float *data;
   vdbio_fill_fn fill;
   const void *ctx;
+  int grey;
 } og_values_t;
 
 static inline og_values_t og_dense(const float *data) {
-  og_values_t v = {data, NULL, NULL};
+  og_values_t v = {data, NULL, NULL, 0};
   return v;
 }
 static inline og_values_t og_made(vdbio_fill_fn fill, const og_source_t *src) {
-  og_values_t v = {NULL, fill, src};
+  og_values_t v = {NULL, fill, src, 0};
+  return v;
+}
+static inline og_values_t og_grey(og_values_t v) {
+  v.grey = 1;
   return v;
 }
 static inline int og_present(og_values_t v) { return v.data || v.fill; }
@@ -51,7 +57,9 @@ void og_density(const void *src, size_t lo, size_t hi, float *out);  /* mean of 
 void og_extinction(const void *src, size_t lo, size_t hi, float *out);
 void og_scattering(const void *src, size_t lo, size_t hi, float *out);
 void og_emission(const void *src, size_t lo, size_t hi, float *out); /* scattering ⊙ radiance */
-void og_radiance(const void *src, size_t lo, size_t hi, float *out); /* radiance as RGB */
+/* grey light in a grey medium: σs·L̄ once per voxel, the grey Vec3 grid
+ * `emission` (og_grey) */
+void og_emission_grey(const void *src, size_t lo, size_t hi, float *out);
 void og_ior_rgb(const void *src, size_t lo, size_t hi, float *out);  /* n per channel */
 void og_phase_g(const void *src, size_t lo, size_t hi, float *out);  /* g where σs > 0 */
 

@@ -124,7 +124,7 @@ int shard_grids(shard_state_t *sh, const grid_dims_t *dims, vdbio_grid_t *grids,
     snprintf(sh->names[s], sizeof sh->names[s], f < 0 ? "shard_sum_%d" : "shard_flux_%d",
              f < 0 ? s : f);
     grids[(*count)++] =
-        (vdbio_grid_t){sh->names[s], VDBIO_VEC3, NULL, 0, 0.0f, shard_fill, &sh->slots[s]};
+        (vdbio_grid_t){sh->names[s], VDBIO_VEC3, NULL, 0, 0.0f, shard_fill, &sh->slots[s], 0};
   }
   return BK_OK;
 }

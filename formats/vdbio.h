@@ -35,7 +35,8 @@ int vdbio_is_nano_path(const char *path);
 typedef enum { VDBIO_FLOAT = 1, VDBIO_VEC3 = 3 } vdbio_type_t;
 
 /* A grid made on the fly instead of read from a dense array: writes voxels
- * [lo, hi) (x fastest) as (hi - lo) * type floats to out. The writer asks for
+ * [lo, hi) (x fastest) as (hi - lo) * type floats to out (one float per
+ * voxel for a `grey` Vec3 grid). The writer asks for
  * a few z slices at a time, from several threads at once, and for each voxel
  * twice (the slab its tree and checksum are built from, then the rows of the
  * leaves being written), so a derived grid (extinction = σs + σa) never
@@ -50,6 +51,10 @@ typedef struct vdbio_grid {
   float background;       /* the value outside the grid (every channel); 0 for most */
   vdbio_fill_fn fill;     /* when data is NULL */
   const void *fill_ctx;
+  /* Vec3 only: the three channels are equal, and data or fill give one
+   * float per voxel, written as (v, v, v): grey light's RGB grids, read and
+   * scanned at a third of the bytes */
+  int grey;
 } vdbio_grid_t;
 
 typedef enum { VDBIO_META_STRING, VDBIO_META_INT, VDBIO_META_FLOAT } vdbio_meta_kind_t;

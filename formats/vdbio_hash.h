@@ -7,6 +7,7 @@
 
 #include <openvdb/Types.h>
 
+#include <algorithm>
 #include <cinttypes>
 #include <cmath>
 #include <cstdint>
@@ -56,6 +57,20 @@ public:
     while (i < words && pos_ != 0) one(i++);
     if (!half) i = lanes8(data, i, words);
     while (i < words) one(i++);
+  }
+
+  /* add() of `voxels` values each repeated ch times (a grey Vec3 grid's
+   * (v, v, v): vdbio.h), through a small buffer instead of the grid's RGB
+   * copy. */
+  void add_spread(const float *data, size_t voxels, int ch, bool half) {
+    const size_t chunk = 1024;
+    float rgb[3 * 1024];
+    for (size_t i = 0; i < voxels; i += chunk) {
+      const size_t n = std::min(chunk, voxels - i);
+      for (size_t k = 0; k < n; k++)
+        for (int c = 0; c < ch; c++) rgb[(size_t)ch * k + (size_t)c] = data[i + k];
+      add(rgb, n, ch, half);
+    }
   }
 
   /* The grid's background (its value outside the box, the same in every

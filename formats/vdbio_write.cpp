@@ -52,8 +52,14 @@ static vdb::math::Transform::Ptr vdbio_cell_centred_transform(const grid_dims_t 
  * tiles pruned as copyFromDense does, so the tree is the same. Then the
  * background (and those inactive values) become `bg`, the value outside the
  * grid; the active voxels do not depend on bg. */
-template <typename ValueT> struct vdbio_block {
-  static const int C = sizeof(ValueT) / sizeof(float);
+template <typename ValueT, int S> struct vdbio_block {
+  /* source floats per voxel: the value's, or 1 for a grey Vec3 grid whose
+   * one float stands for its three equal channels (the same tests) */
+  static const int C = S;
+  static ValueT value(const float *v) {
+    if constexpr (S == 1) return ValueT(v[0]);
+    else return *reinterpret_cast<const ValueT *>(v);
+  }
   static bool is_background(const float *v) {
     for (int c = 0; c < C; c++)
       if (std::fabs(v[c]) > 0.0f) return false;
@@ -91,9 +97,9 @@ template <typename LeafT> struct vdbio_block_out {
  * constant medium's blocks, found with a row compare instead of the scan
  * below. Bit-equal voxels are equal and share their background state, so
  * the scan would find the same tile, or nothing. */
-template <typename LeafT, typename RowF>
+template <typename LeafT, int C, typename RowF>
 static bool vdbio_block_uniform(const float *first, RowF row) {
-  const int C = sizeof(typename LeafT::ValueType) / sizeof(float), D = (int)LeafT::DIM;
+  const int D = (int)LeafT::DIM;
   float pattern[3 * LeafT::DIM];
   for (int x = 0; x < D; x++) std::memcpy(pattern + C * x, first, C * sizeof(float));
   for (int z = 0; z < D; z++)
@@ -105,11 +111,11 @@ static bool vdbio_block_uniform(const float *first, RowF row) {
 /* `slab`: the voxels of z slices z0.. (vdbio_slices), the block's among them.
  * A `deferred` leaf gets its value mask only (vdbio_window_fill gives its
  * values when it is written). */
-template <typename LeafT>
+template <typename LeafT, int S>
 static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
                               const vdb::Coord &lo, bool deferred, vdbio_block_out<LeafT> &out) {
   using ValueT = typename LeafT::ValueType;
-  using B = vdbio_block<ValueT>;
+  using B = vdbio_block<ValueT, S>;
   const int C = B::C, D = (int)LeafT::DIM;
   const int ex = std::min(D, d->nx - lo[0]), ey = std::min(D, d->ny - lo[1]),
             ez = std::min(D, d->nz - lo[2]);
@@ -120,10 +126,10 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
   const float *first = row(0, 0);
   const bool first_bg = B::is_background(first);
   bool mixed = ex < D || ey < D || ez < D, any_on = false;
-  if (!mixed && vdbio_block_uniform<LeafT>(first, row)) { /* the scan's result, sooner */
+  if (!mixed && vdbio_block_uniform<LeafT, C>(first, row)) { /* the scan's result, sooner */
     if (first_bg) return;
     out.tile_on = true;
-    out.tile = *reinterpret_cast<const ValueT *>(first);
+    out.tile = B::value(first);
     return;
   }
   unsigned char on[LeafT::DIM * LeafT::DIM]; /* per row (y, z): its active voxels' bits */
@@ -139,7 +145,7 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
   if (!any_on) return; /* all inactive: the background */
   if (!mixed && !differs) { /* all active, one value */
     out.tile_on = true;
-    out.tile = *reinterpret_cast<const ValueT *>(first);
+    out.tile = B::value(first);
     return;
   }
   LeafT *leaf = deferred ? new LeafT(vdb::PartialCreate(), lo, vdb::zeroVal<ValueT>(), false)
@@ -151,7 +157,7 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
       for (unsigned bits = on[y + D * z]; bits; bits &= bits - 1u) {
         const int x = __builtin_ctz(bits);
         const vdb::Index n = LeafT::coordToOffset(vdb::Coord(x, y, z));
-        if (buf) buf[n] = *reinterpret_cast<const ValueT *>(r + C * x);
+        if (buf) buf[n] = B::value(r + C * x);
         leaf->getValueMask().setOn(n);
       }
     }
@@ -168,12 +174,13 @@ static void vdbio_build_block(const grid_dims_t *d, const float *slab, int z0,
  * in halves instead, so the cell table stays small; one leaf always fits. */
 static const size_t VDBIO_WINDOW_SPREAD = 16;
 
-template <typename LeafT>
+template <typename LeafT, int S>
 static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
                               const LeafT *const *leaves, size_t n,
                               typename LeafT::ValueType *const *out) {
   using ValueT = typename LeafT::ValueType;
-  const int C = sizeof(ValueT) / sizeof(float), D = (int)LeafT::DIM;
+  using B = vdbio_block<ValueT, S>;
+  const int C = S, D = (int)LeafT::DIM;
   vdb::Coord lo = leaves[0]->origin(), hi = lo;
   for (size_t i = 1; i < n; i++) {
     lo.minComponent(leaves[i]->origin());
@@ -183,8 +190,8 @@ static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
             cz = (hi[2] - lo[2]) / D + 1;
   if (n > 1 && (size_t)cx * (size_t)cy * (size_t)cz > VDBIO_WINDOW_SPREAD * n) {
     const size_t h = n / 2;
-    vdbio_window_fill(d, g, leaves, h, out);
-    vdbio_window_fill(d, g, leaves + h, n - h, out + h);
+    vdbio_window_fill<LeafT, S>(d, g, leaves, h, out);
+    vdbio_window_fill<LeafT, S>(d, g, leaves + h, n - h, out + h);
     return;
   }
   std::vector<int> slot((size_t)cx * (size_t)cy * (size_t)cz, -1); /* cell -> leaf */
@@ -226,7 +233,7 @@ static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
           for (int x = xl; x < xh; x++) {
             ValueT *col = leaf + LeafT::coordToOffset(vdb::Coord(x - xl, y, za));
             const size_t from = (size_t)C * (size_t)(x - xa);
-            for (int z = 0; z < nzr; z++) col[z] = *reinterpret_cast<const ValueT *>(rows[z] + from);
+            for (int z = 0; z < nzr; z++) col[z] = B::value(rows[z] + from);
           }
         }
       }
@@ -236,7 +243,7 @@ static void vdbio_window_fill(const grid_dims_t &d, const vdbio_grid_t &g,
 
 const float *vdbio_slices(const grid_dims_t *d, const vdbio_grid_t &g, int z0, int nz,
                           std::vector<float> &buf) {
-  const size_t C = g.type == VDBIO_VEC3 ? 3 : 1, plane = (size_t)d->nx * (size_t)d->ny;
+  const size_t C = g.type == VDBIO_VEC3 && !g.grey ? 3 : 1, plane = (size_t)d->nx * (size_t)d->ny;
   const size_t lo = plane * (size_t)z0, hi = plane * (size_t)(z0 + nz);
   if (g.data) return g.data + C * lo;
   buf.resize(C * (hi - lo));
@@ -271,10 +278,13 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
   /* a tree whose leaves are compressed on every core when written */
   vdbio_parallel_tree<TreeT> *tree = new vdbio_parallel_tree<TreeT>(vdb::zeroVal<ValueT>());
   typename GridT::Ptr grid = GridT::create(typename TreeT::Ptr(tree));
+  constexpr int C = (int)(sizeof(ValueT) / sizeof(float));
+  const bool grey = C == 3 && g.grey; /* one float per voxel for three channels */
   if (deferred) {
     const grid_dims_t dims = *d;
-    tree->values = [dims, g](const LeafT *const *leaves, size_t n, ValueT *const *out) {
-      vdbio_window_fill(dims, g, leaves, n, out);
+    tree->values = [dims, g, grey](const LeafT *const *leaves, size_t n, ValueT *const *out) {
+      if (grey) vdbio_window_fill<LeafT, 1>(dims, g, leaves, n, out);
+      else vdbio_window_fill<LeafT, C>(dims, g, leaves, n, out);
     };
   }
   vdb::tree::ValueAccessor<TreeT> acc(grid->tree());
@@ -283,15 +293,19 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
     const int nzs = std::min(D, d->nz - z0);
     const float *slab = vdbio_slices(d, g, z0, nzs, buf);
     tbb::task_group hashing;
-    const int C = (int)(sizeof(ValueT) / sizeof(float));
+    const size_t voxels = (size_t)d->nx * (size_t)d->ny * (size_t)nzs;
     if (hash)
-      hashing.run([&] { hash->add(slab, (size_t)d->nx * (size_t)d->ny * (size_t)nzs, C, half); });
+      hashing.run([&] {
+        if (grey) hash->add_spread(slab, voxels, C, half);
+        else hash->add(slab, voxels, C, half);
+      });
     auto origin = [&](size_t b) { return vdb::Coord(D * (int)(b % lx), D * (int)(b / lx), z0); };
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks),
                       [&](const tbb::blocked_range<size_t> &r) {
                         for (size_t b = r.begin(); b != r.end(); b++) {
                           out[b] = vdbio_block_out<LeafT>();
-                          vdbio_build_block(d, slab, z0, origin(b), deferred, out[b]);
+                          if (grey) vdbio_build_block<LeafT, 1>(d, slab, z0, origin(b), deferred, out[b]);
+                          else vdbio_build_block<LeafT, C>(d, slab, z0, origin(b), deferred, out[b]);
                         }
                       });
     for (size_t b = 0; b < blocks; b++) {
@@ -327,8 +341,10 @@ static int vdbio_check_write_args(const char *path, const grid_dims_t *dims,
   std::set<std::string> seen;
   for (int g = 0; g < grid_count; g++) {
     if (!grids[g].name || !grids[g].name[0] || (!grids[g].data && !grids[g].fill) ||
-        (grids[g].type != VDBIO_FLOAT && grids[g].type != VDBIO_VEC3))
-      return bk_fail(err, BK_ERR_RUNTIME, "%s: grid %d has no name, no data or an unknown type",
+        (grids[g].type != VDBIO_FLOAT && grids[g].type != VDBIO_VEC3) ||
+        (grids[g].grey && grids[g].type != VDBIO_VEC3))
+      return bk_fail(err, BK_ERR_RUNTIME,
+                     "%s: grid %d has no name, no data, an unknown type or is grey but not Vec3",
                      path, g);
     if (!seen.insert(grids[g].name).second)
       return bk_fail(err, BK_ERR_RUNTIME, "%s: grid name \"%s\" is used twice", path,

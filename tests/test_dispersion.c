@@ -213,10 +213,10 @@ static void view_centroids(const char *dir, int wedge, double col[3]) {
         for (int q = 0; q < 3; q++) rad[3 * v + q] = block ? 1.0f : 0.0f;
         st[v] = 0.2f;
       }
-  vdbio_grid_t g[4] = {{"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL},
-                       {"extinction", VDBIO_FLOAT, st, 0, 0.0f, NULL, NULL},
-                       {"ior", VDBIO_FLOAT, ior, 0, 1.0f, NULL, NULL},
-                       {"ior_rgb", VDBIO_VEC3, rgb, 0, 1.0f, NULL, NULL}};
+  vdbio_grid_t g[4] = {{"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL, 0},
+                       {"extinction", VDBIO_FLOAT, st, 0, 0.0f, NULL, NULL, 0},
+                       {"ior", VDBIO_FLOAT, ior, 0, 1.0f, NULL, NULL, 0},
+                       {"ior_rgb", VDBIO_VEC3, rgb, 0, 1.0f, NULL, NULL, 0}};
   vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   bk_error_t err;
   char vdb[1024], exr[1024];

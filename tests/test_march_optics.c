@@ -121,7 +121,7 @@ static int test_grin(clh_context_t *cl, const char *dir) {
         grid_voxel_center(&d, i, j, k, p);
         field[grid_index(&d, i, j, k)] = (float)sqrt(GRIN_N0 * GRIN_N0 + GRIN_G * p[1]);
       }
-  vdbio_grid_t g = {"ior", VDBIO_FLOAT, field, 0, 0.0f, NULL, NULL};
+  vdbio_grid_t g = {"ior", VDBIO_FLOAT, field, 0, 0.0f, NULL, NULL, 0};
   REQUIRE(vdbio_write(path, &d, &g, 1, NULL, 0, NULL, &err) == BK_OK, "vdbio_write: %s", err.msg);
   free(field);
   s.ior_vdb.present = 1;

@@ -73,7 +73,7 @@ static float *known_radiance_data(void) {
 
 static int write_known(const char *path, const vdbio_write_opts_t *opts, bk_error_t *err) {
   float *f = known_density_data(), *v = known_radiance_data();
-  vdbio_grid_t grids[2] = {{"density", VDBIO_FLOAT, f, 0, 0.0f, NULL, NULL}, {"radiance", VDBIO_VEC3, v, 1, 0.0f, NULL, NULL}};
+  vdbio_grid_t grids[2] = {{"density", VDBIO_FLOAT, f, 0, 0.0f, NULL, NULL, 0}, {"radiance", VDBIO_VEC3, v, 1, 0.0f, NULL, NULL, 0}};
   vdbio_meta_t meta[3] = {{"mode", VDBIO_META_STRING, "reference", 0, 0.0},
                           {"frame", VDBIO_META_INT, NULL, 7, 0.0},
                           {"scale", VDBIO_META_FLOAT, NULL, 0, 0.5}};
@@ -369,7 +369,7 @@ static int roundtrip(const char *dir) {
   char bigf[4096], bigh[4096];
   snprintf(bigf, sizeof bigf, "%s/vdbio_big_full.vdb", dir);
   snprintf(bigh, sizeof bigh, "%s/vdbio_big_half.vdb", dir);
-  vdbio_grid_t g1 = {"density", VDBIO_FLOAT, f, 0, 0.0f, NULL, NULL};
+  vdbio_grid_t g1 = {"density", VDBIO_FLOAT, f, 0, 0.0f, NULL, NULL, 0};
   vdbio_write_opts_t hopt = {VDBIO_COMPRESS_ZIP, 1, NULL, NULL};
   EXPECT(vdbio_write(bigf, &big, &g1, 1, NULL, 0, &zip, &err) == BK_OK, "big full: %s", err.msg);
   EXPECT(vdbio_write(bigh, &big, &g1, 1, NULL, 0, &hopt, &err) == BK_OK, "big half: %s", err.msg);
@@ -407,7 +407,7 @@ static int roundtrip(const char *dir) {
 
   /* an empty grid reads as one voxel of background */
   float *zero = calloc(grid_count(&KNOWN), sizeof(float));
-  vdbio_grid_t gz = {"empty", VDBIO_FLOAT, zero, 0, 0.0f, NULL, NULL};
+  vdbio_grid_t gz = {"empty", VDBIO_FLOAT, zero, 0, 0.0f, NULL, NULL, 0};
   char empty[4096];
   snprintf(empty, sizeof empty, "%s/vdbio_empty.vdb", dir);
   EXPECT(vdbio_write(empty, &KNOWN, &gz, 1, NULL, 0, NULL, &err) == BK_OK, "empty: %s", err.msg);
@@ -695,7 +695,7 @@ static int bench(const char *dir) {
       }
   char path[4096];
   snprintf(path, sizeof path, "%s/vdbio_bench.vdb", dir);
-  vdbio_grid_t g = {"density", VDBIO_FLOAT, f, 0, 0.0f, NULL, NULL};
+  vdbio_grid_t g = {"density", VDBIO_FLOAT, f, 0, 0.0f, NULL, NULL, 0};
   const vdbio_compression_t comps[3] = {VDBIO_COMPRESS_NONE, VDBIO_COMPRESS_ZIP,
                                         VDBIO_COMPRESS_BLOSC};
   for (int c = 0; c < 3; c++) {

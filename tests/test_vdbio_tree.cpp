@@ -232,9 +232,9 @@ static void test_sparse_windows(const std::string &dir) {
     for (int c = 0; c < 3; c++) v[3 * at + c] = sparse_value(at, c);
   }
   static const int one = 1, three = 3;
-  const vdbio_grid_t grids[] = {{"data", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
-                                {"fill", VDBIO_FLOAT, NULL, 0, 0.0f, sparse_fill, &one},
-                                {"fill3", VDBIO_VEC3, NULL, 1, 0.0f, sparse_fill, &three}};
+  const vdbio_grid_t grids[] = {{"data", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL, 0},
+                                {"fill", VDBIO_FLOAT, NULL, 0, 0.0f, sparse_fill, &one, 0},
+                                {"fill3", VDBIO_VEC3, NULL, 1, 0.0f, sparse_fill, &three, 0}};
   const std::string path = dir + "/sparse.vdb";
   if (!write_grids(path, grids, 3, SX, SY, SZ, VDBIO_COMPRESS_ZIP))
     return;
@@ -249,6 +249,46 @@ static void test_sparse_windows(const std::string &dir) {
           SZ);
   compare("sparse fill Vec3", *vdb::gridPtrCast<vdb::Vec3SGrid>(file.readGrid("fill3")),
           *reference<vdb::Vec3SGrid>(v, 0.0f, SX, SY, SZ), SX, SY, SZ);
+  file.close();
+}
+
+/* A grey Vec3 grid (vdbio_grid_t.grey: one float per voxel, from an array
+ * and from a fill) is the RGB grid of its three equal channels: the tree
+ * copyFromDense builds from that RGB array, and the checksum of the same
+ * RGB array written as such. value_at's channel 0 has what the two paths
+ * could disagree on: tiles, holes, -0 and NaN, and the box's ragged edge. */
+static void grey_fill(const void *ctx, size_t lo, size_t hi, float *out) {
+  const float *g = static_cast<const float *>(ctx);
+  for (size_t at = lo; at < hi; at++) *out++ = g[at];
+}
+
+static void test_grey_grids(const std::string &dir) {
+  const size_t n = (size_t)NX * NY * NZ;
+  std::vector<float> grey(n), rgb(3 * n);
+  for (int k = 0, at = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      for (int i = 0; i < NX; i++, at++) {
+        grey[(size_t)at] = value_at(i, j, k, 0);
+        for (int c = 0; c < 3; c++) rgb[3 * (size_t)at + (size_t)c] = grey[(size_t)at];
+      }
+  const float bg = 2.0f;
+  const vdbio_grid_t grids[] = {{"rgb", VDBIO_VEC3, rgb.data(), 1, bg, NULL, NULL, 0},
+                                {"grey", VDBIO_VEC3, grey.data(), 1, bg, NULL, NULL, 1},
+                                {"grey_fill", VDBIO_VEC3, NULL, 1, bg, grey_fill, grey.data(), 1}};
+  const std::string path = dir + "/grey.vdb";
+  if (!write_grids(path, grids, 3, NX, NY, NZ, VDBIO_COMPRESS_BLOSC)) return;
+  vdb::io::File file(path);
+  file.open();
+  auto want = reference<vdb::Vec3SGrid>(rgb, bg);
+  for (const char *name : {"rgb", "grey", "grey_fill"})
+    compare(name, *vdb::gridPtrCast<vdb::Vec3SGrid>(file.readGrid(name)), *want);
+  vdb::MetaMap::Ptr meta = file.getMetadata();
+  const std::string ck = meta->metaValue<std::string>("checksum_v2_rgb");
+  CHECK(meta->metaValue<std::string>("checksum_v2_grey") == ck &&
+            meta->metaValue<std::string>("checksum_v2_grey_fill") == ck,
+        "grey checksums %s, %s against the RGB grid's %s",
+        meta->metaValue<std::string>("checksum_v2_grey").c_str(),
+        meta->metaValue<std::string>("checksum_v2_grey_fill").c_str(), ck.c_str());
   file.close();
 }
 
@@ -283,8 +323,8 @@ static void test_dense_slabs(const std::string &dir) {
     f[at] = at == 0 || at == n - 1 ? 2.0f : x;
     for (int c = 0; c < 3; c++) v[3 * at + c] = f[at] + 0.5f * (float)c;
   }
-  const vdbio_grid_t grids[] = {{"f", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
-                                {"v", VDBIO_VEC3, v.data(), 1, 0.0f, NULL, NULL}};
+  const vdbio_grid_t grids[] = {{"f", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL, 0},
+                                {"v", VDBIO_VEC3, v.data(), 1, 0.0f, NULL, NULL, 0}};
   const std::string own = dir + "/slabs.vdb";
   if (!write_grids(own, grids, 2, nx, ny, nz, VDBIO_COMPRESS_BLOSC))
     return;
@@ -330,9 +370,9 @@ static void test_dense_grey(const std::string &dir) {
   first = last = grey;
   first[3 * 5 + 2] += 0.5f;             /* slice 0 */
   last[3 * (n - nx * ny + 3) + 1] = 0.25f; /* slice 149 */
-  const vdbio_grid_t grids[] = {{"grey", VDBIO_VEC3, grey.data(), 1, 0.0f, NULL, NULL},
-                                {"first", VDBIO_VEC3, first.data(), 1, 0.0f, NULL, NULL},
-                                {"last", VDBIO_VEC3, last.data(), 1, 0.0f, NULL, NULL}};
+  const vdbio_grid_t grids[] = {{"grey", VDBIO_VEC3, grey.data(), 1, 0.0f, NULL, NULL, 0},
+                                {"first", VDBIO_VEC3, first.data(), 1, 0.0f, NULL, NULL, 0},
+                                {"last", VDBIO_VEC3, last.data(), 1, 0.0f, NULL, NULL, 0}};
   const std::string path = dir + "/grey.vdb";
   if (!write_grids(path, grids, 3, nx, ny, nz, VDBIO_COMPRESS_BLOSC))
     return;
@@ -377,9 +417,9 @@ int main(int argc, char **argv) {
   grid_dims_t d = {};
   d.nx = NX, d.ny = NY, d.nz = NZ;
   d.voxel_size = 0.1f;
-  const vdbio_grid_t grids[] = {{"f0", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL},
-                                {"f1", VDBIO_FLOAT, f.data(), 0, 1.0f, NULL, NULL},
-                                {"v0", VDBIO_VEC3, v.data(), 1, 0.0f, NULL, NULL}};
+  const vdbio_grid_t grids[] = {{"f0", VDBIO_FLOAT, f.data(), 0, 0.0f, NULL, NULL, 0},
+                                {"f1", VDBIO_FLOAT, f.data(), 0, 1.0f, NULL, NULL, 0},
+                                {"v0", VDBIO_VEC3, v.data(), 1, 0.0f, NULL, NULL, 0}};
   vdbio_write_opts_t opts = {};
   opts.compression = VDBIO_COMPRESS_NONE;
   bk_error_t err = {};
@@ -398,6 +438,7 @@ int main(int argc, char **argv) {
   file.close();
   test_leaf_bytes();
   test_sparse_windows(argv[1]);
+  test_grey_grids(argv[1]);
   test_dense_slabs(argv[1]);
   test_dense_grey(argv[1]);
   if (failures) std::fprintf(stderr, "test_vdbio_tree: %d check(s) failed\n", failures);

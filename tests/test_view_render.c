@@ -198,13 +198,13 @@ static int write_cube(const char *path, int kind) {
       }
   vdbio_grid_t g[4];
   int ng = 0;
-  g[ng++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL};
-  g[ng++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL};
+  g[ng++] = (vdbio_grid_t){"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL, 0};
+  g[ng++] = (vdbio_grid_t){"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL, 0};
   if (kind == 0) {
-    g[ng++] = (vdbio_grid_t){"extinction", VDBIO_FLOAT, st, 0, 0.0f, NULL, NULL};
-    g[ng++] = (vdbio_grid_t){"scattering", VDBIO_FLOAT, ss, 0, 0.0f, NULL, NULL};
+    g[ng++] = (vdbio_grid_t){"extinction", VDBIO_FLOAT, st, 0, 0.0f, NULL, NULL, 0};
+    g[ng++] = (vdbio_grid_t){"scattering", VDBIO_FLOAT, ss, 0, 0.0f, NULL, NULL, 0};
   } else {
-    g[ng++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, st, 0, 0.0f, NULL, NULL};
+    g[ng++] = (vdbio_grid_t){"extinction", VDBIO_VEC3, st, 0, 0.0f, NULL, NULL, 0};
   }
   vdbio_meta_t meta[] = {{"frame", VDBIO_META_INT, NULL, 17, 0}};
   vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
@@ -343,8 +343,8 @@ static void test_host_device(const char *dir) {
         }
         ss[v] = 0.6f * mod;
       }
-  vdbio_grid_t g[4] = {{"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL}, {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL},
-                       {"extinction", VDBIO_VEC3, st, 0, 0.0f, NULL, NULL}, {"scattering", VDBIO_FLOAT, ss, 0, 0.0f, NULL, NULL}};
+  vdbio_grid_t g[4] = {{"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL, 0}, {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL, 0},
+                       {"extinction", VDBIO_VEC3, st, 0, 0.0f, NULL, NULL, 0}, {"scattering", VDBIO_FLOAT, ss, 0, 0.0f, NULL, NULL, 0}};
   vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   bk_error_t err;
   char vdb[4096], a[4096], b[4096];
@@ -429,8 +429,8 @@ static double lens_centroid(const char *dir, int lens, int *ok) {
         for (int q = 0; q < 3; q++) rad[3 * v + q] = slab ? 1.0f : 0.0f;
         st[v] = 0.2f;
       }
-  vdbio_grid_t g[3] = {{"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL}, {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL},
-                       {"extinction", VDBIO_FLOAT, st, 0, 0.0f, NULL, NULL}};
+  vdbio_grid_t g[3] = {{"radiance", VDBIO_VEC3, rad, 1, 0.0f, NULL, NULL, 0}, {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL, 0},
+                       {"extinction", VDBIO_FLOAT, st, 0, 0.0f, NULL, NULL, 0}};
   vdbio_write_opts_t wo = {VDBIO_COMPRESS_ZIP, 0, NULL, NULL};
   bk_error_t err;
   char vdb[4096], exr[4096];
@@ -561,12 +561,12 @@ static void test_bad(const char *which, const char *dir, const char *extra) {
   bk_error_t err;
   int rc;
   if (!strcmp(which, "no_radiance")) {
-    vdbio_grid_t g[2] = {{"density", VDBIO_FLOAT, data, 0, 0.0f, NULL, NULL}, {"temperature", VDBIO_FLOAT, data, 0, 0.0f, NULL, NULL}};
+    vdbio_grid_t g[2] = {{"density", VDBIO_FLOAT, data, 0, 0.0f, NULL, NULL, 0}, {"temperature", VDBIO_FLOAT, data, 0, 0.0f, NULL, NULL, 0}};
     EXPECT(vdbio_write(vdb, &d, g, 2, NULL, 0, &wo, &err) == 0, "%s", err.msg);
     rc = run_view(vdb, "-o", exr, "--png", png, NULL);
     expect_refusal(which, exr, png, vdb, "\"density\" (float)", rc);
   } else if (!strcmp(which, "radiance_float")) {
-    vdbio_grid_t g[1] = {{"radiance", VDBIO_FLOAT, data, 0, 0.0f, NULL, NULL}};
+    vdbio_grid_t g[1] = {{"radiance", VDBIO_FLOAT, data, 0, 0.0f, NULL, NULL, 0}};
     EXPECT(vdbio_write(vdb, &d, g, 1, NULL, 0, &wo, &err) == 0, "%s", err.msg);
     rc = run_view(vdb, "-o", exr, "--png", png, NULL);
     expect_refusal(which, exr, png, vdb, "holds float values", rc);
@@ -577,17 +577,17 @@ static void test_bad(const char *which, const char *dir, const char *extra) {
     rc = run_view(extra, "-o", exr, NULL);
     expect_refusal(which, exr, NULL, extra, "non-uniform scale", rc);
   } else if (!strcmp(which, "look_at_equals_position")) {
-    vdbio_grid_t g[1] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL}};
+    vdbio_grid_t g[1] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL, 0}};
     EXPECT(vdbio_write(vdb, &d, g, 1, NULL, 0, &wo, &err) == 0, "%s", err.msg);
     rc = run_view(vdb, "-o", exr, "--camera-pos", "1,2,3", "--look-at", "1,2,3", NULL);
     expect_refusal(which, exr, NULL, "--look-at", "equals the camera position", rc);
   } else if (!strcmp(which, "zero_resolution")) {
-    vdbio_grid_t g[1] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL}};
+    vdbio_grid_t g[1] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL, 0}};
     EXPECT(vdbio_write(vdb, &d, g, 1, NULL, 0, &wo, &err) == 0, "%s", err.msg);
     rc = run_view(vdb, "-o", exr, "--resolution", "0x600", NULL);
     expect_refusal(which, exr, NULL, "--resolution", "0x600", rc);
   } else if (!strcmp(which, "truncated")) {
-    vdbio_grid_t g[2] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL}, {"extinction", VDBIO_FLOAT, data, 0, 0.0f, NULL, NULL}};
+    vdbio_grid_t g[2] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL, 0}, {"extinction", VDBIO_FLOAT, data, 0, 0.0f, NULL, NULL, 0}};
     EXPECT(vdbio_write(vdb, &d, g, 2, NULL, 0, &wo, &err) == 0, "%s", err.msg);
     struct stat st;
     EXPECT(stat(vdb, &st) == 0 && truncate(vdb, st.st_size / 2) == 0, "cannot truncate %s", vdb);
@@ -598,13 +598,13 @@ static void test_bad(const char *which, const char *dir, const char *extra) {
     rc = run_view(vdb, "-o", exr, NULL);
     expect_refusal(which, exr, NULL, vdb, "No such file", rc);
   } else if (!strcmp(which, "missing_output_dir")) {
-    vdbio_grid_t g[1] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL}};
+    vdbio_grid_t g[1] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL, 0}};
     EXPECT(vdbio_write(vdb, &d, g, 1, NULL, 0, &wo, &err) == 0, "%s", err.msg);
     snprintf(exr, sizeof exr, "%s/view_no_such_dir/out.exr", dir);
     rc = run_view(vdb, "-o", exr, NULL);
     expect_refusal(which, exr, NULL, "view_no_such_dir", "does not exist", rc);
   } else if (!strcmp(which, "bad_frames")) {
-    vdbio_grid_t g[1] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL}};
+    vdbio_grid_t g[1] = {{"radiance", VDBIO_VEC3, data, 1, 0.0f, NULL, NULL, 0}};
     EXPECT(vdbio_write(vdb, &d, g, 1, NULL, 0, &wo, &err) == 0, "%s", err.msg);
     char out[4096];
     snprintf(out, sizeof out, "%s/view_bad_frames.####.exr", dir);

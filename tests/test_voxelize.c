@@ -720,7 +720,7 @@ static void check_density_values(scene_t *s, const grid_dims_t *d, const float *
   memcpy(bad, rho, count * sizeof *bad);
   for (size_t idx = 0; idx < count; idx += 97) bad[idx] = -1.0f; /* across every chunk */
   bk_error_t err;
-  vdbio_grid_t g = {"density", VDBIO_FLOAT, bad, 0, 0.0f, NULL, NULL};
+  vdbio_grid_t g = {"density", VDBIO_FLOAT, bad, 0, 0.0f, NULL, NULL, 0};
   vdbio_write_opts_t opts = {VDBIO_COMPRESS_NONE, 0, NULL, NULL};
   EXPECT(vdbio_write(path, d, &g, 1, NULL, 0, &opts, &err) == BK_OK);
   volume_t v;
@@ -792,7 +792,7 @@ static void case_medium(void) {
         ior[idx] = k < 4 ? 0.0f : 1.0f + 0.01f * (float)k;
         rho[idx] = 0.1f * (float)i;
       }
-  vdbio_grid_t g_ior = {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL}, g_rho = {"density", VDBIO_FLOAT, rho, 0, 0.0f, NULL, NULL};
+  vdbio_grid_t g_ior = {"ior", VDBIO_FLOAT, ior, 0, 0.0f, NULL, NULL, 0}, g_rho = {"density", VDBIO_FLOAT, rho, 0, 0.0f, NULL, NULL, 0};
   char p_ior[4096], p_rho[4096];
   tu_path(p_ior, sizeof p_ior, "field_ior.vdb");
   tu_path(p_rho, sizeof p_rho, "field_density.vdb");
