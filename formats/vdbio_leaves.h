@@ -89,26 +89,30 @@ template <typename LeafT> static bool vdbio_equal_channels(const LeafT &leaf) {
 
 /* The leaf's buffers, the bytes of LeafNode::writeBuffers with Blosc but its
  * values compressed in VDBIO_GREY_TYPESIZE elements. A leaf whose voxels are
- * all active is its value mask, the mask compression's flag saying so and
- * its values. Any other leaf is first written by OpenVDB's own writer
- * without the Blosc step, into `raw`: the value mask, the flag, inactive
- * values and selection mask, then the values raw, the last of those bytes.
+ * all active (in full floats) is its value mask, the mask compression's
+ * flag saying so and its values. Any other leaf is first written by
+ * OpenVDB's own writer without the Blosc step, into `raw`: the value mask,
+ * the flag, inactive values and selection mask, then the values raw (as
+ * half floats with to_half: 4 Vec3s per element then), the last of those
+ * bytes.
  * The values then go through Blosc as bloscToStream sends them (a 64-bit
  * size, negative for values stored raw where Blosc cannot compress them).
  * Returns false, having written nothing, where the leaf is not grey or the
  * stream is not Blosc's: OpenVDB's writer then writes it. */
 template <typename LeafT>
-static bool vdbio_write_grey_leaf(const LeafT &leaf, std::ostream &os, uint32_t compression,
-                                  const void *background, vdbio_string_buf &raw,
-                                  std::vector<char> &packed) {
+static bool vdbio_write_grey_leaf(const LeafT &leaf, std::ostream &os, bool to_half,
+                                  uint32_t compression, const void *background,
+                                  vdbio_string_buf &raw, std::vector<char> &packed) {
   namespace io = openvdb::io;
   using ValueT = typename LeafT::ValueType;
+  const size_t value_bytes =
+      to_half ? sizeof(typename io::RealToHalf<ValueT>::HalfT) : sizeof(ValueT);
   if (!(compression & io::COMPRESS_BLOSC) || !vdbio_equal_channels(leaf)) return false;
   const typename LeafT::NodeMaskType &mask = leaf.getValueMask();
   const char *head, *values;
   size_t head_bytes, bytes;
   const int8_t all_active = io::NO_MASK_OR_INACTIVE_VALS;
-  if ((compression & io::COMPRESS_ACTIVE_MASK) && mask.isOn()) {
+  if (!to_half && (compression & io::COMPRESS_ACTIVE_MASK) && mask.isOn()) {
     raw.bytes.assign(mask.memUsage(), '\xff'); /* the mask's words, every bit on */
     raw.bytes.append(reinterpret_cast<const char *>(&all_active), 1);
     head = raw.bytes.data();
@@ -120,11 +124,11 @@ static bool vdbio_write_grey_leaf(const LeafT &leaf, std::ostream &os, uint32_t 
     std::ostream plain(&raw);
     io::setDataCompression(plain, compression & ~(uint32_t)io::COMPRESS_BLOSC);
     io::setGridBackgroundValuePtr(plain, background);
-    leaf.writeBuffers(plain, false);
+    leaf.writeBuffers(plain, to_half);
     const size_t flag_at = mask.memUsage();
     /* readCompressedValues' rule: all SIZE values, or the active ones */
     const bool all = (int8_t)raw.bytes[flag_at] == io::NO_MASK_AND_ALL_VALS;
-    bytes = (all ? LeafT::SIZE : mask.countOn()) * sizeof(ValueT);
+    bytes = (all ? LeafT::SIZE : mask.countOn()) * value_bytes;
     if (bytes == 0 || raw.bytes.size() < flag_at + 1 + bytes) return false;
     head = raw.bytes.data();
     head_bytes = raw.bytes.size() - bytes;
@@ -140,14 +144,14 @@ static bool vdbio_write_grey_leaf(const LeafT &leaf, std::ostream &os, uint32_t 
   return true;
 }
 
-/* One leaf's buffers onto a run's stream: grey Vec3 leaves in full floats by
+/* One leaf's buffers onto a run's stream: grey Vec3 leaves by
  * vdbio_write_grey_leaf, every other one by OpenVDB's writer. */
 template <typename LeafT>
 static void vdbio_write_leaf(const LeafT &leaf, std::ostream &os, bool to_half,
                              uint32_t compression, const void *background,
                              vdbio_string_buf &raw, std::vector<char> &packed) {
   if constexpr (std::is_same<typename LeafT::ValueType, openvdb::Vec3s>::value)
-    if (!to_half && vdbio_write_grey_leaf(leaf, os, compression, background, raw, packed)) return;
+    if (vdbio_write_grey_leaf(leaf, os, to_half, compression, background, raw, packed)) return;
   leaf.writeBuffers(os, to_half);
 }
 
