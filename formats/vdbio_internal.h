@@ -84,8 +84,8 @@ int vdbio_load_grid(const char *path, const char *where, const char *grid_name,
                     openvdb::MetaMap::Ptr *meta = nullptr, bool delayed = false);
 
 /* Voxels of z slices [z0, z0 + nz) of a grid to write (x fastest, type
- * floats each): the dense array's own, or made by its fill into buf (in
- * parallel). */
+ * floats each, one for a grey Vec3 grid): the dense array's own, or made by
+ * its fill into buf (in parallel). */
 const float *vdbio_slices(const grid_dims_t *dims, const vdbio_grid_t &grid, int z0, int nz,
                           std::vector<float> &buf);
 
