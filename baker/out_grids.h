@@ -1,4 +1,5 @@
-/* out_grids.h: the grids a bake writes that follow from others (density, emission, ior_rgb, phase_g), made a run of voxels
+/* out_grids.h: the grids a bake writes that follow from others (density,
+ * emission, ior_rgb, phase_g), made a run of voxels
  * at a time while the writer builds each OpenVDB tree (vdbio_fill_fn) instead
  * of as whole arrays: at the write, the peak of a bake, they cost a few z
  * slices instead of 4-12 bytes per voxel each. Each value is computed exactly

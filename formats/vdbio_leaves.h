@@ -83,7 +83,8 @@ static const int VDBIO_GREY_TYPESIZE = 24;
 template <typename LeafT> static bool vdbio_equal_channels(const LeafT &leaf) {
   const uint32_t *v = reinterpret_cast<const uint32_t *>(leaf.buffer().data());
   uint32_t differ = 0;
-  for (size_t i = 0; i < 3 * (size_t)LeafT::SIZE; i += 3) differ |= (v[i] ^ v[i + 1]) | (v[i] ^ v[i + 2]);
+  for (size_t i = 0; i < 3 * (size_t)LeafT::SIZE; i += 3)
+    differ |= (v[i] ^ v[i + 1]) | (v[i] ^ v[i + 2]);
   return differ == 0;
 }
 

@@ -304,8 +304,9 @@ static typename GridT::Ptr vdbio_from_dense(const grid_dims_t *d, const vdbio_gr
                       [&](const tbb::blocked_range<size_t> &r) {
                         for (size_t b = r.begin(); b != r.end(); b++) {
                           out[b] = vdbio_block_out<LeafT>();
-                          if (grey) vdbio_build_block<LeafT, 1>(d, slab, z0, origin(b), deferred, out[b]);
-                          else vdbio_build_block<LeafT, C>(d, slab, z0, origin(b), deferred, out[b]);
+                          const vdb::Coord at = origin(b);
+                          if (grey) vdbio_build_block<LeafT, 1>(d, slab, z0, at, deferred, out[b]);
+                          else vdbio_build_block<LeafT, C>(d, slab, z0, at, deferred, out[b]);
                         }
                       });
     for (size_t b = 0; b < blocks; b++) {
