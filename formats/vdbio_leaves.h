@@ -11,7 +11,10 @@
  * in order while the next window is compressed; at most two windows'
  * buffers are in memory. vdbio_parallel_tree is
  * a tree that writes its buffers so, for Archive's writer to call. Checked
- * byte for byte against OpenVDB's own by test_vdbio_tree.
+ * byte for byte against OpenVDB's own by test_vdbio_tree, but for one
+ * deliberate difference: under Blosc, a Vec3 leaf whose channels are equal
+ * is compressed in larger elements (vdbio_write_grey_leaf), which
+ * test_vdbio_tree reads back through OpenVDB instead.
  *
  * A leaf may also come without values (made with PartialCreate: its value
  * mask only, the buffer never allocated): the tree's `values` function then
@@ -106,9 +109,9 @@ static bool vdbio_write_grey_leaf(const LeafT &leaf, std::ostream &os, bool to_h
                                   vdbio_string_buf &raw, std::vector<char> &packed) {
   namespace io = openvdb::io;
   using ValueT = typename LeafT::ValueType;
+  if (!(compression & io::COMPRESS_BLOSC) || !vdbio_equal_channels(leaf)) return false;
   const size_t value_bytes =
       to_half ? sizeof(typename io::RealToHalf<ValueT>::HalfT) : sizeof(ValueT);
-  if (!(compression & io::COMPRESS_BLOSC) || !vdbio_equal_channels(leaf)) return false;
   const typename LeafT::NodeMaskType &mask = leaf.getValueMask();
   const char *head, *values;
   size_t head_bytes, bytes;
