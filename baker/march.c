@@ -255,7 +255,7 @@ void pm_setup_free(pm_setup_t *s) {
 
 void pm_disable_octree(pm_setup_t *s) {
   if (s->pyramid.level)
-    memset(s->pyramid.level, 0, (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz);
+    memset(s->pyramid.level, 0, oct_bytes(&s->pyramid));
   s->octree_enabled = 0;
 }
 

@@ -124,7 +124,7 @@ static int make_buffers(clh_context_t *cl, const pm_setup_t *s, uint64_t *acc, p
   /* the volume's σ, read in place on a CPU device: σt and σs, or the one
    * coded buffer of both */
   const size_t sigma_bytes = s->sigma_floats * sizeof(float);
-  const size_t pyr_bytes = (size_t)s->pyramid.bx * s->pyramid.by * s->pyramid.bz;
+  const size_t pyr_bytes = oct_bytes(&s->pyramid);
   const int coded = (s->params.sigma_stride & PM_SIGMA_CODED_FLAG) != 0;
   if (!(r->params = make_buffer(cl, copy, sizeof(pm_params), &s->params, err)) ||
       !(r->lights = make_buffer(cl, copy, sizeof(ph_light) * nlights, all, err)) ||

@@ -209,6 +209,140 @@ error:
   return rc;
 }
 
+/* ---- the field's constant cells (oct_add_cells) ---- */
+
+/* Bytes of a row of one bit per entry along x. */
+static size_t bit_row_bytes(int entries) { return ((size_t)entries + 7) / 8; }
+
+/* What the two passes of the cell flags need: `odd` holds a bit per voxel,
+ * set where the voxel differs from a face neighbour in some channel. */
+typedef struct oct_cells {
+  int nx, ny, nz;
+  const oct_source_t *src;
+  int nsrc;
+  const oct_pyramid_t *pyr;
+  unsigned char *odd, *flags;
+} oct_cells_t;
+
+/* Channel ch of source s at voxel (i, j, k). */
+static float cell_value(const oct_cells_t *w, const oct_source_t *s, int ch, int i, int j, int k) {
+  const size_t pad = s->pad ? 1 : 0, sx = (size_t)w->nx + 2 * pad, sy = (size_t)w->ny + 2 * pad;
+  const size_t v = (size_t)i + pad + sx * ((size_t)j + pad + sy * ((size_t)k + pad));
+  return s->values[(size_t)s->stride * v + (size_t)ch];
+}
+
+/* Whether voxel c differs from one of its face neighbours in the grid. */
+static int voxel_odd(const oct_cells_t *w, const int *c) {
+  const int n[3] = {w->nx, w->ny, w->nz};
+  for (int s = 0; s < w->nsrc; s++)
+    for (int ch = 0; ch < w->src[s].channels; ch++) {
+      const float a = cell_value(w, &w->src[s], ch, c[0], c[1], c[2]);
+      for (int ax = 0; ax < 3; ax++)
+        for (int step = -1; step <= 1; step += 2) {
+          int q[3] = {c[0], c[1], c[2]};
+          q[ax] += step;
+          if (q[ax] >= 0 && q[ax] < n[ax] && cell_value(w, &w->src[s], ch, q[0], q[1], q[2]) != a)
+            return 1;
+        }
+    }
+  return 0;
+}
+
+static int bit_at(const unsigned char *bits, size_t row_bytes, int ny, int i, int j, int k) {
+  return bits[(size_t)(i >> 3) + row_bytes * ((size_t)j + (size_t)ny * k)] >> (i & 7) & 1;
+}
+
+/* Pass 1, block slices [b0, b1): the odd voxels of the varying blocks (a
+ * constant block's voxels equal their neighbours, the halo reaching past
+ * them). A block's 2 voxels along x share a byte, its rows are its own. */
+static void odd_rows(void *ctx, size_t b0, size_t b1) {
+  oct_cells_t *w = ctx;
+  const oct_pyramid_t *p = w->pyr;
+  const size_t rb = bit_row_bytes(w->nx);
+  for (int bz = (int)b0; bz < (int)b1; bz++)
+    for (int by = 0; by < p->by; by++)
+      for (int bx = 0; bx < p->bx; bx++) {
+        if (p->level[(size_t)bx + (size_t)p->bx * ((size_t)by + (size_t)p->by * bz)]) continue;
+        for (int v = 0; v < 8; v++) {
+          const int c[3] = {2 * bx + (v & 1), 2 * by + (v >> 1 & 1), 2 * bz + (v >> 2)};
+          if (c[0] >= w->nx || c[1] >= w->ny || c[2] >= w->nz || !voxel_odd(w, c)) continue;
+          w->odd[(size_t)(c[0] >> 3) + rb * ((size_t)c[1] + (size_t)w->ny * c[2])] |=
+              (unsigned char)(1u << (c[0] & 7));
+        }
+      }
+}
+
+/* Whether block (bx, by, bz) lies in the grid and varies. */
+static int block_varies(const oct_pyramid_t *p, int bx, int by, int bz) {
+  if (bz < 0 || bz >= p->bz) return 0;
+  return !p->level[(size_t)bx + (size_t)p->bx * ((size_t)by + (size_t)p->by * bz)];
+}
+
+/* Whether cell p's corners (voxels p - 1 and p per axis, clamped onto the
+ * grid as the padding replicates the edge) are all not odd: then they are
+ * one value, and so are their face neighbours, which their central
+ * differences read. */
+static int cell_constant(const oct_cells_t *w, const int *p) {
+  const int n[3] = {w->nx, w->ny, w->nz};
+  const size_t rb = bit_row_bytes(w->nx);
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; a++) {
+    lo[a] = p[a] - 1 < 0 ? 0 : p[a] - 1;
+    hi[a] = p[a] > n[a] - 1 ? n[a] - 1 : p[a];
+  }
+  for (int k = lo[2]; k <= hi[2]; k++)
+    for (int j = lo[1]; j <= hi[1]; j++)
+      for (int i = lo[0]; i <= hi[0]; i++)
+        if (bit_at(w->odd, rb, w->ny, i, j, k)) return 0;
+  return 1;
+}
+
+/* Pass 2, block slices [b0, b1) (up to bz inclusive: the last cell
+ * plane): cell planes 2 bz and 2 bz + 1, so that a thread's bytes are its
+ * own. A cell is asked about only from a voxel of a varying block
+ * (pm_march_leg), voxel p - 1 or p per axis, so a varying block b asks
+ * cells 2b to 2b + 2 per axis: only those are tested, the others stay 0. */
+static void cell_rows(void *ctx, size_t b0, size_t b1) {
+  oct_cells_t *w = ctx;
+  const oct_pyramid_t *P = w->pyr;
+  const size_t rb = bit_row_bytes(w->nx + 1);
+  for (int bz = (int)b0; bz < (int)b1; bz++)
+    for (int by = 0; by < P->by; by++)
+      for (int bx = 0; bx < P->bx; bx++) {
+        /* this slice's block asks planes 2 bz, 2 bz + 1; the one below, 2 bz */
+        const int z1 = block_varies(P, bx, by, bz) ? 2 * bz + 1
+                       : block_varies(P, bx, by, bz - 1) ? 2 * bz : -1;
+        for (int pz = 2 * bz; pz <= z1 && pz <= w->nz; pz++)
+          for (int py = 2 * by; py <= 2 * by + 2 && py <= w->ny; py++) {
+            unsigned char *row = w->flags + rb * ((size_t)py + (size_t)(w->ny + 1) * pz);
+            for (int px = 2 * bx; px <= 2 * bx + 2 && px <= w->nx; px++) {
+              const int p[3] = {px, py, pz};
+              if (cell_constant(w, p)) row[px >> 3] |= (unsigned char)(1u << (px & 7));
+            }
+          }
+      }
+}
+
+int oct_add_cells(int nx, int ny, int nz, const oct_source_t *src, int nsrc, oct_pyramid_t *pyr,
+                  bk_error_t *err) {
+  const size_t nb0 = (size_t)pyr->bx * pyr->by * pyr->bz;
+  const size_t bytes = bit_row_bytes(nx + 1) * ((size_t)ny + 1) * ((size_t)nz + 1);
+  unsigned char *odd = calloc(bit_row_bytes(nx) * (size_t)ny * (size_t)nz, 1);
+  unsigned char *all = odd ? realloc(pyr->level, nb0 + bytes) : NULL;
+  if (!all) {
+    free(odd);
+    return bk_fail(err, BK_ERR_RUNTIME, "octree: out of memory for %zu bytes of cell flags", bytes);
+  }
+  pyr->level = all;
+  pyr->cell_bytes = bytes;
+  memset(all + nb0, 0, bytes);
+  oct_cells_t w = {nx, ny, nz, src, nsrc, pyr, odd, all + nb0};
+  bk_parallel((size_t)pyr->bz, 8, odd_rows, &w);
+  bk_parallel((size_t)pyr->bz + 1, 8, cell_rows, &w);
+  free(odd);
+  return BK_OK;
+}
+
 int oct_build(const grid_dims_t *d, const float *ior, oct_pyramid_t *out, bk_error_t *err) {
   const oct_source_t n = {ior, 1, 1, 0};
   return oct_build_fields(d->nx, d->ny, d->nz, &n, 1, OCT_HALO, out, err);

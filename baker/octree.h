@@ -46,7 +46,8 @@ extern "C" {
 
 typedef struct oct_pyramid {
   int bx, by, bz;        /* finest blocks along each axis (the last ones may be partial) */
-  unsigned char *level;  /* bx*by*bz bytes, x-fastest */
+  unsigned char *level;  /* bx*by*bz bytes, x-fastest; then cell_bytes of cell flags */
+  size_t cell_bytes;     /* oct_add_cells: the field's constant cells, after the levels */
   /* voxels lying in constant blocks of each level (index 1..OCT_LEVELS), and
    * in no constant block (index 0): the share of the grid the march may cross
    * straight */
@@ -69,6 +70,24 @@ int oct_build(const grid_dims_t *d, const float *ior, oct_pyramid_t *out, bk_err
  * value over the block and `halo` (1..OCT_MAX_HALO) voxels around. */
 int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, int halo,
                      oct_pyramid_t *out, bk_error_t *err);
+/* The photon march's constant cells of the {∇n, n} field, after the levels
+ * (kernels/ray_core.h, rc_cell_flag): one bit per trilinear cell (the cube
+ * between 8 voxel centres; padded lower-corner index p in [0, n] per axis,
+ * one byte per 8 cells along x, rows of (nx + 8) / 8 bytes), set when no
+ * corner (voxel p - 1 or p per axis, clamped onto the grid) differs from a
+ * face neighbour in any channel of src. Then the corners hold one n and
+ * their differences, central or one-sided, are exactly 0, so n and ∇n are
+ * one value over the cell, ∇n = 0, and a ray in it is straight, as in a
+ * constant block. Only the cells asked about from a varying block are
+ * tested (two bk_parallel passes over block slices: the varying blocks'
+ * voxels, then their cells; the others stay 0). BK_ERR_RUNTIME when out of
+ * memory. */
+int oct_add_cells(int nx, int ny, int nz, const oct_source_t *src, int nsrc, oct_pyramid_t *pyr,
+                  bk_error_t *err);
+/* Bytes of p->level: the levels and the cell flags, what the march uploads. */
+static inline size_t oct_bytes(const oct_pyramid_t *p) {
+  return (size_t)p->bx * p->by * p->bz + p->cell_bytes;
+}
 void oct_free(oct_pyramid_t *p);
 
 #ifdef __cplusplus

@@ -18,6 +18,10 @@
  * the interpolated ∇n are exactly constant inside), the photon goes straight to
  * the block's boundary by DDA instead of stepping. With constant n over the
  * whole grid (HAS_REFRACTION 0) the kernel is a pure DDA with no gradient code.
+ * In a varying block, a photon in a constant cell of the field (the cube
+ * between 8 voxel centres, ∇n exactly 0 in it: the halo around the varying
+ * band) goes straight to where the run of such cells ends (pm_cell_walk)
+ * instead of stepping: the exact ray there, not the integrator's.
  *
  * Attenuation is exact per voxel: crossing length ℓ in a voxel of extinction
  * σ (per voxel length) deposits Φ0 (1 - e^{-σℓ})/σ, computed in a form stable
@@ -509,6 +513,49 @@ BK_INLINE int pm_curved_step(const pm_params *P, BK_GLOBAL const float *ng,
 }
 #endif
 
+#if !PH_DEVICE || HAS_REFRACTION
+/* Past a cell's exit face by this much (voxels, 2^-10), so that the next
+ * lookup lands in the next cell whatever the rounding of x (an ulp of
+ * coordinates below 4096); nearer the face than this, no walk. */
+#define PM_CELL_PAST 0.0009765625f
+
+/* Straight across the run of constant cells of the field that x starts
+ * (rc_cell_constant: n one value and ∇n exactly 0 in each), to the face
+ * where the next cell varies or the grid ends, deposited by the DDA as a
+ * curved step's chord is. The cells are walked as the voxels are (the
+ * lattice of cells is the voxels' shifted by half a voxel), a flag read
+ * per cell. Returns a PM_DDA_* status, or -1 when x is already on the exit
+ * face (the caller takes a curved step, which always moves on). v stays:
+ * ∇n is 0 on the way. */
+BK_INLINE int pm_cell_walk(const pm_params *P, BK_GLOBAL const bk_uchar *pyr,
+                           BK_GLOBAL const float *sigma, BK_GLOBAL bk_ulong *acc,
+                           BK_GLOBAL bk_ulong *masks, pm_photon *ph) {
+  const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
+  const bk_v3 d = rc_normalize(ph->v);
+  /* the cell's padded corner index p (as rc_tri_at's, unclamped) and, per
+   * axis, its low face p - 0.5 */
+  const float x[3] = {ph->x.x, ph->x.y, ph->x.z}, dv[3] = {d.x, d.y, d.z};
+  const int n[3] = {n3.nx, n3.ny, n3.nz};
+  int p[3], stp[3];
+  float tmax[3], tdelta[3];
+  for (int a = 0; a < 3; a++) {
+    p[a] = rc_floori(x[a] - 0.5f) + 1;
+    pm_dda_axis(dv[a], x[a] + 0.5f, p[a], &stp[a], &tdelta[a], &tmax[a]);
+  }
+  float len;
+  for (;;) {
+    const int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
+    len = tmax[a];
+    p[a] += stp[a];
+    if (p[a] < 0 || p[a] > n[a] || !rc_cell_flag(pyr, n3, p[0], p[1], p[2])) break;
+    tmax[a] += tdelta[a];
+  }
+  if (!(len > PM_CELL_PAST)) return -1;
+  int gl[3] = {0, 0, 0}, gh[3] = {n3.nx, n3.ny, n3.nz};
+  return pm_dda(P, 0, sigma, acc, masks, ph, d, len + PM_CELL_PAST, gl, gh, 0);
+}
+#endif
+
 /* Marches a started photon until it leaves the grid, is absorbed or reaches
  * the step or path limit (*steps counts on across calls); returns its
  * PM_FATE_*. Each iteration either crosses a constant block of the pyramid
@@ -531,7 +578,8 @@ BK_INLINE bk_uint pm_march_leg(const pm_params *P, BK_GLOBAL const float *ng,
         rc_block_bounds(n3, level, ph->c, lo, hi);
         r = pm_dda(P, pyr, sigma, acc, masks, ph, rc_normalize(ph->v), RC_FAR, lo, hi, steps);
       } else {
-        r = pm_curved_step(P, ng, sigma, acc, masks, ph);
+        r = rc_cell_constant(pyr, n3, ph->x) ? pm_cell_walk(P, pyr, sigma, acc, masks, ph) : -1;
+        if (r < 0) r = pm_curved_step(P, ng, sigma, acc, masks, ph);
       }
     } else
 #endif

@@ -18,7 +18,9 @@
  *  - the constant-block pyramid (baker/octree.h): one byte per 2³ block
  *    naming the coarsest block of 2, 8, 32 or 128 voxels a side that holds
  *    it and over which (with a halo) a quantity is constant; a ray goes
- *    straight across such a block (rc_block_level, rc_block_bounds).
+ *    straight across such a block (rc_block_level, rc_block_bounds); for
+ *    the photon march also a bit per trilinear cell whose {∇n, n} is one
+ *    value with ∇n = 0, where a ray goes straight too (rc_cell_flag).
  * Everything is in voxel coordinates u = (x − origin)/h: voxel i spans
  * [i, i+1) and its value sits at i + 0.5. */
 #ifndef BAKER_RAY_CORE_H
@@ -402,6 +404,24 @@ BK_INLINE void rc_block_bounds(rc_dims n, int level, const int *c, int *lo, int 
     lo[a] = (c[a] >> shift) << shift;
     hi[a] = lo[a] + size < nn[a] ? lo[a] + size : nn[a];
   }
+}
+
+/* The flag of the trilinear cell whose padded lower-corner index is
+ * (px, py, pz), each in [0, n]: set when the cell is constant, in the cell
+ * flags that follow the pyramid's levels (baker/octree.h, oct_add_cells).
+ * A ray is straight in such a cell. */
+BK_INLINE int rc_cell_flag(BK_GLOBAL const bk_uchar *pyr, rc_dims n, int px, int py, int pz) {
+  const bk_long blocks = (bk_long)rc_blocks(n.nx) * rc_blocks(n.ny) * rc_blocks(n.nz);
+  const bk_long rb = ((bk_long)n.nx + 8) >> 3;
+  return pyr[blocks + (px >> 3) + rb * (py + ((bk_long)n.ny + 1) * pz)] >> (px & 7) & 1;
+}
+
+/* Whether the cell holding u (rc_tri_at's, clamped onto the padding) is
+ * constant. */
+BK_INLINE int rc_cell_constant(BK_GLOBAL const bk_uchar *pyr, rc_dims n, bk_v3 u) {
+  return rc_cell_flag(pyr, n, bk_clampi(rc_floori(u.x - 0.5f) + 1, 0, n.nx),
+                      bk_clampi(rc_floori(u.y - 0.5f) + 1, 0, n.ny),
+                      bk_clampi(rc_floori(u.z - 0.5f) + 1, 0, n.nz));
 }
 
 #endif

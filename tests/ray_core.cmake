@@ -2,7 +2,7 @@
 # and the layering of the code base (tests/check_layout.py).
 add_executable(test_ray_core ${BAKER_TEST_DIR}/test_ray_core.c)
 target_link_libraries(test_ray_core PRIVATE bakercore)
-foreach(t field sampler sparse step atten_slab pyramid)
+foreach(t field sampler sparse step atten_slab pyramid cells)
   add_test(NAME ray_core_${t} COMMAND test_ray_core ${t})
 endforeach()
 

@@ -16,7 +16,9 @@
  *   atten     (1 - e^-τ)/τ and e^-τ across the series/exp switch
  *   slab      ray-box entry and exit, misses, starts inside
  *   pyramid   oct_build_fields over several channels and halos equals a
- *             brute-force search for constant blocks, level by level */
+ *             brute-force search for constant blocks, level by level
+ *   cells     oct_add_cells flags exactly the asked cells whose 8 corners
+ *             hold one {∇n, n}, and the field is that value inside them */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -274,6 +276,72 @@ static void test_sparse_field(void) {
   free(ng);
 }
 
+/* --- cells: the march's constant cells (oct_add_cells) ------------------------------ */
+
+/* Every flagged cell's 8 corners hold one {∇n, n} bit for bit with ∇n = 0,
+ * so a sample anywhere in it is that value and a ray there is straight; and
+ * every such cell with a corner in a varying block (the cells the march
+ * asks about) is flagged. A face voxel that differs from its inner
+ * neighbour alone makes a cell of one {∇n, n} whose ∇n is not 0. */
+static void test_cells(void) {
+  enum { NX = 37, NY = 29, NZ = 23 };
+  static float n[NX * NY * NZ];
+  for (int k = 0; k < NZ; k++)
+    for (int j = 0; j < NY; j++)
+      for (int i = 0; i < NX; i++) {
+        float r = sqrtf((i - 20.0f) * (i - 20.0f) + (j - 13.0f) * (j - 13.0f) +
+                        (k - 11.0f) * (k - 11.0f));
+        float w = r < 6.0f ? 1.0f : r > 8.0f ? 0.0f : (8.0f - r) / 2.0f;
+        n[i + NX * (j + NY * k)] = 1.0f + 0.5f * w + (i == 0 && j < 4 ? 0.25f : 0.0f);
+      }
+  bk_error_t err = {0};
+  const grid_dims_t gd = {NX, NY, NZ, 0.1f, {0, 0, 0}};
+  oct_pyramid_t pyr;
+  REQUIRE(oct_build(&gd, n, &pyr, &err) == BK_OK, "%s", err.msg);
+  const oct_source_t src = {n, 1, 1, 0};
+  REQUIRE(oct_add_cells(NX, NY, NZ, &src, 1, &pyr, &err) == BK_OK, "%s", err.msg);
+  float *ng = fld_build(NX, NY, NZ, 0.1, n, &err);
+  REQUIRE(ng, "%s", err.msg);
+  const rc_dims d = {NX, NY, NZ};
+  int flagged = 0, unsound = 0, missed = 0;
+  for (int pz = 0; pz <= NZ; pz++)
+    for (int py = 0; py <= NY; py++)
+      for (int px = 0; px <= NX; px++) {
+        const int p[3] = {px, py, pz}, nn[3] = {NX, NY, NZ};
+        float c0[4], q[4];
+        int same = 1, asked = 0;
+        for (int v = 0; v < 8; v++) {
+          int c[3];
+          for (int a = 0; a < 3; a++) {
+            c[a] = p[a] - 1 + (v >> a & 1);
+            c[a] = c[a] < 0 ? 0 : c[a] >= nn[a] ? nn[a] - 1 : c[a];
+          }
+          fld_voxel(ng, c[0], c[1], c[2], v ? q : c0);
+          if (v && memcmp(q, c0, sizeof q)) same = 0;
+          asked |= rc_block_level(pyr.level, d, c) == 0;
+        }
+        same = same && c0[0] == 0.0f && c0[1] == 0.0f && c0[2] == 0.0f; /* and straight */
+        const int flag = rc_cell_flag(pyr.level, d, px, py, pz);
+        flagged += flag;
+        if (flag && !same && unsound++ < 3) EXPECT(0, "cell %d %d %d flagged, not constant", px, py, pz);
+        if (asked && same && !flag && missed++ < 3) EXPECT(0, "cell %d %d %d constant, not flagged", px, py, pz);
+        if (flag) { /* a point inside: rc_cell_constant finds the flag, the field is c0 */
+          const bk_v3 u = v3(px - 0.5f + 0.37f, py - 0.5f + 0.61f, pz - 0.5f + 0.13f);
+          bk_v3 g;
+          const float nu = rc_field(d, ng, u, &g);
+          if (u.x >= 0 && u.y >= 0 && u.z >= 0 && u.x < NX && u.y < NY && u.z < NZ)
+            EXPECT(rc_cell_constant(pyr.level, d, u) && nu == c0[3] && g.x == 0.0f && g.y == 0.0f &&
+                       g.z == 0.0f,
+                   "cell %d %d %d: n %g grad %g %g %g", px, py, pz, nu, g.x, g.y, g.z);
+        }
+      }
+  printf("cells: %d of %d flagged constant\n", flagged, (NX + 1) * (NY + 1) * (NZ + 1));
+  EXPECT(flagged > 0 && unsound == 0 && missed == 0, "%d flagged, %d unsound, %d missed", flagged,
+         unsound, missed);
+  free(ng);
+  oct_free(&pyr);
+}
+
 /* --- step ------------------------------------------------------------------------ */
 
 /* n(u) = sqrt(n0² + 2 a u_y) on a 64³ grid; march from u0 until x passes 56:
@@ -482,6 +550,7 @@ int main(int argc, char **argv) {
   if (all || !strcmp(t, "step")) test_step();
   if (all || !strcmp(t, "atten_slab")) test_atten_slab();
   if (all || !strcmp(t, "pyramid")) test_pyramid();
+  if (all || !strcmp(t, "cells")) test_cells();
   if (tu_failures) fprintf(stderr, "%s: %d check(s) failed\n", t, tu_failures);
   else printf("%s: ok\n", t);
   return tu_failures ? 1 : 0;
