@@ -186,6 +186,15 @@ static inline void pm_record(pm_path_rec *rec, bk_v3 x) {
 #define PM_RECORD(x) pm_record(rec, (x))
 #endif
 
+/* Whether the march has the pyramid: always on the device; on the host a
+ * null one is no octree at all, a curved step everywhere (the plain loop
+ * of scripts/bench_march_run, issue 15's yardstick). */
+#if PH_DEVICE
+#define PM_HAS_PYRAMID(pyr) 1
+#else
+#define PM_HAS_PYRAMID(pyr) ((pyr) != 0)
+#endif
+
 /* pm_params.sigma_stride: the volume's σ is coded (kernels/medium_code.h) */
 #define PM_SIGMA_CODED_FLAG 0x100u
 
@@ -572,13 +581,15 @@ BK_INLINE bk_uint pm_march_leg(const pm_params *P, BK_GLOBAL const float *ng,
     int r;
 #if !PH_DEVICE || HAS_REFRACTION
     if (PM_HAS_REFRACTION(P)) {
-      int level = rc_block_level(pyr, n3, ph->c);
+      const int level = PM_HAS_PYRAMID(pyr) ? rc_block_level(pyr, n3, ph->c) : 0;
       if (level > 0) { /* constant block: straight to its boundary */
         int lo[3], hi[3];
         rc_block_bounds(n3, level, ph->c, lo, hi);
         r = pm_dda(P, pyr, sigma, acc, masks, ph, rc_normalize(ph->v), RC_FAR, lo, hi, steps);
       } else {
-        r = rc_cell_constant(pyr, n3, ph->x) ? pm_cell_walk(P, pyr, sigma, acc, masks, ph) : -1;
+        r = PM_HAS_PYRAMID(pyr) && rc_cell_constant(pyr, n3, ph->x)
+                ? pm_cell_walk(P, pyr, sigma, acc, masks, ph)
+                : -1;
         if (r < 0) r = pm_curved_step(P, ng, sigma, acc, masks, ph);
       }
     } else

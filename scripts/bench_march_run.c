@@ -88,8 +88,9 @@ static void stats_merge(pm_stats_t *a, const pm_stats_t *b) {
 }
 
 #ifdef _OPENMP
-/* The yardstick: pm_march_photon in `#pragma omp parallel for`, no octree,
- * private grids summed after the loop; the sum is inside the timed part. */
+/* The yardstick: pm_march_photon in `#pragma omp parallel for`, no octree
+ * (no pyramid at all: not even its lookups), private grids summed after
+ * the loop; the sum is inside the timed part. */
 static best_t run_omp(const scene_t *s, const volume_t *v, int runs, uint64_t **acc_out) {
   best_t b;
   memset(&b, 0, sizeof b);
@@ -117,7 +118,7 @@ static best_t run_omp(const scene_t *s, const volume_t *v, int runs, uint64_t **
 #pragma omp for schedule(dynamic, 1024)
       for (long long i = 0; i < n; i++) {
         pm_result res;
-        pm_march_photon(&su.params, su.lights.lights, su.ng, su.pyramid.level, su.sigma_t, mine,
+        pm_march_photon(&su.params, su.lights.lights, su.ng, NULL, su.sigma_t, mine,
                         su.masks, su.tables, (bk_uint)i, &res, NULL);
         pm_stats_add(&local, &res);
       }
