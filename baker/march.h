@@ -53,7 +53,7 @@ extern "C" {
 
 typedef struct pm_stats {
   uint64_t photons, missed_grid, left_grid, absorbed, step_limit;
-  uint64_t steps;      /* march iterations: integrator steps + straight block crossings */
+  uint64_t steps;      /* march iterations: integrator steps, straight blocks and runs of cells */
   uint64_t voxels;     /* voxel crossings (deposits) */
   double path_voxels;  /* total path length inside the grid, voxels */
   double ms_octree, ms_generate, ms_march;

@@ -234,7 +234,7 @@ BK_STATIC_ASSERT(sizeof(pm_params) == 160, "pm_params layout is shared with kern
 /* One photon's outcome. */
 typedef struct pm_result {
   bk_uint fate;   /* PM_FATE_* */
-  bk_uint steps;  /* march iterations: integrator steps and straight block crossings */
+  bk_uint steps;  /* march iterations: integrator steps, straight blocks and runs of cells */
   bk_uint voxels; /* voxel crossings (deposits) */
   float path;     /* path length inside the grid, voxels */
 } pm_result;
