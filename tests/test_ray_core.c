@@ -222,6 +222,20 @@ static void test_sampler(void) {
   EXPECT(bad == 0, "%d padded samples differ from clamped trilinear", bad);
 }
 
+/* n over an nx x ny x nz grid: 1.5 in a ball of radius 6 voxels about
+ * (20, 13, 11), 1 beyond 8, linear between; plus `bump` on the voxels of
+ * the face x = 0 with y < 4 (a face voxel unlike its inner neighbour). */
+static void ball_band(float *n, int nx, int ny, int nz, float bump) {
+  for (int k = 0; k < nz; k++)
+    for (int j = 0; j < ny; j++)
+      for (int i = 0; i < nx; i++) {
+        float r = sqrtf((i - 20.0f) * (i - 20.0f) + (j - 13.0f) * (j - 13.0f) +
+                        (k - 11.0f) * (k - 11.0f));
+        float w = r < 6.0f ? 1.0f : r > 8.0f ? 0.0f : (8.0f - r) / 2.0f;
+        n[i + nx * (j + ny * k)] = 1.0f + 0.5f * w + (i == 0 && j < 4 ? bump : 0.0f);
+      }
+}
+
 /* The sparse {∇n, n} field samples exactly as the dense padded layout of
  * the same values would: a ball of glass (n constant inside and out, a
  * smooth band between, so bricks stored and left out side by side) on a
@@ -230,14 +244,7 @@ static void test_sampler(void) {
 static void test_sparse_field(void) {
   enum { NX = 37, NY = 29, NZ = 23 };
   static float n[NX * NY * NZ], dense[4 * NX * NY * NZ], p[4 * (NX + 2) * (NY + 2) * (NZ + 2)];
-  for (int k = 0; k < NZ; k++)
-    for (int j = 0; j < NY; j++)
-      for (int i = 0; i < NX; i++) {
-        float r = sqrtf((i - 20.0f) * (i - 20.0f) + (j - 13.0f) * (j - 13.0f) +
-                        (k - 11.0f) * (k - 11.0f));
-        float w = r < 6.0f ? 1.0f : r > 8.0f ? 0.0f : (8.0f - r) / 2.0f;
-        n[i + NX * (j + NY * k)] = 1.0f + 0.5f * w;
-      }
+  ball_band(n, NX, NY, NZ, 0.0f);
   bk_error_t err = {0};
   float *ng = fld_build(NX, NY, NZ, 0.1, n, &err);
   REQUIRE(ng, "%s", err.msg);
@@ -286,14 +293,7 @@ static void test_sparse_field(void) {
 static void test_cells(void) {
   enum { NX = 37, NY = 29, NZ = 23 };
   static float n[NX * NY * NZ];
-  for (int k = 0; k < NZ; k++)
-    for (int j = 0; j < NY; j++)
-      for (int i = 0; i < NX; i++) {
-        float r = sqrtf((i - 20.0f) * (i - 20.0f) + (j - 13.0f) * (j - 13.0f) +
-                        (k - 11.0f) * (k - 11.0f));
-        float w = r < 6.0f ? 1.0f : r > 8.0f ? 0.0f : (8.0f - r) / 2.0f;
-        n[i + NX * (j + NY * k)] = 1.0f + 0.5f * w + (i == 0 && j < 4 ? 0.25f : 0.0f);
-      }
+  ball_band(n, NX, NY, NZ, 0.25f);
   bk_error_t err = {0};
   const grid_dims_t gd = {NX, NY, NZ, 0.1f, {0, 0, 0}};
   oct_pyramid_t pyr;
