@@ -39,6 +39,13 @@ typedef struct oct_scan {
   atomic_int failed;
 } oct_scan_t;
 
+/* Source s's entry of voxel (i, j, k) of an nx x ny grid (its padded
+ * layout's when s->pad): the index of its first float over the stride. */
+static size_t source_index(const oct_source_t *s, int nx, int ny, int i, int j, int k) {
+  const size_t pad = s->pad ? 1 : 0, sx = (size_t)nx + 2 * pad, sy = (size_t)ny + 2 * pad;
+  return (size_t)s->stride * ((size_t)i + pad + sx * ((size_t)j + pad + sy * ((size_t)k + pad)));
+}
+
 /* Row (j, k): f[i] gets bit 0, 1, 2 when voxel i differs from its +x, +y
  * (when `dy`) or +z (when `dz`) neighbour in any channel; returns the OR of
  * all. Channel by channel along the row, so the loop is branch-free. */
@@ -49,8 +56,7 @@ static unsigned row_pairs(const oct_scan_t *w, int j, int k, int dy, int dz, uns
     for (int ch = 0; ch < w->src[s].channels; ch++) {
       const size_t st = (size_t)w->src[s].stride, pad = w->src[s].pad ? 1 : 0;
       const size_t sx = (size_t)n + 2 * pad, sy = (size_t)w->ny + 2 * pad;
-      const size_t row = pad + sx * ((size_t)j + pad + sy * ((size_t)k + pad));
-      const float *p = w->src[s].values + st * row + (size_t)ch;
+      const float *p = w->src[s].values + source_index(&w->src[s], n, w->ny, 0, j, k) + (size_t)ch;
       /* without a neighbour, the voxel itself: masked off below */
       const size_t oy = dy ? st * sx : 0, oz = dz ? st * sx * sy : 0;
       for (int i = 0; i < n; i++) {
@@ -226,9 +232,7 @@ typedef struct oct_cells {
 
 /* Channel ch of source s at voxel (i, j, k). */
 static float cell_value(const oct_cells_t *w, const oct_source_t *s, int ch, int i, int j, int k) {
-  const size_t pad = s->pad ? 1 : 0, sx = (size_t)w->nx + 2 * pad, sy = (size_t)w->ny + 2 * pad;
-  const size_t v = (size_t)i + pad + sx * ((size_t)j + pad + sy * ((size_t)k + pad));
-  return s->values[(size_t)s->stride * v + (size_t)ch];
+  return s->values[source_index(s, w->nx, w->ny, i, j, k) + (size_t)ch];
 }
 
 /* Whether voxel c differs from one of its face neighbours in the grid. */
@@ -305,7 +309,7 @@ static int cell_constant(const oct_cells_t *w, const int *p) {
 static void cell_rows(void *ctx, size_t b0, size_t b1) {
   oct_cells_t *w = ctx;
   const oct_pyramid_t *P = w->pyr;
-  const size_t rb = bit_row_bytes(w->nx + 1);
+  const rc_dims n = {w->nx, w->ny, w->nz};
   for (int bz = (int)b0; bz < (int)b1; bz++)
     for (int by = 0; by < P->by; by++)
       for (int bx = 0; bx < P->bx; bx++) {
@@ -313,20 +317,20 @@ static void cell_rows(void *ctx, size_t b0, size_t b1) {
         const int z1 = block_varies(P, bx, by, bz) ? 2 * bz + 1
                        : block_varies(P, bx, by, bz - 1) ? 2 * bz : -1;
         for (int pz = 2 * bz; pz <= z1 && pz <= w->nz; pz++)
-          for (int py = 2 * by; py <= 2 * by + 2 && py <= w->ny; py++) {
-            unsigned char *row = w->flags + rb * ((size_t)py + (size_t)(w->ny + 1) * pz);
+          for (int py = 2 * by; py <= 2 * by + 2 && py <= w->ny; py++)
             for (int px = 2 * bx; px <= 2 * bx + 2 && px <= w->nx; px++) {
               const int p[3] = {px, py, pz};
-              if (cell_constant(w, p)) row[px >> 3] |= (unsigned char)(1u << (px & 7));
+              if (cell_constant(w, p))
+                w->flags[rc_cell_byte(n, px, py, pz)] |= (unsigned char)(1u << (px & 7));
             }
-          }
       }
 }
 
 int oct_add_cells(int nx, int ny, int nz, const oct_source_t *src, int nsrc, oct_pyramid_t *pyr,
                   bk_error_t *err) {
   const size_t nb0 = (size_t)pyr->bx * pyr->by * pyr->bz;
-  const size_t bytes = bit_row_bytes(nx + 1) * ((size_t)ny + 1) * ((size_t)nz + 1);
+  const rc_dims n = {nx, ny, nz};
+  const size_t bytes = (size_t)rc_cell_byte(n, nx, ny, nz) + 1;
   unsigned char *odd = calloc(bit_row_bytes(nx) * (size_t)ny * (size_t)nz, 1);
   unsigned char *all = odd ? realloc(pyr->level, nb0 + bytes) : NULL;
   if (!all) {

@@ -406,14 +406,20 @@ BK_INLINE void rc_block_bounds(rc_dims n, int level, const int *c, int *lo, int 
   }
 }
 
+/* The byte of the cell flags that holds cell (px, py, pz)'s bit (px & 7):
+ * one byte per 8 cells along x, (nx + 1) x (ny + 1) x (nz + 1) cells. The
+ * last cell's byte + 1 is the flags' size. */
+BK_INLINE bk_long rc_cell_byte(rc_dims n, int px, int py, int pz) {
+  return (px >> 3) + (((bk_long)n.nx + 8) >> 3) * (py + ((bk_long)n.ny + 1) * pz);
+}
+
 /* The flag of the trilinear cell whose padded lower-corner index is
  * (px, py, pz), each in [0, n]: set when the cell is constant, in the cell
  * flags that follow the pyramid's levels (baker/octree.h, oct_add_cells).
  * A ray is straight in such a cell. */
 BK_INLINE int rc_cell_flag(BK_GLOBAL const bk_uchar *pyr, rc_dims n, int px, int py, int pz) {
   const bk_long blocks = (bk_long)rc_blocks(n.nx) * rc_blocks(n.ny) * rc_blocks(n.nz);
-  const bk_long rb = ((bk_long)n.nx + 8) >> 3;
-  return pyr[blocks + (px >> 3) + rb * (py + ((bk_long)n.ny + 1) * pz)] >> (px & 7) & 1;
+  return pyr[blocks + rc_cell_byte(n, px, py, pz)] >> (px & 7) & 1;
 }
 
 /* Whether the cell holding u (rc_tri_at's, clamped onto the padding) is
