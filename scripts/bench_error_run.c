@@ -27,7 +27,12 @@
  * bake with the true ε, the relative L2 over all voxels and the wall time of
  * the whole stage (reference: octree, twins, march; adaptive: octree, pilot,
  * distribution, twins, march, filter, error terms), kernels built first;
- * each the least of $BENCH_REPEAT bakes (default 2). */
+ * each the least of $BENCH_REPEAT bakes (default 2). With $BENCH_DUMP set to a
+ * folder, each bake's radiance is written there as raw floats (ref-F.raw,
+ * ad-F.raw, F the fraction of N; the truth as truth-0.0000.raw; RGB, x
+ * fastest), for scripts/bench_filter_bound; $BENCH_NOFILTER=1 makes the
+ * adaptive bakes unfiltered (the raw, unbiased weighted estimate) and
+ * $BENCH_REF_ONLY=1 stops after the reference. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -136,6 +141,25 @@ static int pays_repeat(void) {
   return k >= 1 ? k : 1;
 }
 
+/* A grid into $BENCH_DUMP/NAME-FRACTION.raw, when the variable is set (see
+ * the header). */
+static void dump(const char *name, double fraction, const float *x) {
+  const char *dir = getenv("BENCH_DUMP");
+  if (!dir) return;
+  char path[2048];
+  snprintf(path, sizeof path, "%s/%s-%.4f.raw", dir, name, fraction);
+  FILE *f = fopen(path, "wb");
+  if (!f || fwrite(x, sizeof(float), 3 * V, f) != 3 * V || fclose(f) != 0) {
+    fprintf(stderr, "bench_error_run: cannot write %s\n", path);
+    exit(1);
+  }
+}
+
+static int env_flag(const char *name) {
+  const char *e = getenv(name);
+  return e && atoi(e);
+}
+
 /* "pays:N": the reference with N photons, adaptive at fractions of N. */
 static void pays(const char *what, const float *T) {
   static const double frac[] = {1.0, 0.75, 0.5, 0.375, 0.25, 0.1875, 0.125};
@@ -154,15 +178,18 @@ static void pays(const char *what, const float *T) {
     x = bake(scene.integrator, scene.step, n, b, &r, &st);
     ms = fmin(ms, bk_now_ms() - t0), cpu = fmin(cpu, cpu_ms() - c0);
   }
+  dump("ref", 1.0, x);
   printf("{\"mode\": \"reference\", \"photons\": %lld, \"true\": %.5f, \"rel_l2\": %.5f, "
          "\"estimate\": %.5f, \"ms\": %.1f, \"cpu_ms\": %.1f}\n", n, ee_true_error(x, T, V),
          rel_l2(x, T), r.terms.estimate, ms, cpu);
   fflush(stdout);
   free(x);
+  if (env_flag("BENCH_REF_ONLY")) return;
   x = calloc(3 * V, sizeof(float));
   ad_bake_opts_t o;
   ad_bake_defaults(&o);
-  o.retable = getenv("BENCH_RETABLE") && atoi(getenv("BENCH_RETABLE"));
+  o.retable = env_flag("BENCH_RETABLE");
+  if (env_flag("BENCH_NOFILTER")) o.filter = 0;
   for (int warm = 1, i = 0; i < (int)(sizeof frac / sizeof frac[0]); warm = 0) {
     ad_stats_t as;
     long long m = warm ? 4096 : (long long)(frac[i] * (double)n) - scene.pilot;
@@ -178,6 +205,7 @@ static void pays(const char *what, const float *T) {
       free(as.error.error_grid);
     }
     if (warm) continue;
+    dump("ad", frac[i], x);
     printf("{\"mode\": \"%s\", \"photons\": %lld, \"fraction\": %.4f, \"true\": %.5f, "
            "\"rel_l2\": %.5f, \"estimate\": %.5f, \"ms\": %.1f, \"cpu_ms\": %.1f, \"march_ms\": %.1f}\n",
            o.retable ? "adaptive+loop" : "adaptive", scene.photon_count + scene.pilot, frac[i], ee_true_error(x, T, V), rel_l2(x, T),
@@ -205,6 +233,7 @@ int main(int argc, char **argv) {
   float *T = truth(argv[1], scene.resolution, atoll(argv[3]));
   if (!strncmp(argv[4], "pays:", 5)) {
     scene = loaded;
+    dump("truth", 0.0, T);
     pays(argv[4], T);
     free(T);
     return 0;
