@@ -63,8 +63,10 @@ public:
    * (v, v, v): vdbio.h), through a small buffer instead of the grid's RGB
    * copy. */
   void add_spread(const float *data, size_t voxels, int ch, bool half) {
-    const size_t chunk = 1024;
+    /* 1024 voxels a call for up to 3 channels (the checksums written so
+     * far), fewer for more, so that the buffer always holds them */
     float rgb[3 * 1024];
+    const size_t chunk = ch <= 3 ? 1024 : sizeof rgb / sizeof rgb[0] / (size_t)ch;
     for (size_t i = 0; i < voxels; i += chunk) {
       const size_t n = std::min(chunk, voxels - i);
       for (size_t k = 0; k < n; k++)
