@@ -87,12 +87,11 @@ static int build_fields(const volume_t *vol, pm_setup_t *s, bk_error_t *err) {
     const size_t count = s->voxels;
     const oct_source_t rgb[3] = {{vol->ior_rb, 1, 1, 0}, {vol->ior, 1, 1, 0},
                                  {vol->ior_rb ? vol->ior_rb + count : NULL, 1, 1, 0}};
-    int rc = vol->ior_rb ? oct_build_fields(d->nx, d->ny, d->nz, rgb, 3, OCT_HALO, &s->pyramid, err)
-                         : oct_build(d, vol->ior, &s->pyramid, err);
+    const oct_source_t *src = vol->ior_rb ? rgb : rgb + 1; /* R, G, B or n alone */
+    const int nsrc = vol->ior_rb ? 3 : 1;
+    int rc = oct_build_fields(d->nx, d->ny, d->nz, src, nsrc, OCT_HALO, &s->pyramid, err);
     double tc = bk_now_ms();
-    if (rc == BK_OK)
-      rc = oct_add_cells(d->nx, d->ny, d->nz, vol->ior_rb ? rgb : rgb + 1, vol->ior_rb ? 3 : 1,
-                         &s->pyramid, err);
+    if (rc == BK_OK) rc = oct_add_cells(d->nx, d->ny, d->nz, src, nsrc, &s->pyramid, err);
     if (rc != BK_OK) return rc;
     double t1 = bk_now_ms();
     s->ng = vol->ior_rb ? fld_build_rgb(d->nx, d->ny, d->nz, h, vol->ior, vol->ior_rb, err)

@@ -256,6 +256,12 @@ static int bit_at(const unsigned char *bits, size_t row_bytes, int ny, int i, in
   return bits[(size_t)(i >> 3) + row_bytes * ((size_t)j + (size_t)ny * k)] >> (i & 7) & 1;
 }
 
+/* Whether block (bx, by, bz) lies in the grid and varies. */
+static int block_varies(const oct_pyramid_t *p, int bx, int by, int bz) {
+  if (bz < 0 || bz >= p->bz) return 0;
+  return !p->level[(size_t)bx + (size_t)p->bx * ((size_t)by + (size_t)p->by * bz)];
+}
+
 /* Pass 1, block slices [b0, b1): the odd voxels of the varying blocks (a
  * constant block's voxels equal their neighbours, the halo reaching past
  * them). A block's 2 voxels along x share a byte, its rows are its own. */
@@ -266,7 +272,7 @@ static void odd_rows(void *ctx, size_t b0, size_t b1) {
   for (int bz = (int)b0; bz < (int)b1; bz++)
     for (int by = 0; by < p->by; by++)
       for (int bx = 0; bx < p->bx; bx++) {
-        if (p->level[(size_t)bx + (size_t)p->bx * ((size_t)by + (size_t)p->by * bz)]) continue;
+        if (!block_varies(p, bx, by, bz)) continue;
         for (int v = 0; v < 8; v++) {
           const int c[3] = {2 * bx + (v & 1), 2 * by + (v >> 1 & 1), 2 * bz + (v >> 2)};
           if (c[0] >= w->nx || c[1] >= w->ny || c[2] >= w->nz || !voxel_odd(w, c)) continue;
@@ -274,12 +280,6 @@ static void odd_rows(void *ctx, size_t b0, size_t b1) {
               (unsigned char)(1u << (c[0] & 7));
         }
       }
-}
-
-/* Whether block (bx, by, bz) lies in the grid and varies. */
-static int block_varies(const oct_pyramid_t *p, int bx, int by, int bz) {
-  if (bz < 0 || bz >= p->bz) return 0;
-  return !p->level[(size_t)bx + (size_t)p->bx * ((size_t)by + (size_t)p->by * bz)];
 }
 
 /* Whether cell p's corners (voxels p - 1 and p per axis, clamped onto the

@@ -110,16 +110,13 @@ def main():
     print("|---|---|---|---|---|")
     ways = {"uniform photons (reference)": [], "adaptive tables, unfiltered": []}
     shipped = []
-    for kind, fractions in (("uniform photons (reference)", ref_fractions),
-                            ("adaptive tables, unfiltered", ad_fractions)):
+    for kind, fractions, path in (("uniform photons (reference)", ref_fractions, "ref-%.4f/ref-1.0000.raw"),
+                                  ("adaptive tables, unfiltered", ad_fractions, "raw/ad-%.4f.raw")):
         for f in fractions:
-            if f > 0.55 or f < 0.2:
-                continue
-            path = (os.path.join(dumps, "ref-%.4f/ref-1.0000.raw" % f) if kind.startswith("uniform")
-                    else os.path.join(dumps, "raw/ad-%.4f.raw" % f))
-            e = bounds(luminance(load(path, res)), truth, lit)
-            ways[kind].append((f, e))
-            print("| %s | %.3f | %.4f | %.4f | %.4f |" % ((kind, f) + e), flush=True)
+            if 0.2 <= f <= 0.55:
+                e = bounds(luminance(load(os.path.join(dumps, path % f), res)), truth, lit)
+                ways[kind].append((f, e))
+                print("| %s | %.3f | %.4f | %.4f | %.4f |" % ((kind, f) + e), flush=True)
     for f in ad_fractions:
         lum = luminance(load(os.path.join(dumps, "filtered/ad-%.4f.raw" % f), res))
         shipped.append((f, true_error(lum, truth, lit)))
