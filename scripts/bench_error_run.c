@@ -24,14 +24,18 @@
  * The third (scripts/bench_adaptive_pays, issue 12 "Pays"): with RK4 at step
  * 1/4 voxel (converged), the reference mode with N photons, then the adaptive
  * mode (filter on, its pilot included) at fractions of N; one JSON line per
- * bake with the true ε, the relative L2 over all voxels and the wall time of
+ * bake with the true ε, the relative L2 over all voxels, ε̂ (adaptive: and
+ * its terms: filtered noise, the filter's bias, the step) and the wall time of
  * the whole stage (reference: octree, twins, march; adaptive: octree, pilot,
  * distribution, twins, march, filter, error terms), kernels built first;
  * each the least of $BENCH_REPEAT bakes (default 2). With $BENCH_DUMP set to a
  * folder, each bake's radiance is written there as raw floats (ref-F.raw,
  * ad-F.raw, F the fraction of N; the truth as truth-0.0000.raw; RGB, x
- * fastest), for scripts/bench_filter_bound; $BENCH_NOFILTER=1 makes the
- * adaptive bakes unfiltered (the raw, unbiased weighted estimate) and
+ * fastest) with the adaptive filter's radius per voxel (rad-F.raw, voxels,
+ * one float), for scripts/bench_filter_bound and scripts/bench_filter_bias;
+ * $BENCH_NOFILTER=1 makes the adaptive bakes unfiltered (the raw, unbiased
+ * weighted estimate), $BENCH_NOISE_K and $BENCH_MAX_RADIUS set the filter's
+ * noise allowance (< 0: no noise test) and largest radius (voxels), and
  * $BENCH_REF_ONLY=1 stops after the reference. */
 #include <math.h>
 #include <stdio.h>
@@ -141,15 +145,15 @@ static int pays_repeat(void) {
   return k >= 1 ? k : 1;
 }
 
-/* A grid into $BENCH_DUMP/NAME-FRACTION.raw, when the variable is set (see
- * the header). */
-static void dump(const char *name, double fraction, const float *x) {
+/* A grid of `per_voxel` floats per voxel into $BENCH_DUMP/NAME-FRACTION.raw,
+ * when the variable is set (see the header). */
+static void dump(const char *name, double fraction, const float *x, size_t per_voxel) {
   const char *dir = getenv("BENCH_DUMP");
   if (!dir) return;
   char path[2048];
   snprintf(path, sizeof path, "%s/%s-%.4f.raw", dir, name, fraction);
   FILE *f = fopen(path, "wb");
-  if (!f || fwrite(x, sizeof(float), 3 * V, f) != 3 * V || fclose(f) != 0) {
+  if (!f || fwrite(x, sizeof(float), per_voxel * V, f) != per_voxel * V || fclose(f) != 0) {
     fprintf(stderr, "bench_error_run: cannot write %s\n", path);
     exit(1);
   }
@@ -178,7 +182,7 @@ static void pays(const char *what, const float *T) {
     x = bake(scene.integrator, scene.step, n, b, &r, &st);
     ms = fmin(ms, bk_now_ms() - t0), cpu = fmin(cpu, cpu_ms() - c0);
   }
-  dump("ref", 1.0, x);
+  dump("ref", 1.0, x, 3);
   printf("{\"mode\": \"reference\", \"photons\": %lld, \"true\": %.5f, \"rel_l2\": %.5f, "
          "\"estimate\": %.5f, \"ms\": %.1f, \"cpu_ms\": %.1f}\n", n, ee_true_error(x, T, V),
          rel_l2(x, T), r.terms.estimate, ms, cpu);
@@ -186,10 +190,13 @@ static void pays(const char *what, const float *T) {
   free(x);
   if (env_flag("BENCH_REF_ONLY")) return;
   x = calloc(3 * V, sizeof(float));
+  float *rad = calloc(V, sizeof(float));
   ad_bake_opts_t o;
   ad_bake_defaults(&o);
   o.retable = env_flag("BENCH_RETABLE");
   if (env_flag("BENCH_NOFILTER")) o.filter = 0;
+  if (getenv("BENCH_NOISE_K")) o.noise_k = (float)atof(getenv("BENCH_NOISE_K"));
+  if (getenv("BENCH_MAX_RADIUS")) o.max_radius = (float)atof(getenv("BENCH_MAX_RADIUS"));
   for (int warm = 1, i = 0; i < (int)(sizeof frac / sizeof frac[0]); warm = 0) {
     ad_stats_t as;
     long long m = warm ? 4096 : (long long)(frac[i] * (double)n) - scene.pilot;
@@ -197,7 +204,7 @@ static void pays(const char *what, const float *T) {
     ms = cpu = HUGE_VAL;
     for (int rep = 0; rep < (warm ? 1 : pays_repeat()); rep++) {
       double t0 = bk_now_ms(), c0 = cpu_ms();
-      if (ad_bake(&cl, &scene, &vol, &o, x, NULL, NULL, NULL, &as, NULL, &err) != BK_OK) {
+      if (ad_bake(&cl, &scene, &vol, &o, x, NULL, NULL, rad, &as, NULL, &err) != BK_OK) {
         fprintf(stderr, "bench_error_run: %s\n", err.msg);
         exit(1);
       }
@@ -205,15 +212,19 @@ static void pays(const char *what, const float *T) {
       free(as.error.error_grid);
     }
     if (warm) continue;
-    dump("ad", frac[i], x);
+    dump("ad", frac[i], x, 3);
+    dump("rad", frac[i], rad, 1);
     printf("{\"mode\": \"%s\", \"photons\": %lld, \"fraction\": %.4f, \"true\": %.5f, "
-           "\"rel_l2\": %.5f, \"estimate\": %.5f, \"ms\": %.1f, \"cpu_ms\": %.1f, \"march_ms\": %.1f}\n",
-           o.retable ? "adaptive+loop" : "adaptive", scene.photon_count + scene.pilot, frac[i], ee_true_error(x, T, V), rel_l2(x, T),
-           as.error.terms.estimate, ms, cpu, as.ms_march);
+           "\"rel_l2\": %.5f, \"estimate\": %.5f, \"noise\": %.5f, \"filter\": %.5f, "
+           "\"step\": %.5f, \"ms\": %.1f, \"cpu_ms\": %.1f, \"march_ms\": %.1f}\n",
+           o.retable ? "adaptive+loop" : "adaptive", scene.photon_count + scene.pilot, frac[i],
+           ee_true_error(x, T, V), rel_l2(x, T), as.error.terms.estimate, as.error.terms.noise,
+           as.error.terms.filter, as.error.terms.step, ms, cpu, as.ms_march);
     fflush(stdout);
     i++;
   }
   free(x);
+  free(rad);
 }
 
 int main(int argc, char **argv) {
@@ -233,7 +244,7 @@ int main(int argc, char **argv) {
   float *T = truth(argv[1], scene.resolution, atoll(argv[3]));
   if (!strncmp(argv[4], "pays:", 5)) {
     scene = loaded;
-    dump("truth", 0.0, T);
+    dump("truth", 0.0, T, 3);
     pays(argv[4], T);
     free(T);
     return 0;
