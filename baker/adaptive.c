@@ -417,7 +417,8 @@ error:
  * luminance sum of all batches is the raw mean's (r->raw) times B: no pass
  * over the march's sums for it. The halves' means are made in place of
  * what they come from (res->half_a, r->raw: done with once the filter
- * ran), once the lattice has its copy: no third grid. */
+ * ran), once the lattice has its copy, and the filtered radiance's
+ * luminance, to be filtered again, in half A's: no third grid. */
 static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
                         bk_error_t *err) {
   bt_result_t *res = &r->stats->error;
@@ -432,7 +433,7 @@ static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
   const float to_sum = (float)B * (C == 1 ? (float)((EE_LUM_R * k[0] + EE_LUM_G * k[1] +
                                                      EE_LUM_B * k[2]) / r->grey_k)
                                           : 1.0f);
-  float *lat = bk_calloc(5 * L, sizeof(float), "adaptive error: lattice", err);
+  float *lat = bk_calloc(6 * L, sizeof(float), "adaptive error: lattice", err);
   if (!lat) return BK_ERR_RUNTIME;
   float *fa = lat, *fb = lat + L, *all = lat + 2 * L, *half_a = lat + 3 * L, *f = lat + 4 * L;
   ee_lattice_gather(d, r->raw, C, all);
@@ -450,8 +451,17 @@ static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
   const float *in[2] = {res->half_a, half_b};
   float *out[2] = {fa, fb};
   int rc = ad_filter_fixed_lattice(d, in, 2, radius, r->levels, out, err);
+  /* with the noise test (radii chosen by the noise), the bias from the
+   * filtered radiance filtered again (docs/error.md, "The filter") */
+  float *wf = r->opt->noise_k >= 0.0f ? lat + 5 * L : NULL;
+  if (rc == BK_OK && wf) {
+    for (size_t v = 0; v < V; v++) /* half A's mean is done with */
+      res->half_a[v] = ad_luminance(radiance[3 * v], radiance[3 * v + 1], radiance[3 * v + 2]);
+    const float *lum_f = res->half_a;
+    rc = ad_filter_fixed_lattice(d, &lum_f, 1, radius, r->levels, &wf, err);
+  }
   if (rc == BK_OK) {
-    ee_filter_terms(L, B, all, half_a, f, fa, fb, &res->terms.noise, &res->terms.filter);
+    ee_filter_terms(L, B, all, half_a, f, wf, fa, fb, &res->terms.noise, &res->terms.filter);
     ee_terms_t *e = &res->terms;
     if (e->noise >= 0.0 && e->step >= 0.0)
       e->estimate = sqrt(e->noise * e->noise + e->filter * e->filter + e->step * e->step);

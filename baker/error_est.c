@@ -318,8 +318,8 @@ void ee_batches_reset(ee_tracker_t *t) {
 }
 
 void ee_filter_terms(size_t n, int batches, const float *all, const float *half_a,
-                     const float *f, const float *fa, const float *fb, double *noise,
-                     double *bias) {
+                     const float *f, const float *wf, const float *fa, const float *fb,
+                     double *noise, double *bias) {
   const double B = batches, na = (batches + 1) / 2, nb = batches / 2;
   /* var(mean of B) / var(difference of the halves' means) */
   const double kappa = (1.0 / B) / (1.0 / na + 1.0 / nb);
@@ -335,10 +335,15 @@ void ee_filter_terms(size_t n, int batches, const float *all, const float *half_
   for (size_t k = 0; k < n; k++) {
     double m = mean[k];
     if (!(thr > 0.0) || m < thr) continue;
-    double dx = half_a[k] / na - (all[k] - half_a[k]) / nb, df = (double)fa[k] - fb[k];
-    double d = f[k] - m; /* filtered minus raw: the filter's bias plus a noise of its own */
+    double df = (double)fa[k] - fb[k];
     sum_n += kappa * df * df;
-    sum_b += d * d - kappa * (df - dx) * (df - dx);
+    if (wf) { /* the filter's move on its own output: its bias at second order */
+      double b = (double)wf[k] - f[k];
+      sum_b += b * b;
+    } else { /* filtered minus raw, less its noise */
+      double dx = half_a[k] / na - (all[k] - half_a[k]) / nb, d = f[k] - m;
+      sum_b += d * d - kappa * (df - dx) * (df - dx);
+    }
     sum_m += m;
     lit++;
   }

@@ -115,15 +115,17 @@ void ee_add_lum(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc,
                 float *out);
 /* The terms of a filtered estimate (adaptive mode), per voxel of n: all is
  * the luminance sum of the B batches, half_a that of half A (ceil(B/2) of
- * them, nA; half B the rest, nB), f the filtered mean's luminance, fa and
- * fb the halves' means filtered the same way. With x̄ the raw mean,
- * d = f − x̄ is the filter's bias plus noise; the halves measure the noise:
- * var(f) ≈ κ (fa − fb)², var(d) ≈ κ ((fa − xa) − (fb − xb))², κ =
- * (1/B) / (1/nA + 1/nB). noise² = mean_lit κ (fa − fb)² / mean_lit(x̄)²,
- * bias² = max(0, mean_lit(d² − var d)) / mean_lit(x̄)² (docs/error.md). */
+ * them, nA; half B the rest, nB), f the filtered mean's luminance, wf the
+ * filtered grid filtered again at the same radii, fa and fb the halves'
+ * means filtered the same way. With x̄ the raw mean and κ =
+ * (1/B) / (1/nA + 1/nB): noise² = mean_lit κ (fa − fb)² / mean_lit(x̄)²;
+ * bias² = mean_lit (wf − f)² / mean_lit(x̄)², or, with wf NULL (a filter
+ * whose radii do not depend on the noise), max(0, mean_lit(d² − var d)) /
+ * mean_lit(x̄)² with d = f − x̄, var(d) ≈ κ ((fa − xa) − (fb − xb))²
+ * (docs/error.md, "The filter"). */
 void ee_filter_terms(size_t n, int batches, const float *all, const float *half_a,
-                     const float *f, const float *fa, const float *fb, double *noise,
-                     double *bias);
+                     const float *f, const float *wf, const float *fa, const float *fb,
+                     double *noise, double *bias);
 /* The step term of the twins recorded, on the lit set and mean of the truth
  * integrator's luminance `fine` (one array of count per twin): for choosing
  * an integrator before the bake's own batches exist. */
