@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "base/parallel.h"
+#include "adaptive_internal.h"
 #include "error_est.h"
 
 void ad_bake_defaults(ad_bake_opts_t *o) {
@@ -20,84 +21,6 @@ void ad_bake_defaults(ad_bake_opts_t *o) {
   o->pilot_cells = AD_PILOT_CELLS;
   o->noise_k = AD_DEFAULT_NOISE_K;
   o->importance = AD_IMPORTANCE_GRADIENT;
-}
-
-/* The pilot grid's coarsening: cells of 2^shift voxels a side, the fewest
- * that bring the longest axis to pilot_cells cells. */
-static int pilot_shift(const grid_dims_t *d, int pilot_cells) {
-  int longest = d->nx > d->ny ? d->nx : d->ny;
-  if (d->nz > longest) longest = d->nz;
-  int s = 0;
-  while (s < 10 && pilot_cells > 0 && (longest >> s) > pilot_cells) s++;
-  return s;
-}
-
-/* The pilot's coarse grid: cells of 2^shift voxels a side over the same
- * corner (the last ones may stick out of the grid). */
-static grid_dims_t coarse_dims(const grid_dims_t *d, int shift) {
-  grid_dims_t c = *d;
-  int m = (1 << shift) - 1;
-  c.nx = (d->nx + m) >> shift;
-  c.ny = (d->ny + m) >> shift;
-  c.nz = (d->nz + m) >> shift;
-  c.voxel_size = d->voxel_size * (float)(1 << shift);
-  return c;
-}
-
-/* The largest grey scattering coefficient of the voxels of each coarse
- * cell, layers [lo, hi) of cells along z (one range per core: the layers
- * own disjoint cells). */
-typedef struct scat_job {
-  const volume_t *vol;
-  int shift;
-  float *scat;
-} scat_job_t;
-
-static void coarse_scattering_range(void *arg, size_t lo, size_t hi) {
-  const scat_job_t *j = arg;
-  const grid_dims_t *d = &j->vol->dims;
-  const int shift = j->shift;
-  grid_dims_t c = coarse_dims(d, shift);
-  for (size_t v = grid_index(&c, 0, 0, (int)lo); v < grid_index(&c, 0, 0, (int)hi); v++)
-    j->scat[v] = 0.0f;
-  int k1 = (int)hi << shift;
-  if (k1 > d->nz) k1 = d->nz;
-  for (int k = (int)lo << shift; k < k1; k++)
-    for (int jy = 0; jy < d->ny; jy++) {
-      size_t row = grid_index(d, 0, jy, k);
-      float *crow = j->scat + grid_index(&c, 0, jy >> shift, k >> shift);
-      const volume_t *v = j->vol;
-      for (int i = 0; i < d->nx; i++) {
-        const size_t at = row + (size_t)i;
-        float g = (vol_sigma_s(v, at, 0) + vol_sigma_s(v, at, 1) + vol_sigma_s(v, at, 2)) *
-                  (1.0f / 3.0f);
-        float *o = &crow[i >> shift];
-        if (g > *o) *o = g;
-      }
-    }
-}
-
-/* Per coarse cell: the pilot's mean radiance over its voxels in the grid
- * (3 floats) and the largest grey scattering coefficient of those voxels. */
-static void coarse_fields(const pm_setup_t *p, const uint64_t *acc, const volume_t *vol, int shift,
-                          float *rgb, float *scat) {
-  const grid_dims_t *d = &vol->dims;
-  grid_dims_t c = coarse_dims(d, shift);
-  const int ch = p->channels;
-  scat_job_t job = {vol, shift, scat};
-  bk_parallel((size_t)c.nz, 1, coarse_scattering_range, &job);
-  for (int k = 0; k < c.nz; k++)
-    for (int j = 0; j < c.ny; j++)
-      for (int i = 0; i < c.nx; i++) {
-        size_t v = grid_index(&c, i, j, k);
-        /* voxels of this cell inside the grid */
-        int ex = (i + 1) << shift > d->nx ? d->nx - (i << shift) : 1 << shift;
-        int ey = (j + 1) << shift > d->ny ? d->ny - (j << shift) : 1 << shift;
-        int ez = (k + 1) << shift > d->nz ? d->nz - (k << shift) : 1 << shift;
-        double inv = 1.0 / ((double)ex * ey * ez);
-        for (int q = 0; q < 3; q++)
-          rgb[3 * v + q] = (float)((double)acc[ch * v + (ch == 1 ? 0 : q)] * p->to_radiance[q] * inv);
-      }
 }
 
 /* The grey march's counters to one float per voxel (grey_range), and one
@@ -149,6 +72,8 @@ typedef struct ad_run {
   float alpha;            /* adaptive.alpha */
   double grey_k;          /* a grey march's radiance per counter, summed over RGB */
   float *raw;             /* the weighted march's radiance before the filter */
+  /* the output grids, which target mode's checks use as scratch first */
+  float *radiance, *count, *weight, *radius;
 } ad_run_t;
 
 static int check_bake_inputs(const scene_t *scene, const ad_bake_opts_t *opt, bk_error_t *err) {
@@ -168,8 +93,8 @@ static int check_bake_inputs(const scene_t *scene, const ad_bake_opts_t *opt, bk
 static int pilot_phase(ad_run_t *r, bk_error_t *err) {
   const scene_t *scene = r->scene;
   ad_stats_t *stats = r->stats;
-  r->shift = pilot_shift(&r->base.dims, r->opt->pilot_cells);
-  r->cd = coarse_dims(&r->base.dims, r->shift);
+  r->shift = ad_pilot_shift(&r->base.dims, r->opt->pilot_cells);
+  r->cd = ad_coarse_dims(&r->base.dims, r->shift);
   r->cv = grid_count(&r->cd);
   stats->coarse_shift = r->shift;
   stats->pilot_photons = scene->pilot;
@@ -284,7 +209,7 @@ static int pdf_phase(ad_run_t *r, bk_error_t *err) {
   pscat = bk_calloc(r->cv, sizeof(float), "adaptive pilot scattering", err);
   sel = bk_calloc(r->cv, 1, "adaptive selection", err);
   if (!prgb || !pscat || !sel) goto error;
-  coarse_fields(&r->pilot, r->pacc, r->vol, r->shift, prgb, pscat);
+  ad_coarse_fields(&r->pilot, r->pacc, r->vol, r->shift, prgb, pscat);
   ad_select_opts_t so = {r->scene->gradient_threshold, r->scene->luminance_threshold,
                          r->opt->smooth_radius};
   rc = ad_select_voxels(&r->cd, prgb, pscat, &so, sel, &r->stats->select, err);
@@ -322,8 +247,8 @@ static int unpack_phase(ad_run_t *r, const uint64_t *acc, float *radiance, float
    * luminance is proportional), and colours the result after */
   r->grey_k = r->main.to_radiance[0] + r->main.to_radiance[1] + r->main.to_radiance[2];
   if (r->filter_on) {
-    r->raw = bk_calloc(V, (size_t)C * sizeof(float), "adaptive raw radiance", err);
-    if (!r->raw) return BK_ERR_RUNTIME;
+    if (!r->raw && !(r->raw = bk_calloc(V, (size_t)C * sizeof(float), "adaptive raw radiance", err)))
+      return BK_ERR_RUNTIME;
     if (C == 1) {
       scale_job_t job = {acc, NULL, r->raw, {(float)r->grey_k, 0.0f, 0.0f}};
       bk_parallel(V, BK_GRAIN, grey_range, &job);
@@ -358,6 +283,9 @@ static void warn_no_retable(const scene_t *scene, const bt_options_t *bo) {
             "budget", scene->path, b);
 }
 
+static int target_check(void *ctx, int done, const uint64_t *acc, float *half_a, ee_terms_t *t,
+                        bk_error_t *err);
+
 /* Phase 2: warped Hammersley photons of weight 1/pdf in independent
  * batches (batches.h: each a rotated Hammersley set, a whole estimate), then
  * unpack_phase; a shard marches its share of every batch and keeps the
@@ -378,6 +306,8 @@ static int weighted_phase(ad_run_t *r, float *radiance, float *count, float *wei
   memset(&loop, 0, sizeof loop);
   int rc = pm_derive(&r->base, r->scene, (uint64_t)r->scene->photon_count, &r->main, err);
   if (rc != BK_OK) return rc;
+  if (bo.halves && r->scene->target_error > 0.0f) /* stop on the filtered grid's error */
+    bo.target_terms = target_check, bo.target_ctx = r;
   if (r->opt->retable && r->have_pilot && !shard) {
     bo.w_max = 1.0 / r->opt->floor_fraction; /* every table keeps the floor */
     bo.retable = ad_loop_retable, bo.retable_ctx = &loop;
@@ -522,6 +452,33 @@ static int filter_phase(ad_run_t *r, float *radiance, const float *count, const 
   return rc;
 }
 
+/* bt_options_t.target_terms: the estimate of the grid the bake would write
+ * after `done` batches, made as at the end (the sums unpacked, filtered and
+ * measured, into the output grids, which the end writes again), so that
+ * target mode plans and stops on the filtered grid's error, not on the raw
+ * mean's (docs/error.md, "Steering"). */
+static int target_check(void *ctx, int done, const uint64_t *acc, float *half_a, ee_terms_t *t,
+                        bk_error_t *err) {
+  ad_run_t *r = ctx;
+  bt_result_t *res = &r->stats->error;
+  if (!r->filter_on || !half_a || done < 2) return BK_OK;
+  double keep[3];
+  memcpy(keep, r->main.to_radiance, sizeof keep);
+  for (int c = 0; c < 3; c++) r->main.to_radiance[c] /= (double)done; /* the mean's, as finish */
+  float *keep_half = res->half_a;
+  const int keep_batches = res->batches;
+  res->half_a = half_a, res->batches = done, res->terms = *t;
+  int rc = unpack_phase(r, acc, r->radiance, r->count, r->weight, err);
+  if (rc == BK_OK) rc = filter_phase(r, r->radiance, r->count, r->weight, r->radius, err);
+  if (rc == BK_OK) rc = filter_error(r, r->radiance, r->radius, err);
+  if (rc == BK_OK) *t = res->terms;
+  memcpy(r->main.to_radiance, keep, sizeof keep);
+  res->half_a = keep_half, res->batches = keep_batches;
+  bk_log(2, "target error %g: %d batches: filtered estimate %.4f (noise %.4f, filter %.4f)",
+         (double)r->scene->target_error, done, t->estimate, t->noise, t->filter);
+  return rc;
+}
+
 /* The "error estimate" row: the batches' noise (of the filtered estimate
  * when the filter ran), the filter's bias and the step term. */
 static void report_error(const ad_stats_t *stats, bk_timings_t *timings) {
@@ -631,6 +588,7 @@ int ad_bake(clh_context_t *cl, const scene_t *scene, const volume_t *vol,
       !(radius = bk_calloc(V, sizeof(float), "adaptive filter radius", err)))
     goto error;
   if (!radius) radius = filter_radius;
+  r.radiance = radiance, r.count = count, r.weight = weight, r.radius = radius;
   if ((rc = weighted_phase(&r, radiance, count, weight, err)) != BK_OK) goto error;
   /* the march is done: its fields make room for the filter's means */
   pm_setup_free_fields(&r.base);

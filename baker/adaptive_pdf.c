@@ -1,6 +1,7 @@
 /* adaptive_pdf.c: phase 1 of the adaptive pipeline on the pilot's cells:
- * the pilot fields (smoothed luminance and its gradient), the automatic
- * thresholds, the voxel selection and the sampling PDF of each light. The
+ * the coarse cells and what the pilot left in them, the pilot fields
+ * (smoothed luminance and its gradient), the automatic thresholds, the
+ * voxel selection and the sampling PDF of each light. The
  * shared math (cells, origin masks, the PDF warp) is kernels/adaptive_filter.h. */
 #define _POSIX_C_SOURCE 200809L
 #include "adaptive.h"
@@ -10,6 +11,7 @@
 #include <string.h>
 
 #include "adaptive_internal.h"
+#include "base/parallel.h"
 #include "base/select.h"
 
 int ad_grid_voxels(const grid_dims_t *d, size_t per_voxel, const char *what, size_t *voxels,
@@ -26,6 +28,86 @@ int ad_grid_voxels(const grid_dims_t *d, size_t per_voxel, const char *what, siz
     return bk_fail(err, BK_ERR_INPUT, "%s: grid %dx%dx%d overflows the address space", what,
                    d->nx, d->ny, d->nz);
   return BK_OK;
+}
+
+/* --- the pilot's coarse cells --------------------------------------------------- */
+
+/* The pilot grid's coarsening: cells of 2^shift voxels a side, the fewest
+ * that bring the longest axis to pilot_cells cells. */
+int ad_pilot_shift(const grid_dims_t *d, int pilot_cells) {
+  int longest = d->nx > d->ny ? d->nx : d->ny;
+  if (d->nz > longest) longest = d->nz;
+  int s = 0;
+  while (s < 10 && pilot_cells > 0 && (longest >> s) > pilot_cells) s++;
+  return s;
+}
+
+/* The pilot's coarse grid: cells of 2^shift voxels a side over the same
+ * corner (the last ones may stick out of the grid). */
+grid_dims_t ad_coarse_dims(const grid_dims_t *d, int shift) {
+  grid_dims_t c = *d;
+  int m = (1 << shift) - 1;
+  c.nx = (d->nx + m) >> shift;
+  c.ny = (d->ny + m) >> shift;
+  c.nz = (d->nz + m) >> shift;
+  c.voxel_size = d->voxel_size * (float)(1 << shift);
+  return c;
+}
+
+/* The largest grey scattering coefficient of the voxels of each coarse
+ * cell, layers [lo, hi) of cells along z (one range per core: the layers
+ * own disjoint cells). */
+typedef struct scat_job {
+  const volume_t *vol;
+  int shift;
+  float *scat;
+} scat_job_t;
+
+static void coarse_scattering_range(void *arg, size_t lo, size_t hi) {
+  const scat_job_t *j = arg;
+  const grid_dims_t *d = &j->vol->dims;
+  const int shift = j->shift;
+  grid_dims_t c = ad_coarse_dims(d, shift);
+  for (size_t v = grid_index(&c, 0, 0, (int)lo); v < grid_index(&c, 0, 0, (int)hi); v++)
+    j->scat[v] = 0.0f;
+  int k1 = (int)hi << shift;
+  if (k1 > d->nz) k1 = d->nz;
+  for (int k = (int)lo << shift; k < k1; k++)
+    for (int jy = 0; jy < d->ny; jy++) {
+      size_t row = grid_index(d, 0, jy, k);
+      float *crow = j->scat + grid_index(&c, 0, jy >> shift, k >> shift);
+      const volume_t *v = j->vol;
+      for (int i = 0; i < d->nx; i++) {
+        const size_t at = row + (size_t)i;
+        float g = (vol_sigma_s(v, at, 0) + vol_sigma_s(v, at, 1) + vol_sigma_s(v, at, 2)) *
+                  (1.0f / 3.0f);
+        float *o = &crow[i >> shift];
+        if (g > *o) *o = g;
+      }
+    }
+}
+
+/* Per coarse cell: the pilot's mean radiance over its voxels in the grid
+ * (3 floats) and the largest grey scattering coefficient of those voxels. */
+void ad_coarse_fields(const pm_setup_t *p, const uint64_t *acc, const volume_t *vol, int shift,
+                      float *rgb, float *scat) {
+  const grid_dims_t *d = &vol->dims;
+  grid_dims_t c = ad_coarse_dims(d, shift);
+  const int ch = p->channels;
+  scat_job_t job = {vol, shift, scat};
+  bk_parallel((size_t)c.nz, 1, coarse_scattering_range, &job);
+  for (int k = 0; k < c.nz; k++)
+    for (int j = 0; j < c.ny; j++)
+      for (int i = 0; i < c.nx; i++) {
+        size_t v = grid_index(&c, i, j, k);
+        /* voxels of this cell inside the grid */
+        int ex = (i + 1) << shift > d->nx ? d->nx - (i << shift) : 1 << shift;
+        int ey = (j + 1) << shift > d->ny ? d->ny - (j << shift) : 1 << shift;
+        int ez = (k + 1) << shift > d->nz ? d->nz - (k << shift) : 1 << shift;
+        double inv = 1.0 / ((double)ex * ey * ez);
+        for (int q = 0; q < 3; q++)
+          rgb[3 * v + q] = (float)((double)acc[ch * v + (ch == 1 ? 0 : q)] * p->to_radiance[q] * inv);
+      }
 }
 
 /* --- pilot fields -------------------------------------------------------------- */

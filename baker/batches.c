@@ -36,6 +36,8 @@ typedef struct bt_run {
   uint64_t photon_cap;    /* open modes: photons traced at most */
   double cost;            /* twin_cost of the last twin run */
   float *half;            /* opts.halves: half A's luminance sum per voxel */
+  double written_ratio;   /* o->target_terms: its error over the raw noise, last time */
+  int written_next;       /* o->target_terms: the batch count of the next call, at least */
 } bt_run_t;
 
 /* Batch `id`'s lights into run. */
@@ -260,17 +262,51 @@ static void track_half(bt_run_t *x, int done, const uint64_t *acc) {
   }
 }
 
+/* Target mode with o->target_terms: the terms of the grid the bake would
+ * write after `done` batches (half A as finish would leave it, on a copy),
+ * in x->terms; returns 1 when made, 0 when not, -1 on an error. */
+static int written_terms(bt_run_t *x, int done, const uint64_t *acc, bk_error_t *err) {
+  if (!x->o->target_terms || !(x->target > 0.0) || done < BT_MIN_BATCHES) return 0;
+  /* a call costs a filter: at the first chance, then when the last call's
+   * ratio to the raw noise predicts the target met, at batch counts a
+   * quarter apart (a filter per batch costs as much as a batch at 256³
+   * once many are needed) */
+  const double raw = x->terms.noise, st = x->terms.step > 0.0 ? x->terms.step : 0.0;
+  const double guess = x->written_ratio * raw;
+  if (x->written_ratio > 0.0 && (done < x->written_next ||
+                                 sqrt(guess * guess + st * st) > BT_WRITTEN_SLACK * x->target))
+    return 0; /* x->terms stay the raw mean's */
+  x->written_next = (int)ceil(done * BT_WRITTEN_SPACING);
+  float *half = NULL;
+  if (x->half) {
+    if (!(half = bk_calloc(x->s->voxels, sizeof(float), "target mode: half A", err))) return -1;
+    memcpy(half, x->half, x->s->voxels * sizeof(float));
+    if (!(done & 1)) ee_add_lum(x->tr, x->s, acc, 1.0f, half);
+  }
+  int rc = x->o->target_terms(x->o->target_ctx, done, acc, half, &x->terms, err);
+  free(half);
+  const double w = sqrt(x->terms.noise * x->terms.noise + x->terms.filter * x->terms.filter);
+  if (raw > 0.0) x->written_ratio = w / raw;
+  return rc ? -1 : 1;
+}
+
 /* The statistics after batch `done`; returns the batches that count (0
- * when target mode restarts after its pilot). */
-static int track_batch(bt_run_t *x, int done, uint64_t *acc) {
+ * when target mode restarts after its pilot; -1 on an error). */
+static int track_batch(bt_run_t *x, int done, uint64_t *acc, bk_error_t *err) {
   double t = bk_now_ms();
   ee_after_batch(x->tr, x->s, acc);
   if (x->grid) ee_after_batch(x->grid, x->s, acc);
   track_half(x, done, acc);
   if (done >= 2 && (x->target > 0.0 || x->prog.enabled)) ee_terms(x->tr, done, x->step_exact, &x->terms);
+  /* the plan on the raw mean's noise, the stop on the grid written: a
+   * filtered grid's error falls slower with the photons than the raw
+   * noise (the filter smooths less), and a plan on it fell short at 256³,
+   * ending in many small batches (docs/error.md, "Steering") */
   if (!x->planned && x->pilot_split && done >= BT_MIN_BATCHES && x->terms.estimate > x->target &&
       plan_batches(x))
     done = 0;
+  else if (written_terms(x, done, acc, err) < 0)
+    return -1;
   x->ms_track += bk_now_ms() - t;
   return done;
 }
@@ -280,7 +316,8 @@ static int main_next(void *ctx, int all, uint64_t *acc, pm_setup_t *run, bk_erro
   bt_run_t *x = ctx;
   int done = x->done = all - x->pilot, restarted = 0;
   if (done > 0) {
-    if (x->batches != 1) done = track_batch(x, done, acc); /* one batch has no spread */
+    if (x->batches != 1) done = track_batch(x, done, acc, err); /* one batch has no spread */
+    if (done < 0) return -1;
     restarted = done == 0; /* target mode's plan starts over */
     show_progress(x, done);
   }

@@ -47,6 +47,11 @@ extern "C" {
  * on the sphere scene at 128^3), aimed this factor below the target. */
 #define BT_QMC_RATE 1.8
 #define BT_PLAN_MARGIN 1.05
+/* Target mode with bt_options_t.target_terms: a batch's check is made when
+ * the last one's ratio predicts the target within this factor. */
+#define BT_WRITTEN_SLACK 1.15
+/* ... and no sooner than at this many times the last one's batch count. */
+#define BT_WRITTEN_SPACING 1.25
 #define BT_TWIN_BATCHES 4 /* twin batches behind the step term */
 /* Twin photons: this fraction of the bake's photon count over all twin
  * batches (at least BT_TWIN_MIN per batch). */
@@ -86,6 +91,16 @@ typedef struct bt_options {
    * NULL: none. */
   int (*retable)(void *ctx, int done, const ee_tracker_t *t, bk_error_t *err);
   void *retable_ctx;
+  /* Target mode, when the grid written is not the raw mean (the adaptive
+   * filter): called after every main batch from the second with the sums
+   * of the `done` batches so far and a copy of half A's luminance sum as
+   * the bake would end with it (NULL without halves; the callee may write
+   * over it); sets t->noise, t->filter and t->estimate to those of the grid
+   * that would be written, which the stop then uses (the plan after the
+   * pilot keeps the raw mean's). NULL: the raw mean's. */
+  int (*target_terms)(void *ctx, int done, const uint64_t *acc, float *half_a, ee_terms_t *t,
+                      bk_error_t *err);
+  void *target_ctx;
   /* Not NULL: bt_bake allocates the radiance grid here (its radiance
    * argument unused) after the march, once the march's fields are freed, so
    * the two never take memory together (docs/memory.md), with

@@ -72,7 +72,10 @@ static int estimate_in(const scene_t *s, int resolution, const float box[2][3], 
                        : (adaptive ? BUDGET_ADAPTIVE_BYTES : BUDGET_REFERENCE_BYTES)) +
                  (scene_has_dispersion(s) ? BUDGET_DISPERSION_BYTES : 0.0) +
                  (s->ior_vdb.present ? BUDGET_IOR_VDB_BYTES : 0.0) +
-                 (flux ? BUDGET_FLUX_BYTES : 0.0) + (camera ? BUDGET_CAMERA_BYTES : 0.0);
+                 (flux ? BUDGET_FLUX_BYTES : 0.0) + (camera ? BUDGET_CAMERA_BYTES : 0.0) +
+                 (adaptive && s->target_error > 0.0f
+                      ? (grey ? BUDGET_ADAPTIVE_TARGET_GREY_BYTES : BUDGET_ADAPTIVE_TARGET_BYTES)
+                      : 0.0);
   b->peak = BUDGET_FIXED_BYTES + b->per_voxel * b->voxels;
   return BK_OK;
 }

@@ -43,6 +43,11 @@ extern "C" {
 #define BUDGET_SHARD_GREY_BYTES 4.0
 #define BUDGET_ADAPTIVE_BYTES 122.0
 #define BUDGET_ADAPTIVE_GREY_BYTES 74.0
+/* per voxel more, an adaptive target bake: its checks filter while the
+ * march's sums (3 channels and the packed count, or 1 and it) and a copy
+ * of half A's sum are held (batches.h target_terms): counted, not measured */
+#define BUDGET_ADAPTIVE_TARGET_BYTES 36.0
+#define BUDGET_ADAPTIVE_TARGET_GREY_BYTES 20.0
 /* dispersion: two more fields {∇n, n} (46 bytes at most, field.h), the R
  * and B planes of n and the interleaved ior_rgb grid written (20): counted,
  * not measured */

@@ -77,6 +77,27 @@ static float *bake(integrator_t integ, float step, long long n, int batches, bt_
   return r;
 }
 
+/* The adaptive mode as a bake runs it (filter on), its photons counted
+ * with the pilot's. */
+static float *bake_adaptive(long long n, int batches, bt_result_t *res, pm_stats_t *st) {
+  bk_error_t err = {0, ""};
+  ad_bake_opts_t o;
+  ad_stats_t as;
+  ad_bake_defaults(&o);
+  float *r = calloc(3 * V, sizeof(float));
+  if (!r) exit(1);
+  scene.photon_count = n, scene.batches = batches;
+  if (ad_bake(&cl, &scene, &vol, &o, r, NULL, NULL, NULL, &as, NULL, &err) != BK_OK) {
+    fprintf(stderr, "bench_error_run: %s\n", err.msg);
+    exit(1);
+  }
+  *res = as.error;
+  *st = as.march;
+  st->photons += as.pilot.photons;
+  free(as.error.error_grid);
+  return r;
+}
+
 /* The truth, from the cache when it holds one. */
 static float *truth(const char *scene_path, int res, long long n) {
   const char *dir = getenv("BENCH_ERROR_CACHE");
@@ -115,7 +136,8 @@ static double rel_l2(const float *x, const float *t) {
 }
 
 /* "target:E" or "budget:S": one steered bake (the scene's photons and
- * batches); "fixed:": one bake as the scene says, for comparison. */
+ * batches, its photons.mode); "fixed:": one bake as the scene says, for
+ * comparison. */
 static void steered(const char *what, const float *T) {
   bt_result_t r;
   pm_stats_t st;
@@ -125,7 +147,8 @@ static void steered(const char *what, const float *T) {
   if (!strncmp(what, "target:", 7)) scene.target_error = v;
   else if (!strncmp(what, "budget:", 7)) scene.time_budget_s = v;
   double t0 = bk_now_ms();
-  float *x = bake(scene.integrator, scene.step, n, b, &r, &st);
+  float *x = scene.mode == MODE_ADAPTIVE ? bake_adaptive(n, b, &r, &st)
+                                         : bake(scene.integrator, scene.step, n, b, &r, &st);
   double ms = bk_now_ms() - t0, eps = ee_true_error(x, T, V);
   printf("{\"run\": \"%s\", \"integrator\": \"%s\", \"step_voxels\": %g, \"batches\": %d, "
          "\"photons\": %llu, \"estimate\": %.5f, \"true\": %.5f, \"march_ms\": %.1f, "

@@ -24,7 +24,9 @@
  *                  worse than the reference pipeline's with all of them
  *  estimate        the filtered bake's ε̂ (noise, the filter's bias, the
  *                  step) within [0.75, 1.33] x its true ε over 4 seeds at
- *                  2N, 1.5N and N photons (docs/error.md, "The filter")
+ *                  2N, 1.5N and N photons (docs/error.md, "The filter");
+ *                  photons.target_error stops on it: ε̂ <= E, the true ε at
+ *                  most 1.3 E, in fewer batches than the unfiltered bake
  *  filter_radius   the radius grid: small across the caustic's sharp edges,
  *                  large in the smooth lit fog (voxels told apart by the
  *                  gradient of a converged bake)
@@ -311,6 +313,41 @@ static int test_quality(void) {
 
 /* --- estimate -------------------------------------------------------------- */
 
+/* photons.target_error E with the filter on and off: one target bake. */
+static float *target_bake(int filter, float E, ad_stats_t *st) {
+  bk_error_t err = {0, ""};
+  ad_bake_opts_t o;
+  ad_bake_defaults(&o);
+  o.filter = filter;
+  float *ad = grid3();
+  scene.seed = 1, scene.photon_count = 40000, scene.target_error = E;
+  REQUIRE(ad_bake(&cl, &scene, &vol, &o, ad, NULL, NULL, NULL, st, NULL, &err) == BK_OK,
+          "ad_bake: %s", err.msg);
+  scene.target_error = 0.0f;
+  return ad;
+}
+
+/* A target stops on the estimate of the grid written, the filtered one:
+ * sooner than on the raw mean's (which the unfiltered bake stops on, as
+ * the filtered one did before 2026-11-29: 5 batches here, against 2 now),
+ * with its true error within 1.3 E. */
+static void target_case(const float *T) {
+  const float E = 0.05f;
+  ad_stats_t on, off;
+  float *ad = target_bake(1, E, &on);
+  free(target_bake(0, E, &off));
+  const double est = on.error.terms.estimate, eps = ee_true_error(ad, T, V);
+  printf("target %g: filtered, %d batches of %llu photons: estimate %.4f, true %.4f; "
+         "unfiltered: %d batches of %llu\n", (double)E, on.error.batches,
+         (unsigned long long)on.error.batch_photons, est, eps, off.error.batches,
+         (unsigned long long)off.error.batch_photons);
+  EXPECT(!on.error.target_missed && est <= E, "target %g: estimate %.4f", (double)E, est);
+  EXPECT(eps <= 1.3 * E, "target %g: true error %.4f", (double)E, eps);
+  EXPECT(on.error.batches < off.error.batches, "target %g: %d batches filtered, %d unfiltered",
+         (double)E, on.error.batches, off.error.batches);
+  free(ad);
+}
+
 /* The adaptive bake's ε̂ against its true ε, filter on, at a converged step,
  * over seeds and photon counts: the filter's bias term must follow the bias
  * whatever the noise did (the rule before 2026-11-29, filtered minus raw
@@ -336,6 +373,7 @@ static int test_estimate(void) {
     }
   EXPECT(lo >= 0.75 && hi <= 1.33, "estimate / true error in [%.2f, %.2f], expected within "
          "[0.75, 1.33]", lo, hi);
+  target_case(T);
   free(T);
   return tu_failures ? 1 : 0;
 }
