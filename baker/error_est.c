@@ -367,7 +367,12 @@ double ee_twin_step(const ee_tracker_t *t, const float *fine) {
   for (size_t k = 0; k < t->count; k++) {
     double m = 0.0;
     for (int b = 0; b < t->twins; b++) m += fine[(size_t)b * t->count + k];
-    mean[k] = (float)(m / T);
+    /* lit by the midpoint of the two integrators' twins: a lit set chosen
+     * by the truth's twins alone keeps the voxels where they came out high,
+     * whose differences d then lean low (the armadillo at 128³ read Euler
+     * at 1/4 voxel as unbiased, 0.0000, against 0.13 on the bake's own lit
+     * set); the midpoint is independent of d to first order */
+    mean[k] = (float)(m / T + 0.5 * t->dsum[k] / T);
   }
   double thr = lit_threshold(mean, t->count), sum_m = 0.0, sum_b2 = 0.0;
   size_t lit = 0;

@@ -126,9 +126,10 @@ void ee_add_lum(const ee_tracker_t *t, const pm_setup_t *s, const uint64_t *acc,
 void ee_filter_terms(size_t n, int batches, const float *all, const float *half_a,
                      const float *f, const float *wf, const float *fa, const float *fb,
                      double *noise, double *bias);
-/* The step term of the twins recorded, on the lit set and mean of the truth
- * integrator's luminance `fine` (one array of count per twin): for choosing
- * an integrator before the bake's own batches exist. */
+/* The step term of the twins recorded, on the lit set and mean of the
+ * midpoint of the truth integrator's luminance `fine` (one array of count
+ * per twin) and the bake integrator's: for choosing an integrator before
+ * the bake's own batches exist. */
 double ee_twin_step(const ee_tracker_t *t, const float *fine);
 /* The terms after `batches` batches (noise EE_UNKNOWN below 2; step 0 when
  * step_exact, EE_UNKNOWN without twins). */

@@ -2,7 +2,7 @@
 # 32^3 — the estimate against a truth bake, reproducible bits and batches,
 # the command's metadata, grid, --stats JSON and refused values; the same
 # for the adaptive pipeline, with its target and budget; the order
-# statistic behind the lit threshold; and a target below the step's bias.
+# statistic behind the lit threshold; and target mode's integrator choice.
 add_executable(test_error ${BAKER_TEST_DIR}/test_error.c)
 target_link_libraries(test_error PRIVATE bakercore)
 set(ERROR_OUT ${CMAKE_BINARY_DIR}/error_tests)
