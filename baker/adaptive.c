@@ -460,8 +460,7 @@ static int filter_phase(ad_run_t *r, float *radiance, const float *count, const 
 static int target_check(void *ctx, int done, const uint64_t *acc, float *half_a, ee_terms_t *t,
                         bk_error_t *err) {
   ad_run_t *r = ctx;
-  bt_result_t *res = &r->stats->error;
-  if (!r->filter_on || !half_a || done < 2) return BK_OK;
+  bt_result_t *res = &r->stats->error; /* set only with the filter and its halves */
   double keep[3];
   memcpy(keep, r->main.to_radiance, sizeof keep);
   for (int c = 0; c < 3; c++) r->main.to_radiance[c] /= (double)done; /* the mean's, as finish */
