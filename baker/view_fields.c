@@ -6,7 +6,8 @@
 #include "field.h"
 #include "octree.h"
 
-/* n and its constant blocks, exactly as the photon march sees them. */
+/* n, its constant blocks and the field's constant cells, exactly as the
+ * photon march sees them. */
 static int build_refraction(view_volume_t *v, bk_error_t *err) {
   const size_t count = (size_t)v->nx * v->ny * v->nz;
   const oct_source_t n[3] = {{v->ior, 1, 1, 0}, {v->ior_rb, 1, 1, 0},
@@ -14,7 +15,9 @@ static int build_refraction(view_volume_t *v, bk_error_t *err) {
   v->ng = v->ior_rb ? fld_build_rgb(v->nx, v->ny, v->nz, v->voxel_size, v->ior, v->ior_rb, err)
                     : fld_build(v->nx, v->ny, v->nz, v->voxel_size, v->ior, err);
   if (!v->ng) return BK_ERR_RUNTIME;
-  return oct_build_fields(v->nx, v->ny, v->nz, n, v->ior_rb ? 3 : 1, OCT_HALO, &v->npyr, err);
+  const int nsrc = v->ior_rb ? 3 : 1;
+  int rc = oct_build_fields(v->nx, v->ny, v->nz, n, nsrc, OCT_HALO, &v->npyr, err);
+  return rc ? rc : oct_add_cells(v->nx, v->ny, v->nz, n, nsrc, &v->npyr, err);
 }
 
 int view_fields_build(view_volume_t *v, bk_error_t *err) {

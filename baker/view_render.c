@@ -103,7 +103,7 @@ static void setup_params(const view_volume_t *v, const view_cam_t *c, const floa
 
 /* Bytes of a pyramid's levels; a 16-byte stand-in when it was not built. */
 static size_t pyr_bytes(const oct_pyramid_t *p) {
-  return p->level ? (size_t)p->bx * p->by * p->bz : 16;
+  return p->level ? oct_bytes(p) : 16;
 }
 
 static cl_mem make_buffer(view_gpu_t *g, const void *data, size_t bytes, cl_mem_flags flags,

@@ -12,29 +12,8 @@
 #define PM_DDA_LEFT_GRID 2
 #define PM_DDA_ABSORBED 3
 
-/* One axis of the DDA's set-up: the step along it, the path between two
- * crossings of its voxel planes and the path to the first (clamped: x may sit
- * a rounding error outside voxel c). Called once per axis with constant
- * indices, so that the caller's arrays stay in registers. */
-BK_INLINE void pm_dda_axis(float d, float x, int c, int *step, float *tdelta, float *tmax) {
-  if (d > 0.0f) {
-    *step = 1;
-    *tdelta = 1.0f / d;
-    *tmax = ((float)(c + 1) - x) * *tdelta;
-  } else if (d < 0.0f) {
-    *step = -1;
-    *tdelta = -1.0f / d;
-    *tmax = (x - (float)c) * *tdelta;
-  } else {
-    *step = 0;
-    *tdelta = RC_FAR;
-    *tmax = RC_FAR;
-  }
-  *tmax = bk_clampf(*tmax, 0.0f, *tdelta);
-}
-
 /* The path from x to the first voxel plane of one axis, for a step and a
- * tdelta set up already: pm_dda_axis's value, bit for bit. (pm_dda_axis
+ * tdelta set up already: rc_dda_axis's value, bit for bit. (rc_dda_axis
  * calling it measured 1.3% slower on the march: 8 alternating runs.) */
 BK_INLINE float pm_dda_tmax(int step, float tdelta, float x, int c) {
   if (step == 0) return RC_FAR;
@@ -91,9 +70,9 @@ BK_INLINE int pm_dda(const pm_params *P, BK_GLOBAL const bk_uchar *pyr,
 #if PM_FLUX_COMPILED
   ph->fdir = d;
 #endif
-  pm_dda_axis(dv[0], x0[0], c[0], &stp[0], &tdelta[0], &tmax[0]);
-  pm_dda_axis(dv[1], x0[1], c[1], &stp[1], &tdelta[1], &tmax[1]);
-  pm_dda_axis(dv[2], x0[2], c[2], &stp[2], &tdelta[2], &tmax[2]);
+  rc_dda_axis(dv[0], x0[0], c[0], &stp[0], &tdelta[0], &tmax[0]);
+  rc_dda_axis(dv[1], x0[1], c[1], &stp[1], &tdelta[1], &tmax[1]);
+  rc_dda_axis(dv[2], x0[2], c[2], &stp[2], &tdelta[2], &tmax[2]);
   for (int a = 0; a < 3; a++) didx[a] = stp[a] * stride[a];
   float t = 0.0f;
   int status;

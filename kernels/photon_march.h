@@ -523,45 +523,21 @@ BK_INLINE int pm_curved_step(const pm_params *P, BK_GLOBAL const float *ng,
 #endif
 
 #if !PH_DEVICE || HAS_REFRACTION
-/* Past a cell's exit face by this much (voxels, 2^-10), so that the next
- * lookup lands in the next cell whatever the rounding of x (an ulp of
- * coordinates below 4096); nearer the face than this, no walk. */
-#define PM_CELL_PAST 0.0009765625f
-
 /* Straight across the run of constant cells of the field that x starts
  * (rc_cell_constant: n one value and ∇n exactly 0 in each), to the face
- * where the next cell varies or the grid ends, deposited by the DDA as a
- * curved step's chord is. The cells are walked as the voxels are (the
- * lattice of cells is the voxels' shifted by half a voxel), a flag read
- * per cell. Returns a PM_DDA_* status, or -1 when x is already on the exit
- * face (the caller takes a curved step, which always moves on). v stays:
- * ∇n is 0 on the way. */
+ * where the next cell varies or the grid ends (rc_cell_run), deposited by
+ * the DDA as a curved step's chord is. Returns a PM_DDA_* status, or -1
+ * when x is already on the exit face (the caller takes a curved step,
+ * which always moves on). v stays: ∇n is 0 on the way. */
 BK_INLINE int pm_cell_walk(const pm_params *P, BK_GLOBAL const bk_uchar *pyr,
                            BK_GLOBAL const float *sigma, BK_GLOBAL bk_ulong *acc,
                            BK_GLOBAL bk_ulong *masks, pm_photon *ph) {
   const rc_dims n3 = {P->grid.nx, P->grid.ny, P->grid.nz};
   const bk_v3 d = rc_normalize(ph->v);
-  /* the cell's padded corner index p (as rc_tri_at's, unclamped) and, per
-   * axis, its low face p - 0.5 */
-  const float x[3] = {ph->x.x, ph->x.y, ph->x.z}, dv[3] = {d.x, d.y, d.z};
-  const int n[3] = {n3.nx, n3.ny, n3.nz};
-  int p[3], stp[3];
-  float tmax[3], tdelta[3];
-  for (int a = 0; a < 3; a++) {
-    p[a] = rc_floori(x[a] - 0.5f) + 1;
-    pm_dda_axis(dv[a], x[a] + 0.5f, p[a], &stp[a], &tdelta[a], &tmax[a]);
-  }
-  float len;
-  for (;;) {
-    const int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
-    len = tmax[a];
-    p[a] += stp[a];
-    if (p[a] < 0 || p[a] > n[a] || !rc_cell_flag(pyr, n3, p[0], p[1], p[2])) break;
-    tmax[a] += tdelta[a];
-  }
-  if (!(len > PM_CELL_PAST)) return -1;
+  const float len = rc_cell_run(pyr, n3, ph->x, d);
+  if (!(len > RC_CELL_PAST)) return -1;
   int gl[3] = {0, 0, 0}, gh[3] = {n3.nx, n3.ny, n3.nz};
-  return pm_dda(P, 0, sigma, acc, masks, ph, d, len + PM_CELL_PAST, gl, gh, 0);
+  return pm_dda(P, 0, sigma, acc, masks, ph, d, len + RC_CELL_PAST, gl, gh, 0);
 }
 #endif
 

@@ -19,8 +19,8 @@
  *    naming the coarsest block of 2, 8, 32 or 128 voxels a side that holds
  *    it and over which (with a halo) a quantity is constant; a ray goes
  *    straight across such a block (rc_block_level, rc_block_bounds); for
- *    the photon march also a bit per trilinear cell whose {∇n, n} is one
- *    value with ∇n = 0, where a ray goes straight too (rc_cell_flag).
+ *    n also a bit per trilinear cell whose {∇n, n} is one value with
+ *    ∇n = 0, where a ray goes straight too (rc_cell_flag, rc_cell_run).
  * Everything is in voxel coordinates u = (x − origin)/h: voxel i spans
  * [i, i+1) and its value sits at i + 0.5. */
 #ifndef BAKER_RAY_CORE_H
@@ -383,6 +383,27 @@ BK_INLINE void rc_step(rc_dims n, BK_GLOBAL const float *ng, int integrator, flo
   *v1 = v3_madd(v, sv, h / 6.0f);
 }
 
+/* One axis of the DDA's set-up: the step along it, the path between two
+ * crossings of its voxel planes and the path to the first (clamped: x may sit
+ * a rounding error outside voxel c). Called once per axis with constant
+ * indices, so that the caller's arrays stay in registers. */
+BK_INLINE void rc_dda_axis(float d, float x, int c, int *step, float *tdelta, float *tmax) {
+  if (d > 0.0f) {
+    *step = 1;
+    *tdelta = 1.0f / d;
+    *tmax = ((float)(c + 1) - x) * *tdelta;
+  } else if (d < 0.0f) {
+    *step = -1;
+    *tdelta = -1.0f / d;
+    *tmax = (x - (float)c) * *tdelta;
+  } else {
+    *step = 0;
+    *tdelta = RC_FAR;
+    *tmax = RC_FAR;
+  }
+  *tmax = bk_clampf(*tmax, 0.0f, *tdelta);
+}
+
 /* ---- the constant-block pyramid ------------------------------------------ */
 
 /* Finest blocks along each axis of a grid of `voxels` voxels. */
@@ -428,6 +449,37 @@ BK_INLINE int rc_cell_constant(BK_GLOBAL const bk_uchar *pyr, rc_dims n, bk_v3 u
   return rc_cell_flag(pyr, n, bk_clampi(rc_floori(u.x - 0.5f) + 1, 0, n.nx),
                       bk_clampi(rc_floori(u.y - 0.5f) + 1, 0, n.ny),
                       bk_clampi(rc_floori(u.z - 0.5f) + 1, 0, n.nz));
+}
+
+/* Past a cell's exit face by this much (voxels, 2^-10), so that the next
+ * lookup lands in the next cell whatever the rounding of x (an ulp of
+ * coordinates below 4096); a run shorter than this is not taken. */
+#define RC_CELL_PAST 0.0009765625f
+
+/* The path from u along the unit direction d across the run of constant
+ * cells that u starts, to the face where the next cell varies or the
+ * padded lattice ends (up to half a voxel past the grid's face: clip it).
+ * The cells are walked as voxels are (their lattice is the voxels' shifted
+ * by half a voxel), a flag read per cell. The photon march deposits that
+ * chord (pm_cell_walk); the view integrates it (view_next_chord). */
+BK_INLINE float rc_cell_run(BK_GLOBAL const bk_uchar *pyr, rc_dims n3, bk_v3 u, bk_v3 d) {
+  /* the cell's padded corner index p (as rc_tri_at's, unclamped) and, per
+   * axis, its low face p - 0.5 */
+  const float x[3] = {u.x, u.y, u.z}, dv[3] = {d.x, d.y, d.z};
+  const int n[3] = {n3.nx, n3.ny, n3.nz};
+  int p[3], stp[3];
+  float tmax[3], tdelta[3];
+  for (int a = 0; a < 3; a++) {
+    p[a] = rc_floori(x[a] - 0.5f) + 1;
+    rc_dda_axis(dv[a], x[a] + 0.5f, p[a], &stp[a], &tdelta[a], &tmax[a]);
+  }
+  for (;;) {
+    const int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
+    const float len = tmax[a];
+    p[a] += stp[a];
+    if (p[a] < 0 || p[a] > n[a] || !rc_cell_flag(pyr, n3, p[0], p[1], p[2])) return len;
+    tmax[a] += tdelta[a];
+  }
 }
 
 #endif

@@ -320,6 +320,22 @@ BK_INLINE void view_curved(const view_params_t *p, view_fields f, view_flags fl,
   r->inv = view_inv_dir(r->dir);
 }
 
+/* Across a run of the field's constant cells (rc_cell_run, `len` past its
+ * exit face), where n is one value and ∇n = 0: the exact straight ray, a
+ * chord sampled as finely as the curved steps around it. */
+BK_INLINE void view_cell_chord(const view_params_t *p, view_ray *r, float len) {
+  if (r->run > 0.0f) {
+    r->flush = 1;
+    return;
+  }
+  bk_v3 xn = v3_madd(r->x, r->dir, len);
+  r->done = view_clip_segment(r->x, &xn, v3((float)p->nx, (float)p->ny, (float)p->nz));
+  r->clen = rc_length(v3_sub(xn, r->x));
+  r->cn = rc_ceili(r->clen / fmin(p->step, p->straight_step));
+  if (r->cn < 1) r->cn = 1;
+  r->x = xn;
+}
+
 /* Chooses this turn's chord for the ray at r->x (see view_march_pixel). */
 BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags fl, view_ray *r) {
   const rc_dims n = view_dims(p);
@@ -342,7 +358,9 @@ BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags
     rc_block_bounds(n, nlevel, c, lo, hi);
     view_straight(p, r, lo, hi, mconst, 1);
   } else {
-    view_curved(p, f, fl, r);
+    const float cells = rc_cell_constant(f.npyr, n, r->x) ? rc_cell_run(f.npyr, n, r->x, r->dir) : 0.0f;
+    if (cells > RC_CELL_PAST) view_cell_chord(p, r, cells + RC_CELL_PAST);
+    else view_curved(p, f, fl, r);
   }
   if (r->flush) {
     r->ca = r->run_a;
@@ -361,8 +379,9 @@ BK_INLINE void view_next_chord(const view_params_t *p, view_fields f, view_flags
  *  - consecutive blocks of constant n and varying medium (the whole box
  *    without refraction) are gathered into one chord stepped at most
  *    straight_step apart: per step one trilinear lookup and one segment;
- *  - inside refracting bricks, a finer constant block of n is a straight
- *    chord stepped as finely as the curved steps around it;
+ *  - inside refracting bricks, a finer constant block of n, or a run of
+ *    the field's constant cells, is a straight chord stepped as finely as
+ *    the curved steps around it;
  *  - elsewhere, one curved step of the ray equation (Euler or RK4).
  * All segments go through one call site so the compiler keeps L and T in
  * registers. */

@@ -8,9 +8,11 @@
  * In: two RGBA OpenEXR images of the same size (formats/exr.h reads them).
  * Out: one JSON line on stdout,
  *   {"rel_rms": e, "rms": d, "ref_rms": r, "width": w, "height": h,
- *    "nonfinite": k, "max_abs": m, "differ": f}
+ *    "nonfinite": k, "max_abs": m, "differ": f, "rel_mae": a}
  * with the relative RMS error over the R, G, B values of every pixel
  *   e = sqrt( sum (test - ref)^2 / sum ref^2 ),
+ * its absolute kin a = sum |test - ref| / sum |ref| (less ruled by the few
+ * pixels whose rays graze a refracting surface and go elsewhere),
  * d = sqrt(mean (test - ref)^2), r = sqrt(mean ref^2), k the number of
  * non-finite values in TEST (the writer turns NaN into 0 and clamps inf to the
  * half range, so k counts what reached the file), m the largest |test-ref|
@@ -41,7 +43,7 @@ static void usage(FILE *out) {
   fprintf(out,
           "usage: bench_tool exrdiff TEST.exr REF.exr\n"
           "  prints {\"rel_rms\": ..., \"rms\": ..., \"ref_rms\": ..., \"width\": ..., "
-          "\"height\": ..., \"nonfinite\": ..., \"max_abs\": ..., \"differ\": ...}\n"
+          "\"height\": ..., \"nonfinite\": ..., \"max_abs\": ..., \"differ\": ..., \"rel_mae\": ...}\n"
           "  rel_rms = sqrt(sum (TEST-REF)^2 / sum REF^2) over R, G, B of all pixels\n"
           "usage: bench_tool vdbdiff TEST.vdb REF.vdb GRID\n"
           "  prints {\"max_rel\": ..., \"rel_l2\": ..., \"voxels\": ..., \"max_abs\": ...}\n"
@@ -62,7 +64,7 @@ static int exrdiff(const char *test_path, const char *ref_path) {
     goto error;
   }
   /* double sums: a 800x600 image has 1.4 M values, float would lose digits */
-  double sum_d2 = 0.0, sum_r2 = 0.0, max_abs = 0.0;
+  double sum_d2 = 0.0, sum_r2 = 0.0, max_abs = 0.0, sum_ad = 0.0, sum_ar = 0.0;
   long long nonfinite = 0, differ = 0;
   size_t pixels = (size_t)tw * (size_t)th;
   for (size_t p = 0; p < pixels; p++) sum_r2 += (double)ref[4 * p] * ref[4 * p];
@@ -79,6 +81,7 @@ static int exrdiff(const char *test_path, const char *ref_path) {
       double d = t - r;
       sum_d2 += d * d;
       sum_r2 += r * r;
+      sum_ad += fabs(d), sum_ar += fabs(r);
       if (fabs(d) > max_abs) max_abs = fabs(d);
       /* beyond the rounding of two half-float writes (2^-11 each) */
       if (fabs(d) > 2e-3 * fabs(r) + floor_abs) pixel_differs = 1;
@@ -90,9 +93,11 @@ static int exrdiff(const char *test_path, const char *ref_path) {
   if (sum_r2 > 0.0) printf("%.9g", sqrt(sum_d2 / sum_r2));
   else printf("null");
   printf(", \"rms\": %.9g, \"ref_rms\": %.9g, \"width\": %d, \"height\": %d, "
-         "\"nonfinite\": %lld, \"max_abs\": %.9g, \"differ\": %.9g}\n",
+         "\"nonfinite\": %lld, \"max_abs\": %.9g, \"differ\": %.9g, \"rel_mae\": ",
          sqrt(sum_d2 / n), sqrt(sum_r2 / n), tw, th, nonfinite, max_abs,
          (double)differ / (double)(pixels ? pixels : 1));
+  if (sum_ar > 0.0) printf("%.9g}\n", sum_ad / sum_ar);
+  else printf("null}\n");
 error:
   if (rc) fprintf(stderr, "bench_tool exrdiff: %s\n", err.msg);
   free(test);

@@ -10,12 +10,13 @@ add_executable(test_view_render ${BAKER_TEST_DIR}/test_view_render.c)
 target_link_libraries(test_view_render PRIVATE bakercore)
 set(VIEW_TEST_DIR ${CMAKE_CURRENT_BINARY_DIR}/view_tests)
 file(MAKE_DIRECTORY ${VIEW_TEST_DIR})
-set(VIEW_TESTS view_cube view_cube_rgb view_sequence view_host_device view_lens)
+set(VIEW_TESTS view_cube view_cube_rgb view_sequence view_host_device view_lens view_lens_steps)
 add_test(NAME view_cube COMMAND test_view_render cube ${VIEW_TEST_DIR})
 add_test(NAME view_cube_rgb COMMAND test_view_render cube_rgb ${VIEW_TEST_DIR})
 add_test(NAME view_sequence COMMAND test_view_render sequence ${VIEW_TEST_DIR})
 add_test(NAME view_host_device COMMAND test_view_render host_device ${VIEW_TEST_DIR})
 add_test(NAME view_lens COMMAND test_view_render lens ${VIEW_TEST_DIR})
+add_test(NAME view_lens_steps COMMAND test_view_render lens_steps ${VIEW_TEST_DIR})
 
 # Fog volumes of pyopenvdb's making: voxel size 0.05, a translation that is
 # not a multiple of it, a box that starts off the leaf-node grid, grey
