@@ -126,12 +126,16 @@ static float box_path(bk_v3 o, bk_v3 d, float n) {
  * brick-crossing steps, straight chords in fine blocks of n, mixed bricks),
  * against the closed form. Levels: n pyramid 2 = the brick's n is constant,
  * 1 = only its 2³ blocks are (straight chords inside a refracting brick),
- * 0 = curved steps; medium pyramid 2 = one step per brick. */
+ * 0 = curved steps, or in odd variants straight runs across the field's
+ * constant cells (all flagged: n is 1 throughout); medium pyramid 2 = one
+ * step per brick. */
 static void test_march(void) {
   enum { N = 16, NP = (N + 2) * (N + 2) * (N + 2) };
   static float medium[N * N * N * 4], st4[N * N * N * 4], ior[N * N * N];
   static float medium_p[NP * 4], st4_p[NP * 4];
-  static unsigned char npyr[512], mpyr[512];
+  const rc_dims dims = {N, N, N};
+  enum { CELL_BYTES = 867 }; /* rc_cell_byte(dims, N, N, N) + 1 */
+  static unsigned char npyr[512 + CELL_BYTES], mpyr[512];
   const float Lb[3] = {1.0f, 0.5f, 0.25f}, sigs[3] = {0.1f, 0.05f, 0.02f};
   const float rgb_t[3] = {0.12f, 0.05f, 0.3f}, grey_t = 0.12f;
   view_params_t p = cam_params(60.0f, 33, 33);
@@ -187,6 +191,8 @@ static void test_march(void) {
       mb[b] = !(var[vi].mlev & CHECKER) ? var[vi].mlev : odd ? var[vi].mlev & ~CHECKER : 0;
     }
     fill_pyramid(npyr, nb);
+    REQUIRE(rc_cell_byte(dims, N, N, N) + 1 == CELL_BYTES, "cell flags' size");
+    memset(npyr + 512, vi & 1 ? 0xff : 0, CELL_BYTES);
     fill_pyramid(mpyr, mb);
     fld_pad4(N, N, N, medium, medium_p);
     fld_pad4(N, N, N, st4, st4_p);
