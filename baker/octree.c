@@ -347,11 +347,6 @@ int oct_add_cells(int nx, int ny, int nz, const oct_source_t *src, int nsrc, oct
   return BK_OK;
 }
 
-int oct_build(const grid_dims_t *d, const float *ior, oct_pyramid_t *out, bk_error_t *err) {
-  const oct_source_t n = {ior, 1, 1, 0};
-  return oct_build_fields(d->nx, d->ny, d->nz, &n, 1, OCT_HALO, out, err);
-}
-
 void oct_free(oct_pyramid_t *p) {
   if (!p) return;
   free(p->level);

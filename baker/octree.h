@@ -63,14 +63,12 @@ typedef struct oct_source {
   int pad;
 } oct_source_t;
 
-/* Builds the pyramid of `ior` (grid_count(d) floats), exact equality and a
- * halo of OCT_HALO: the photon march's. BK_ERR_RUNTIME when out of memory. */
-int oct_build(const grid_dims_t *d, const float *ior, oct_pyramid_t *out, bk_error_t *err);
-/* The general form: constant where every channel of every source takes one
- * value over the block and `halo` (1..OCT_MAX_HALO) voxels around. */
+/* The pyramid: constant where every channel of every source takes one
+ * value over the block and `halo` (1..OCT_MAX_HALO) voxels around (n:
+ * OCT_HALO, exact equality). BK_ERR_RUNTIME when out of memory. */
 int oct_build_fields(int nx, int ny, int nz, const oct_source_t *src, int nsrc, int halo,
                      oct_pyramid_t *out, bk_error_t *err);
-/* The photon march's constant cells of the {∇n, n} field, after the levels
+/* The constant cells of the {∇n, n} field (photon march and view), after the levels
  * (kernels/ray_core.h, rc_cell_flag): one bit per trilinear cell (the cube
  * between 8 voxel centres; padded lower-corner index p in [0, n] per axis,
  * one byte per 8 cells along x, rows of (nx + 8) / 8 bytes), set when no

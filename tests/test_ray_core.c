@@ -295,10 +295,9 @@ static void test_cells(void) {
   static float n[NX * NY * NZ];
   ball_band(n, NX, NY, NZ, 0.25f);
   bk_error_t err = {0};
-  const grid_dims_t gd = {NX, NY, NZ, 0.1f, {0, 0, 0}};
   oct_pyramid_t pyr;
-  REQUIRE(oct_build(&gd, n, &pyr, &err) == BK_OK, "%s", err.msg);
   const oct_source_t src = {n, 1, 1, 0};
+  REQUIRE(oct_build_fields(NX, NY, NZ, &src, 1, OCT_HALO, &pyr, &err) == BK_OK, "%s", err.msg);
   REQUIRE(oct_add_cells(NX, NY, NZ, &src, 1, &pyr, &err) == BK_OK, "%s", err.msg);
   float *ng = fld_build(NX, NY, NZ, 0.1, n, &err);
   REQUIRE(ng, "%s", err.msg);
