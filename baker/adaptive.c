@@ -340,6 +340,33 @@ error:
   return rc;
 }
 
+/* filter_error's per-voxel passes, over voxels [v0, v1) (bk_parallel). */
+typedef struct halves_job {
+  const float *raw, *radiance; /* the raw mean (C channels), the filtered radiance (RGB) */
+  float *half_a, *half_b;      /* half A's sums in, the halves' means out; or luminance out */
+  int C;
+  float to_sum, na, nb;
+} halves_job_t;
+
+/* The halves' means: A's from its sums, B's as the whole's sum less A's. */
+static void halves_range(void *ctx, size_t v0, size_t v1) {
+  const halves_job_t *j = ctx;
+  for (size_t v = v0; v < v1; v++) {
+    const float *x = j->raw + (size_t)j->C * v;
+    const float lum = j->C == 1 ? x[0] : ad_luminance(x[0], x[1], x[2]);
+    const float sum_a = j->half_a[v];
+    j->half_a[v] = sum_a / j->na;
+    j->half_b[v] = (lum * j->to_sum - sum_a) / j->nb; /* at v, read from C v */
+  }
+}
+
+/* The filtered radiance's luminance, into half_a. */
+static void luminance_range(void *ctx, size_t v0, size_t v1) {
+  const halves_job_t *j = ctx;
+  for (size_t v = v0; v < v1; v++)
+    j->half_a[v] = ad_luminance(j->radiance[3 * v], j->radiance[3 * v + 1], j->radiance[3 * v + 2]);
+}
+
 /* The two halves of the batches filtered as the whole was (at its radii:
  * a linear map, ad_filter_fixed_lattice) and the filter's terms
  * (ee_filter_terms) from them and the filtered radiance, on the even
@@ -370,14 +397,11 @@ static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
   for (size_t l = 0; l < L; l++) all[l] *= to_sum;
   ee_lattice_gather(d, res->half_a, 1, half_a);
   ee_lattice_gather(d, radiance, 3, f);
-  float *half_b = r->raw; /* voxel v's mean lands at v, read from C v: in order */
-  for (size_t v = 0; v < V; v++) {
-    const float *x = r->raw + (size_t)C * v;
-    const float lum = C == 1 ? x[0] : ad_luminance(x[0], x[1], x[2]);
-    const float sum_a = res->half_a[v];
-    res->half_a[v] = sum_a / na;              /* half A's mean */
-    half_b[v] = (lum * to_sum - sum_a) / nb; /* half B's mean */
-  }
+  float *half_b = r->raw;
+  halves_job_t job = {r->raw, radiance, res->half_a, half_b, C, to_sum, na, nb};
+  /* in place: RGB means land below the sums still to read, so in order */
+  if (C == 1) bk_parallel(V, BK_GRAIN, halves_range, &job);
+  else halves_range(&job, 0, V);
   const float *in[2] = {res->half_a, half_b};
   float *out[2] = {fa, fb};
   int rc = ad_filter_fixed_lattice(d, in, 2, radius, r->levels, out, err);
@@ -385,8 +409,7 @@ static int filter_error(ad_run_t *r, const float *radiance, const float *radius,
    * filtered radiance filtered again (docs/error.md, "The filter") */
   float *wf = r->opt->noise_k >= 0.0f ? lat + 5 * L : NULL;
   if (rc == BK_OK && wf) {
-    for (size_t v = 0; v < V; v++) /* half A's mean is done with */
-      res->half_a[v] = ad_luminance(radiance[3 * v], radiance[3 * v + 1], radiance[3 * v + 2]);
+    bk_parallel(V, BK_GRAIN, luminance_range, &job); /* half A's mean is done with */
     const float *lum_f = res->half_a;
     rc = ad_filter_fixed_lattice(d, &lum_f, 1, radius, r->levels, &wf, err);
   }
