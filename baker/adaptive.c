@@ -478,8 +478,8 @@ static int filter_phase(ad_run_t *r, float *radiance, const float *count, const 
 /* bt_options_t.target_terms: the estimate of the grid the bake would write
  * after `done` batches, made as at the end (the sums unpacked, filtered and
  * measured, into the output grids, which the end writes again), so that
- * target mode plans and stops on the filtered grid's error, not on the raw
- * mean's (docs/error.md, "Steering"). */
+ * target mode stops on the filtered grid's error, not on the raw mean's
+ * (its plan stays on the raw noise: docs/error.md, "Steering"). */
 static int target_check(void *ctx, int done, const uint64_t *acc, float *half_a, ee_terms_t *t,
                         bk_error_t *err) {
   ad_run_t *r = ctx;
