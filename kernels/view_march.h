@@ -281,6 +281,15 @@ typedef struct view_ray {
  * the smaller of the two; else, in a brick (fine 0), the brick joins the
  * pending chord; in a finer block of a refracting brick (fine 1), a chord of
  * its own sampled as finely as the curved steps around it. */
+/* This turn's chord: straight from r->x to xn, `len` long, in one step or
+ * (fine) as finely as the curved steps around it. */
+BK_INLINE void view_take_chord(const view_params_t *p, view_ray *r, bk_v3 xn, float len, int fine) {
+  r->clen = len;
+  if (fine) r->cn = rc_ceili(len / fmin(p->step, p->straight_step));
+  if (r->cn < 1) r->cn = 1;
+  r->x = xn;
+}
+
 BK_INLINE void view_straight(const view_params_t *p, view_ray *r, const int *lo, const int *hi,
                              int mconst, int fine) {
   bk_v3 xn = r->x;
@@ -294,10 +303,7 @@ BK_INLINE void view_straight(const view_params_t *p, view_ray *r, const int *lo,
   } else if (r->run > 0.0f) {
     r->flush = 1; /* the pending chord first; this block on the next turn */
   } else {
-    r->clen = h;
-    if (fine) r->cn = rc_ceili(h / fmin(p->step, p->straight_step));
-    if (r->cn < 1) r->cn = 1;
-    r->x = xn;
+    view_take_chord(p, r, xn, h, fine);
   }
 }
 
@@ -330,10 +336,7 @@ BK_INLINE void view_cell_chord(const view_params_t *p, view_ray *r, float len) {
   }
   bk_v3 xn = v3_madd(r->x, r->dir, len);
   r->done = view_clip_segment(r->x, &xn, v3((float)p->nx, (float)p->ny, (float)p->nz));
-  r->clen = rc_length(v3_sub(xn, r->x));
-  r->cn = rc_ceili(r->clen / fmin(p->step, p->straight_step));
-  if (r->cn < 1) r->cn = 1;
-  r->x = xn;
+  view_take_chord(p, r, xn, rc_length(v3_sub(xn, r->x)), 1);
 }
 
 /* Chooses this turn's chord for the ray at r->x (see view_march_pixel). */
